@@ -1,0 +1,59 @@
+"""Constants that travel inside the ONNX file as metadata, written by export/ and checked by the runtime."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+from runtime.preprocess import PREPROCESSING
+
+#: Metadata key prefix in the ONNX file's metadata_props.
+PREFIX = "vtr."
+#: Bump when the model's input/output contract changes.
+FORMAT_VERSION = 1
+INPUT_CURRENT = "current"
+INPUT_SUBGOAL = "subgoal"
+OUTPUT_VELOCITIES = "velocities"  # (B, 2, N): row 0 = v (m/s), row 1 = w (rad/s)
+
+
+@dataclass(frozen=True)
+class ModelMeta:
+    """The model's constants. Every field is stored as a string under ``vtr.<field>``."""
+
+    image_height: int = 128
+    image_width: int = 128
+    horizon: int = 2  # N velocity steps predicted per call
+    v_max: float = 0.5  # m/s, |v| <= v_max by the tanh head
+    w_max: float = 1.0  # rad/s
+    dt: float = 0.1  # s each predicted command is meant to be applied for
+    e_m_default: float = 17.0  # subgoal switch threshold, mean abs pixel difference (0..255)
+    preprocessing: str = PREPROCESSING
+    format_version: int = FORMAT_VERSION
+
+    def __post_init__(self) -> None:
+        if self.image_height <= 0 or self.image_width <= 0:
+            raise ValueError(f"image size must be positive, got {self.image_height}x{self.image_width}")
+        if self.horizon < 1:
+            raise ValueError(f"horizon must be >= 1, got {self.horizon}")
+        if not (self.v_max > 0 and self.w_max > 0 and self.dt > 0 and self.e_m_default > 0):
+            raise ValueError(f"v_max, w_max, dt and e_m_default must be positive: {self}")
+
+    def to_props(self) -> dict[str, str]:
+        return {PREFIX + k: str(v) for k, v in asdict(self).items()}
+
+    @classmethod
+    def from_props(cls, props: dict[str, str]) -> ModelMeta:
+        """Parse ONNX metadata; raises ValueError naming any missing or malformed key."""
+        kwargs = {}
+        for name, field in cls.__dataclass_fields__.items():
+            key = PREFIX + name
+            if key not in props:
+                raise ValueError(f"model metadata lacks {key!r}; was it exported with `vtr export`?")
+            typ = field.type if isinstance(field.type, type) else {"int": int, "float": float, "str": str}[field.type]
+            try:
+                kwargs[name] = typ(props[key])
+            except ValueError as err:
+                raise ValueError(f"model metadata {key}={props[key]!r} is not a valid {typ.__name__}") from err
+        meta = cls(**kwargs)
+        if meta.format_version != FORMAT_VERSION:
+            raise ValueError(f"model format version {meta.format_version}, this runtime reads {FORMAT_VERSION}")
+        return meta
