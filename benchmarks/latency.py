@@ -281,10 +281,11 @@ def _backend_runner(
 def _torch_module(cfg: LatencyConfig) -> Callable[[Any, Any], Any]:
     """VelocityNet as a torch eager callable: from a checkpoint if given, else rebuilt from the ONNX weights."""
     if cfg.checkpoint is not None:
-        from training.models import load_velocitynet  # type: ignore[attr-defined]
+        from training.train import load_model
 
-        net = load_velocitynet(cfg.checkpoint)
-        net.eval()
+        kind, net, _ = load_model(cfg.checkpoint)
+        if kind != "velocitynet":
+            raise ValueError(f"{cfg.checkpoint} holds a {kind}, not a velocitynet")
         return lambda a, b: net(a, b)
     from benchmarks.onnx_tools import OnnxTorchModule
     from runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
