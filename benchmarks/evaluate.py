@@ -1,0 +1,769 @@
+"""`vtr eval`: closed-loop tracking on scripted routes, scored the paper's way, beside baselines.
+
+For every route (``sim2d/routes/*.json``): teach it once (noise-free, in process, over
+``sim2d.local_robot.LocalRobot``), then repeat it in two scenarios:
+
+* ``noise``  - from the taught start pose with actuation noise on (``--noise``, the simulator's level);
+* ``offset`` - from a start pose shifted by ``--offset`` (dx, dy in the robot's frame, dyaw), noise off.
+
+Each scenario runs every method: VelocityNet (the shipped ONNX through the runtime's controller), its int8
+twin and a w2 = 0 ablation when given, open-loop replay of the taught commands, and an online MPC that
+searches velocities with ViewNet at every step (the paper's future work). The runtime sees only images;
+poses are read from the simulator for scoring only.
+
+Outputs: a JSON file with every number (per route, per scenario, per method, and aggregated), a Markdown
+table beside the paper's Tables 1 and 2, and PNG plots in the paper's style.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from benchmarks import metrics
+
+REPO_ROOT = Path(__file__).resolve().parent.parent
+ROUTES_DIR = REPO_ROOT / "sim2d" / "routes"
+
+#: The paper's three scenarios (route file stems) and its Tables 1 and 2.
+PAPER_ROUTES = ("translation", "rotation", "translation_rotation")
+PAPER = {
+    "translation": {"unit": "m", "min": 3.37e-6, "max": 0.025, "mean": 0.012, "std": 6.98e-3},
+    "translation_rotation": {"unit": "m", "min": 2.13e-4, "max": 8.825e-3, "mean": 5.04e-3, "std": 2.203e-3},
+    "rotation": {"unit": "deg", "min": 6.36e-3, "max": 5.053, "mean": 1.578, "std": 1.187},
+}
+QUICK_ROUTES = ("translation",)
+
+
+@dataclass
+class EvalConfig:
+    """Settings of one closed-loop evaluation."""
+
+    model: Path  # fp32 VelocityNet ONNX
+    routes: tuple[str, ...] = ()  # route names (stems in sim2d/routes) or ROUTE.json paths; () = all
+    noise: float = 0.05  # actuation noise of the repeat runs (SimConfig.noise: 5% speed error + jitter)
+    offset: tuple[float, float, float] = (
+        0.03,
+        0.03,
+        3.0,
+    )  # start offset: dx, dy (m, robot frame), dyaw (deg)
+    int8_model: Path | None = None  # int8 twin; None -> `<model stem>-int8.onnx` beside the model, if present
+    ablation_model: Path | None = None  # a VelocityNet trained with w2 = 0 (ONNX)
+    viewnet: Path | None = None  # ViewNet checkpoint for the online-MPC baseline; None -> no MPC
+    mpc_routes: tuple[str, ...] = PAPER_ROUTES  # the MPC is slow: run it on these routes only
+    mpc_samples: int = 48  # candidate (v, w) sequences per MPC step
+    mpc_iterations: int = 2  # cross-entropy refinements of the candidate distribution
+    open_loop: bool = True  # run the open-loop replay baseline
+    e_m: float | None = None  # fixed switch threshold (the paper's 17); None = the runtime's calibrated e_m
+    dt: float = 0.1  # s each command is applied for (the paper's control step)
+    max_steps_factor: float = 4.0  # give up after factor * subgoals + 50 control steps
+    seed: int = 0  # actuation noise seed
+    threads: int = 1  # onnxruntime / torch threads per worker
+    workers: int = 2  # processes over routes
+    quick: bool = False  # one short route, one scenario, no MPC: for the tests
+    json_path: Path | None = None
+    plots_dir: Path | None = None
+    markdown_path: Path | None = None  # default: beside the JSON file, same stem + .md
+
+    def __post_init__(self) -> None:
+        self.model = Path(self.model)
+        if not self.model.is_file():
+            raise ValueError(f"model file not found: {self.model}")
+        if not 0.0 <= self.noise <= 1.0:
+            raise ValueError(f"noise must be in [0, 1], got {self.noise}")
+        if len(self.offset) != 3 or not all(math.isfinite(o) for o in self.offset):
+            raise ValueError(f"offset must be three finite numbers (dx m, dy m, dyaw deg), got {self.offset}")
+        for name in ("ablation_model", "viewnet"):
+            value = getattr(self, name)
+            if value is not None and not Path(value).exists():
+                raise ValueError(f"{name} not found: {value}")
+        if self.int8_model is None:
+            sibling = self.model.with_name(self.model.stem + "-int8" + self.model.suffix)
+            self.int8_model = sibling if sibling.is_file() else None
+        elif not Path(self.int8_model).is_file():
+            raise ValueError(f"int8 model not found: {self.int8_model}")
+        if self.mpc_samples < 2 or self.mpc_iterations < 1:
+            raise ValueError(f"mpc_samples must be >= 2 and mpc_iterations >= 1, got {self.mpc_samples}, "
+                             f"{self.mpc_iterations}")  # fmt: skip
+        if self.e_m is not None and not self.e_m > 0:
+            raise ValueError(f"e_m must be positive, got {self.e_m}")
+        if not self.dt > 0 or not self.max_steps_factor > 0:
+            raise ValueError(
+                f"dt and max_steps_factor must be positive, got {self.dt}, {self.max_steps_factor}"
+            )
+        if self.threads < 1 or self.workers < 1:
+            raise ValueError(f"threads and workers must be >= 1, got {self.threads}, {self.workers}")
+        if self.json_path is not None and self.markdown_path is None:
+            self.markdown_path = Path(self.json_path).with_suffix(".md")
+
+
+# ---------------------------------------------------------------- routes and teach
+
+
+def route_files(names: tuple[str, ...]) -> list[Path]:
+    """ROUTE.json paths for names (stems in sim2d/routes) or paths; all routes when names is empty."""
+    if not names:
+        files = sorted(ROUTES_DIR.glob("*.json"))
+        if not files:
+            raise ValueError(f"no routes in {ROUTES_DIR}")
+        # The paper's scenarios first, in the paper's order.
+        return sorted(files, key=lambda p: (p.stem not in PAPER_ROUTES, PAPER_ROUTES.index(p.stem)
+                                            if p.stem in PAPER_ROUTES else 0, p.stem))  # fmt: skip
+    out = []
+    for name in names:
+        path = Path(name)
+        if not path.suffix:
+            path = ROUTES_DIR / f"{name}.json"
+        if not path.is_file():
+            raise ValueError(f"route not found: {name} (looked at {path})")
+        out.append(path)
+    return out
+
+
+def make_robot(noise: float, image_size: tuple[int, int]) -> Any:
+    from sim2d.local_robot import LocalRobot
+
+    from sim2d import CameraConfig, SimConfig, Simulator
+
+    h, w = image_size
+    return LocalRobot(Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=noise)))
+
+
+def teach(script_path: Path, image_size: tuple[int, int], dt: float) -> Any:
+    """Drive the scripted route noise-free and record its visual trajectory (a runtime.route.Route)."""
+    from runtime.route_script import load_route_script
+
+    from runtime import teach as rteach
+
+    script = load_route_script(script_path)
+    robot = make_robot(0.0, image_size)
+    return rteach.teach_route(robot, script, dt=dt)
+
+
+# ---------------------------------------------------------------- one repeat run
+
+
+@dataclass
+class RunLog:
+    """What one repeat run did: poses for scoring, commands, and how far it got."""
+
+    poses: list[tuple[float, float, float]] = field(default_factory=list)
+    commands: list[tuple[float, float]] = field(default_factory=list)
+    switch_poses: dict[int, tuple[float, float, float]] = field(
+        default_factory=dict
+    )  # subgoal -> pose at switch
+    subgoals_reached: int = 0
+    steps: int = 0
+    sim_time: float = 0.0
+    collisions: int = 0
+    outcome: str = ""
+    policy_ms: list[float] = field(default_factory=list)
+
+
+def repeat_closed_loop(
+    robot: Any,
+    predict: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    route: Any,
+    start: tuple[float, float, float],
+    cfg: EvalConfig,
+    seed: int,
+) -> RunLog:
+    """Algorithm 1 with the runtime's controller: images in, (v, w) out; poses recorded for scoring only."""
+    from runtime.controller import Action, Controller, ControllerConfig
+
+    ccfg = ControllerConfig() if cfg.e_m is None else ControllerConfig(e_m_mode="fixed", e_m=cfg.e_m)
+    ctrl = Controller(route.images, ccfg)
+    log = RunLog()
+    obs = robot.reset(pose=start, seed=seed)
+    log.poses.append(obs.pose)
+    max_steps = int(cfg.max_steps_factor * len(route) + 50)
+    while True:
+        decision = ctrl.decide(obs.image)
+        if decision.action in (Action.ADVANCE, Action.JUMP):
+            for k in range(log.subgoals_reached, ctrl.index):
+                log.switch_poses.setdefault(k, obs.pose)
+            log.subgoals_reached = max(log.subgoals_reached, min(ctrl.index, len(route)))
+            continue
+        if decision.action in (Action.FINISHED, Action.STALLED):
+            log.outcome = decision.action.value
+            break
+        if log.steps >= max_steps:
+            log.outcome = "step_limit"
+            break
+        t0 = time.perf_counter()
+        vel = predict(obs.image, ctrl.subgoal)  # (2, N)
+        log.policy_ms.append((time.perf_counter() - t0) * 1e3)
+        v, w = float(vel[0, 0]), float(vel[1, 0])
+        obs = robot.step(v, w, cfg.dt)
+        if decision.then_stop:
+            robot.stop()
+        log.steps += 1
+        log.collisions += int(obs.collided)
+        log.poses.append(obs.pose)
+        log.commands.append((v, w))
+    log.sim_time = float(obs.stamp)
+    return log
+
+
+def repeat_open_loop(
+    robot: Any, route: Any, start: tuple[float, float, float], seed: int, dt: float
+) -> RunLog:
+    """Replay the taught commands blind: where the noise pushes the robot, it stays."""
+    log = RunLog()
+    obs = robot.reset(pose=start, seed=seed)
+    log.poses.append(obs.pose)
+    for v, w in route.commands:
+        obs = robot.step(float(v), float(w), dt)
+        robot.stop()
+        log.steps += 1
+        log.collisions += int(obs.collided)
+        log.poses.append(obs.pose)
+        log.commands.append((float(v), float(w)))
+    log.subgoals_reached = len(route)
+    log.outcome = "replayed"
+    log.sim_time = float(obs.stamp)
+    return log
+
+
+def score(route: Any, log: RunLog) -> dict[str, Any]:
+    """All metrics of one run, plus its trajectory (rounded) for plots."""
+    repeated = np.asarray(log.poses, dtype=np.float64)
+    cmds = np.asarray(log.commands, dtype=np.float64).reshape(-1, 2)
+    out = metrics.route_metrics(route.poses, repeated, cmds, log.subgoals_reached)
+    switch = {k: p for k, p in log.switch_poses.items() if k < len(route)}
+    if switch:
+        idx = np.array(sorted(switch))
+        sp = np.array([switch[k] for k in idx])
+        tp = route.poses[idx]
+        out["switch_position_error_m"] = metrics.error_stats(np.hypot(*(sp[:, :2] - tp[:, :2]).T))
+        out["switch_yaw_error_deg"] = metrics.error_stats(
+            np.degrees(np.abs(metrics.wrap_angle(sp[:, 2] - tp[:, 2])))
+        )
+        out["switch_poses"] = {"index": idx.tolist(), "poses": np.round(sp, 5).tolist()}
+    out.update(
+        steps=log.steps,
+        sim_time_s=log.sim_time,
+        collisions=log.collisions,
+        outcome=log.outcome,
+        subgoals_reached=log.subgoals_reached,
+        subgoals=len(route),
+        repeated_poses=np.round(repeated, 5).tolist(),
+    )
+    if log.policy_ms:
+        ms = np.asarray(log.policy_ms)
+        out["policy_ms"] = {"p50": float(np.percentile(ms, 50)), "p99": float(np.percentile(ms, 99)),
+                            "mean": float(ms.mean())}  # fmt: skip
+    return out
+
+
+# ---------------------------------------------------------------- policies
+
+
+def onnx_predict(path: Path, threads: int) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
+    from runtime.policy import OnnxPolicy
+
+    policy = OnnxPolicy(path, threads=threads)
+    return policy.predict
+
+
+class ViewNetMPC:
+    """Online MPC: at every step, search (v, w) sequences by rolling ViewNet forward (cross-entropy method).
+
+    Candidates are N-step sequences of (v, w) inside the limits; each is rolled through ViewNet from the
+    current image and scored by the mean absolute difference of every predicted image to the subgoal (the
+    last one weighted double). The best sequence is returned as a (2, N) array like VelocityNet's output.
+    """
+
+    def __init__(
+        self, checkpoint: Path, horizon: int, samples: int, iterations: int, threads: int, seed: int
+    ):
+        import torch
+        from training.train import load_model
+
+        torch.set_num_threads(threads)
+        kind, self.net, _ = load_model(checkpoint)
+        if kind != "viewnet":
+            raise ValueError(f"{checkpoint} holds a {kind}, not a viewnet")
+        self.torch = torch
+        self.horizon, self.samples, self.iterations = horizon, samples, iterations
+        self.v_max, self.w_max = float(self.net.cfg.v_max), float(self.net.cfg.w_max)
+        self.rng = np.random.default_rng(seed)
+        self._mean = np.zeros((horizon, 2))
+
+    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+        from runtime.preprocess import to_nchw
+
+        torch = self.torch
+        limits = np.array([self.v_max, self.w_max])
+        cur = torch.from_numpy(to_nchw(current))  # (1, 3, H, W)
+        goal = torch.from_numpy(to_nchw(subgoal))
+        mean, std = np.vstack([self._mean[1:], np.zeros((1, 2))]), limits * 0.5  # warm start: shifted plan
+        best, best_cost = np.zeros((self.horizon, 2)), math.inf
+        for _ in range(self.iterations):
+            cand = self.rng.normal(mean, std, size=(self.samples, self.horizon, 2))
+            cand[0] = mean
+            cand[1] = 0.0
+            cand = np.clip(cand, -limits, limits)
+            costs = self._costs(cur, goal, cand)
+            order = np.argsort(costs)
+            if costs[order[0]] < best_cost:
+                best, best_cost = cand[order[0]], float(costs[order[0]])
+            elite = cand[order[: max(2, self.samples // 8)]]
+            mean, std = elite.mean(axis=0), elite.std(axis=0) + 0.02 * limits
+        self._mean = best
+        return best.T.astype(np.float32)  # (2, N)
+
+    def _costs(self, cur: Any, goal: Any, cand: np.ndarray) -> np.ndarray:
+        torch = self.torch
+        k = cand.shape[0]
+        vel = torch.from_numpy(cand.astype(np.float32))  # (K, N, 2)
+        with torch.inference_mode():
+            img = cur.expand(k, -1, -1, -1)  # (K, 3, H, W)
+            cost = torch.zeros(k)
+            for j in range(self.horizon):
+                img = self.net(img, vel[:, j])  # (K, 3, H, W)
+                weight = 2.0 if j == self.horizon - 1 else 1.0
+                cost += weight * (img - goal).abs().mean(dim=(1, 2, 3))
+        return cost.numpy()
+
+
+# ---------------------------------------------------------------- one route, all methods
+
+
+def _offset_start(
+    start: tuple[float, float, float], offset: tuple[float, float, float]
+) -> tuple[float, float, float]:
+    x, y, yaw = start
+    dx, dy, dyaw_deg = offset
+    c, s = math.cos(yaw), math.sin(yaw)
+    return (x + c * dx - s * dy, y + s * dx + c * dy, yaw + math.radians(dyaw_deg))
+
+
+def evaluate_route(script_path: Path, cfg: EvalConfig) -> dict[str, Any]:
+    """Teach one route, then run every scenario and method on it (a process-pool task)."""
+    os.environ.setdefault("OMP_NUM_THREADS", str(cfg.threads))
+    from runtime.policy import OnnxPolicy
+
+    t_start = time.perf_counter()
+    fp32 = OnnxPolicy(cfg.model, threads=cfg.threads)
+    image_size = fp32.image_shape
+    route = teach(script_path, image_size, cfg.dt)
+    start = tuple(float(v) for v in route.poses[0])
+    methods: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray] | None] = {"velocitynet": fp32.predict}
+    if cfg.int8_model is not None:
+        methods["velocitynet_int8"] = onnx_predict(cfg.int8_model, cfg.threads)
+    if cfg.ablation_model is not None:
+        methods["ablation_w2_0"] = onnx_predict(cfg.ablation_model, cfg.threads)
+    notes: dict[str, str] = {}
+    if cfg.viewnet is not None and not cfg.quick and script_path.stem in cfg.mpc_routes:
+        mpc = ViewNetMPC(
+            cfg.viewnet, fp32.meta.horizon, cfg.mpc_samples, cfg.mpc_iterations, cfg.threads, cfg.seed
+        )
+        methods["online_mpc"] = mpc.predict
+    if cfg.open_loop:
+        methods["open_loop"] = None
+
+    scenarios = {"noise": (start, cfg.noise)}
+    if not cfg.quick:
+        scenarios["offset"] = (_offset_start(start, cfg.offset), 0.0)
+    results: dict[str, Any] = {}
+    for scen, (pose, noise) in scenarios.items():
+        results[scen] = {}
+        for name, predict in methods.items():
+            robot = make_robot(noise, image_size)
+            if predict is None:
+                log = repeat_open_loop(robot, route, pose, cfg.seed, cfg.dt)
+            else:
+                log = repeat_closed_loop(robot, predict, route, pose, cfg, cfg.seed)
+            results[scen][name] = score(route, log)
+    return {
+        "name": script_path.stem,
+        "file": str(script_path),
+        "paper_scenario": script_path.stem in PAPER_ROUTES,
+        "subgoals": len(route),
+        "taught_poses": np.round(route.poses, 5).tolist(),
+        "start": list(start),
+        "scenarios": results,
+        "notes": notes,
+        "wall_s": time.perf_counter() - t_start,
+    }
+
+
+# ---------------------------------------------------------------- aggregation and tables
+
+
+def _paper_stat(
+    route_result: dict[str, Any], method: str, scenario: str = "noise"
+) -> dict[str, float] | None:
+    run = route_result["scenarios"].get(scenario, {}).get(method)
+    if run is None:
+        return None
+    key = "yaw_error_deg" if route_result["name"] == "rotation" else "position_error_m"
+    return run[key]
+
+
+def aggregate(routes: list[dict[str, Any]]) -> dict[str, Any]:
+    """Per scenario and method: completion rate and mean errors over routes (own routes separately)."""
+    out: dict[str, Any] = {}
+    scenarios = sorted({s for r in routes for s in r["scenarios"]})
+    for scen in scenarios:
+        out[scen] = {}
+        methods = sorted({m for r in routes for m in r["scenarios"].get(scen, {})})
+        for method in methods:
+            runs = [
+                (r, r["scenarios"][scen][method]) for r in routes if method in r["scenarios"].get(scen, {})
+            ]
+            own = [run for r, run in runs if not r["paper_scenario"]]
+            out[scen][method] = {
+                "routes": len(runs),
+                "completed": sum(run["completed"] for _, run in runs),
+                "own_routes": len(own),
+                "own_completed": sum(run["completed"] for run in own),
+                "mean_completion": float(np.mean([run["completion"] for _, run in runs])),
+                "mean_position_error_m": float(np.mean([run["position_error_m"]["mean"] for _, run in runs])),
+                "mean_max_position_error_m": float(
+                    np.mean([run["position_error_m"]["max"] for _, run in runs])
+                ),
+                "mean_cross_track_error_m": float(
+                    np.mean([run["mean_cross_track_error_m"] for _, run in runs])
+                ),
+                "mean_final_position_error_m": float(
+                    np.mean([run["final_pose_error"]["position_m"] for _, run in runs])
+                ),
+                "mean_abs_dv": float(np.mean([run["smoothness"]["mean_abs_dv"] for _, run in runs])),
+                "mean_abs_dw": float(np.mean([run["smoothness"]["mean_abs_dw"] for _, run in runs])),
+                "policy_ms_p50": float(
+                    np.median([run["policy_ms"]["p50"] for _, run in runs if "policy_ms" in run])
+                )
+                if any("policy_ms" in run for _, run in runs)
+                else None,
+            }
+    return out
+
+
+def bar_checks(routes: list[dict[str, Any]], agg: dict[str, Any]) -> dict[str, Any]:
+    """Issue 5's bar, each item with the measured value and whether it holds (None: not measured)."""
+    by_name = {r["name"]: r for r in routes}
+    checks: dict[str, Any] = {}
+
+    def stat(name: str) -> dict[str, Any] | None:
+        return _paper_stat(by_name[name], "velocitynet") if name in by_name else None
+
+    for name in PAPER_ROUTES:
+        run = by_name.get(name, {}).get("scenarios", {}).get("noise", {}).get("velocitynet")
+        checks[f"{name}_completed"] = None if run is None else bool(run["completed"])
+    t, tr, rot = stat("translation"), stat("translation_rotation"), stat("rotation")
+    checks["translation_mean_le_0.012"] = None if t is None else t["mean"] <= 0.012
+    checks["translation_max_le_0.025"] = None if t is None else t["max"] <= 0.025
+    checks["translation_rotation_mean_le_0.00504"] = None if tr is None else tr["mean"] <= 0.00504
+    checks["rotation_mae_le_1.578"] = None if rot is None else rot["mean"] <= 1.578
+    checks["rotation_max_le_5.053"] = None if rot is None else rot["max"] <= 5.053
+    vn = agg.get("noise", {}).get("velocitynet")
+    if vn and vn["own_routes"]:
+        checks["own_routes_completed_ge_90pct"] = vn["own_completed"] / vn["own_routes"] >= 0.9
+    else:
+        checks["own_routes_completed_ge_90pct"] = None
+    ol = agg.get("noise", {}).get("open_loop")
+    checks["beats_open_loop_cross_track"] = (
+        None if not (vn and ol) else vn["mean_cross_track_error_m"] < ol["mean_cross_track_error_m"]
+    )
+    return checks
+
+
+def _fmt(x: float | None, unit: str = "") -> str:
+    if x is None:
+        return "-"
+    if unit == "deg":
+        return f"{x:.3f}"
+    return f"{x:.2e}" if abs(x) < 1e-3 and x != 0 else f"{x:.4f}"
+
+
+def markdown_report(result: dict[str, Any]) -> str:
+    """The paper's Tables 1 and 2 beside ours, then every route and method."""
+    cfg = result["config"]
+    routes = {r["name"]: r for r in result["routes"]}
+    lines = [
+        "## Closed-loop tracking vs the paper",
+        "",
+        f"Repeat with actuation noise {cfg['noise']} (simulator level: {cfg['noise']:.0%} speed error + jitter), "
+        f"from the taught start. e_m: {'calibrated per route' if cfg['e_m'] is None else cfg['e_m']}.",
+        "",
+    ]
+    methods = [m for m in ("velocitynet", "velocitynet_int8", "ablation_w2_0", "online_mpc", "open_loop")
+               if any(m in r["scenarios"].get("noise", {}) for r in routes.values())]  # fmt: skip
+    for title, names, unit in (
+        ("Table 1: nearest-point position error (m)", ("translation", "translation_rotation"), "m"),
+        ("Table 2: nearest yaw error, pure rotation (deg)", ("rotation",), "deg"),
+    ):
+        present = [n for n in names if n in routes]
+        if not present:
+            continue
+        lines += [f"### {title}", ""]
+        header = "| statistic |"
+        sep = "|---|"
+        for n in present:
+            header += f" paper {n} |" + "".join(f" {m} {n} |" for m in methods)
+            sep += "---|" * (1 + len(methods))
+        lines += [header, sep]
+        for stat in ("min", "max", "mean", "std"):
+            label = "MAE" if (stat == "mean" and unit == "deg") else stat
+            row = f"| {label} |"
+            for n in present:
+                row += f" {_fmt(PAPER[n][stat], unit)} |"
+                for m in methods:
+                    s = _paper_stat(routes[n], m)
+                    row += f" {_fmt(None if s is None else s[stat], unit)} |"
+            lines.append(row)
+        lines.append("")
+    for scen in ("noise", "offset"):
+        if not any(scen in r["scenarios"] for r in routes.values()):
+            continue
+        what = (
+            f"actuation noise {cfg['noise']}"
+            if scen == "noise"
+            else f"start offset dx={cfg['offset'][0]} m, dy={cfg['offset'][1]} m, dyaw={cfg['offset'][2]} deg, no noise"
+        )
+        lines += [
+            f"### Every route: {what}",
+            "",
+            "| route | method | done | completion | mean err (m) | max err (m) | yaw MAE (deg) | cross-track (m) "
+            "| final (m) | steps | sim time (s) | mean abs dv | mean abs dw | policy ms |",
+            "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for name, r in routes.items():
+            for m, run in r["scenarios"].get(scen, {}).items():
+                pm = run.get("policy_ms", {}).get("p50")
+                lines.append(
+                    f"| {name} | {m} | {'yes' if run['completed'] else 'no'} | {run['completion']:.0%} "
+                    f"| {_fmt(run['position_error_m']['mean'])} | {_fmt(run['position_error_m']['max'])} "
+                    f"| {run['yaw_error_deg']['mean']:.3f} | {_fmt(run['mean_cross_track_error_m'])} "
+                    f"| {_fmt(run['final_pose_error']['position_m'])} | {run['steps']} | {run['sim_time_s']:.1f} "
+                    f"| {run['smoothness']['mean_abs_dv']:.4f} | {run['smoothness']['mean_abs_dw']:.4f} "
+                    f"| {'-' if pm is None else f'{pm:.2f}'} |"
+                )
+        lines.append("")
+    agg = result["aggregate"]
+    lines += ["### Aggregate", "", "| scenario | method | completed | mean err (m) | cross-track (m) | policy ms p50 |",
+              "|---|---|---|---|---|---|"]  # fmt: skip
+    for scen, by_method in agg.items():
+        for m, a in by_method.items():
+            pm = a["policy_ms_p50"]
+            lines.append(
+                f"| {scen} | {m} | {a['completed']}/{a['routes']} | {_fmt(a['mean_position_error_m'])} "
+                f"| {_fmt(a['mean_cross_track_error_m'])} | {'-' if pm is None else f'{pm:.2f}'} |"
+            )
+    lines += ["", "### Bar (issue 5)", ""]
+    for key, ok in result["bar"].items():
+        lines.append(f"- {key}: {'-' if ok is None else ('met' if ok else 'MISSED')}")
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------- plots
+
+
+def house_outline() -> list[tuple[str, np.ndarray]]:
+    """(room name, polygon (K, 2)) for the plots' background; empty if the simulator cannot say."""
+    try:
+        from sim2d import load_house
+
+        house = load_house()
+        return [(room.name, np.asarray(room.polygon, dtype=np.float64)) for room in house.rooms]
+    except Exception:  # a plot without a floor plan is still a plot
+        return []
+
+
+def write_plots(result: dict[str, Any], out_dir: Path) -> list[Path]:
+    """Per route: taught vs repeated x-y over the house; error per subgoal; yaw per subgoal for rotation."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rooms = house_outline()
+    written = []
+    colours = {"velocitynet": "tab:red", "velocitynet_int8": "tab:orange", "ablation_w2_0": "tab:purple",
+               "online_mpc": "tab:green", "open_loop": "tab:gray"}  # fmt: skip
+    for r in result["routes"]:
+        taught = np.asarray(r["taught_poses"])
+        runs = r["scenarios"].get("noise", {})
+        fig, ax = plt.subplots(figsize=(6, 6))
+        for name, poly in rooms:
+            closed = np.vstack([poly, poly[:1]])
+            ax.plot(closed[:, 0], closed[:, 1], color="0.75", lw=1)
+            c = poly.mean(axis=0)
+            ax.text(c[0], c[1], name, color="0.6", fontsize=7, ha="center")
+        ax.scatter(taught[:, 0], taught[:, 1], s=10, color="tab:blue", label="taught (subgoals)", zorder=3)
+        for m, run in runs.items():
+            rep = np.asarray(run["repeated_poses"])
+            ax.scatter(rep[:, 0], rep[:, 1], s=4, color=colours.get(m, "k"), label=f"repeated: {m}", zorder=4)
+        pad = 0.5
+        lo, hi = taught[:, :2].min(axis=0) - pad, taught[:, :2].max(axis=0) + pad
+        if rooms:
+            ax.set_xlim(min(lo[0], hi[0] - 2), max(hi[0], lo[0] + 2))
+            ax.set_ylim(min(lo[1], hi[1] - 2), max(hi[1], lo[1] + 2))
+        ax.set_aspect("equal")
+        ax.set_xlabel("x (m)")
+        ax.set_ylabel("y (m)")
+        ax.set_title(f"{r['name']}: taught vs repeated (noise {result['config']['noise']})")
+        ax.legend(fontsize=7, loc="best")
+        written.append(_save(fig, out_dir / f"{r['name']}_path.png"))
+
+        rotation = r["name"] == "rotation" or any(run["rotation_only"] for run in runs.values())
+        fig, ax = plt.subplots(figsize=(7, 3.5))
+        for m, run in runs.items():
+            err = run["per_subgoal_yaw_error_deg" if rotation else "per_subgoal_position_error_m"]
+            ax.plot(np.arange(len(err)), err, ".-", ms=3, lw=0.8, color=colours.get(m, "k"), label=m)
+        ax.set_xlabel("subgoal index")
+        ax.set_ylabel("yaw error (deg)" if rotation else "position error (m)")
+        ax.set_title(f"{r['name']}: nearest-point error per subgoal")
+        ax.legend(fontsize=7)
+        written.append(_save(fig, out_dir / f"{r['name']}_error.png"))
+
+        if rotation:
+            fig, ax = plt.subplots(figsize=(7, 3.5))
+            idx = np.arange(len(taught))
+            ax.scatter(idx, np.degrees(np.unwrap(taught[:, 2])), s=8, color="tab:blue", label="taught")
+            for m, run in runs.items():
+                sw = run.get("switch_poses")
+                if sw:
+                    yaw = np.degrees(np.unwrap(np.asarray(sw["poses"])[:, 2]))
+                    ax.scatter(sw["index"], yaw, s=4, color=colours.get(m, "k"), label=f"repeated: {m}")
+            ax.set_xlabel("subgoal index")
+            ax.set_ylabel("yaw (deg)")
+            ax.set_title(f"{r['name']}: yaw per subgoal (repeated: at the switch to the next subgoal)")
+            ax.legend(fontsize=7)
+            written.append(_save(fig, out_dir / f"{r['name']}_yaw.png"))
+    return written
+
+
+def _save(fig: Any, path: Path) -> Path:
+    import matplotlib.pyplot as plt
+
+    tmp = path.with_name(path.stem + ".tmp.png")
+    fig.tight_layout()
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    os.replace(tmp, path)
+    return path
+
+
+# ---------------------------------------------------------------- entry points
+
+
+def run(cfg: EvalConfig) -> dict[str, Any]:
+    """Evaluate every route (in a process pool when workers > 1) and write JSON, Markdown and plots."""
+    names = cfg.routes or (QUICK_ROUTES if cfg.quick else ())
+    files = route_files(names)
+    t0 = time.perf_counter()
+    if cfg.workers > 1 and len(files) > 1:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        # spawn: a fresh interpreter per worker, no forked onnxruntime or torch thread pools.
+        with ProcessPoolExecutor(
+            max_workers=min(cfg.workers, len(files)), mp_context=mp.get_context("spawn")
+        ) as ex:
+            routes = list(ex.map(evaluate_route, files, [cfg] * len(files)))
+    else:
+        routes = [evaluate_route(f, cfg) for f in files]
+    agg = aggregate(routes)
+    result: dict[str, Any] = {
+        "config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
+        "paper": PAPER,
+        "routes": routes,
+        "aggregate": agg,
+        "bar": bar_checks(routes, agg),
+        "wall_s": time.perf_counter() - t0,
+    }
+    if cfg.plots_dir is not None:
+        result["plots"] = [str(p) for p in write_plots(result, Path(cfg.plots_dir))]
+    if cfg.json_path is not None:
+        from benchmarks.latency import write_json
+
+        write_json(Path(cfg.json_path), result)
+    if cfg.markdown_path is not None:
+        md = Path(cfg.markdown_path)
+        md.parent.mkdir(parents=True, exist_ok=True)
+        tmp = md.with_name(md.name + ".tmp")
+        tmp.write_text(markdown_report(result))
+        os.replace(tmp, md)
+    return result
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--model", type=Path, default=Path("models/velocitynet.onnx"), help="fp32 VelocityNet ONNX"
+    )
+    parser.add_argument(
+        "--json", type=Path, default=None, help="write every number here (and a .md table beside)"
+    )
+    parser.add_argument("--plots", type=Path, default=None, help="folder for the PNG plots")
+    parser.add_argument(
+        "--routes", nargs="*", default=[], help="route names or ROUTE.json paths (default: all)"
+    )
+    parser.add_argument("--noise", type=float, default=0.05, help="actuation noise level of the repeat runs")
+    parser.add_argument("--offset", type=float, nargs=3, default=[0.03, 0.03, 3.0], metavar=("DX", "DY", "DYAW"),
+                        help="start offset for the offset scenario: m, m (robot frame), deg")  # fmt: skip
+    parser.add_argument(
+        "--int8-model", type=Path, default=None, help="int8 twin (default: <model>-int8.onnx)"
+    )
+    parser.add_argument(
+        "--ablation-model", type=Path, default=None, help="VelocityNet trained with w2 = 0 (ONNX)"
+    )
+    parser.add_argument(
+        "--viewnet", type=Path, default=None, help="ViewNet checkpoint: enables the online MPC"
+    )
+    parser.add_argument("--mpc-routes", nargs="*", default=list(PAPER_ROUTES), help="routes the MPC runs on")
+    parser.add_argument("--mpc-samples", type=int, default=48, help="candidate sequences per MPC step")
+    parser.add_argument("--no-open-loop", action="store_true", help="skip the open-loop replay baseline")
+    parser.add_argument("--e-m", type=float, default=None, help="fixed e_m (paper: 17); default calibrated")
+    parser.add_argument("--seed", type=int, default=0, help="actuation noise seed")
+    parser.add_argument("--threads", type=int, default=1, help="inference threads per worker")
+    parser.add_argument("--workers", type=int, default=2, help="processes over routes")
+    parser.add_argument("--quick", action="store_true", help="one short route, noise scenario only, no MPC")
+
+
+def config_from_args(args: argparse.Namespace) -> EvalConfig:
+    return EvalConfig(
+        model=args.model,
+        routes=tuple(args.routes),
+        noise=args.noise,
+        offset=tuple(args.offset),
+        int8_model=args.int8_model,
+        ablation_model=args.ablation_model,
+        viewnet=args.viewnet,
+        mpc_routes=tuple(args.mpc_routes),
+        mpc_samples=args.mpc_samples,
+        open_loop=not args.no_open_loop,
+        e_m=args.e_m,
+        seed=args.seed,
+        threads=args.threads,
+        workers=1 if args.quick else args.workers,
+        quick=args.quick,
+        json_path=args.json,
+        plots_dir=args.plots,
+    )
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    try:
+        cfg = config_from_args(args)
+    except ValueError as err:
+        print(f"vtr eval: {err}", file=sys.stderr)
+        return 2
+    result = run(cfg)
+    print(markdown_report(result))
+    for path in (cfg.json_path, cfg.markdown_path, cfg.plots_dir):
+        if path is not None:
+            print(f"wrote {path}")
+    return 0
