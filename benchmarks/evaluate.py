@@ -138,15 +138,15 @@ def make_robot(noise: float, image_size: tuple[int, int]) -> Any:
     return LocalRobot(Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=noise)))
 
 
-def teach(script_path: Path, image_size: tuple[int, int], dt: float) -> Any:
-    """Drive the scripted route noise-free and record its visual trajectory (a runtime.route.Route)."""
+def teach(script_path: Path, image_size: tuple[int, int], dt: float) -> tuple[Any, Any]:
+    """Drive the scripted route noise-free with `runtime.teach`; returns (Route, RouteScript)."""
     from runtime.route_script import load_route_script
-
-    from runtime import teach as rteach
+    from runtime.teach import TeachConfig
+    from runtime.teach import teach as teach_route
 
     script = load_route_script(script_path)
     robot = make_robot(0.0, image_size)
-    return rteach.teach_route(robot, script, dt=dt)
+    return teach_route(robot, script, TeachConfig(dt=dt, seed=0)), script
 
 
 # ---------------------------------------------------------------- one repeat run
@@ -167,6 +167,52 @@ class RunLog:
     collisions: int = 0
     outcome: str = ""
     policy_ms: list[float] = field(default_factory=list)
+    e_m: float | None = None
+
+
+class RecordingRobot:
+    """Passes a robot through to the daemon, keeping the ground-truth pose after every step for scoring.
+
+    The observations handed on carry no pose, so nothing in the runtime can use it.
+    """
+
+    def __init__(self, robot: Any, log: RunLog) -> None:
+        self.robot, self.log = robot, log
+        self.last_pose: tuple[float, float, float] | None = None
+
+    def _strip(self, obs: Any) -> Any:
+        from runtime.robot import Observation
+
+        self.last_pose = obs.pose
+        return Observation(image=obs.image, stamp=obs.stamp, pose=None, collided=obs.collided)
+
+    def observe(self) -> Any:
+        return self._strip(self.robot.observe())
+
+    def step(self, v: float, w: float, duration: float) -> Any:
+        obs = self.robot.step(v, w, duration)
+        self.log.poses.append(obs.pose)
+        self.log.commands.append((float(v), float(w)))
+        self.log.collisions += int(obs.collided)
+        return self._strip(obs)
+
+    def stop(self) -> None:
+        self.robot.stop()
+
+
+class TimedPolicy:
+    """A predict function with the interface the daemon expects, timing every call."""
+
+    def __init__(self, predict: Callable[[np.ndarray, np.ndarray], np.ndarray], image_shape: tuple[int, int],
+                 log: RunLog, meta: Any = None) -> None:  # fmt: skip
+        self._predict, self.image_shape, self._log, self.meta = predict, image_shape, log, meta
+        self.nonfinite_count = 0
+
+    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+        t0 = time.perf_counter()
+        out = self._predict(current, subgoal)
+        self._log.policy_ms.append((time.perf_counter() - t0) * 1e3)
+        return out
 
 
 def repeat_closed_loop(
@@ -177,68 +223,71 @@ def repeat_closed_loop(
     cfg: EvalConfig,
     seed: int,
 ) -> RunLog:
-    """Algorithm 1 with the runtime's controller: images in, (v, w) out; poses recorded for scoring only."""
-    from runtime.controller import Action, Controller, ControllerConfig
+    """The runtime's repeat daemon (Algorithm 1 + controller) on images only; poses kept for scoring."""
+    from runtime.controller import ControllerConfig
+    from runtime.daemon import RepeatConfig, repeat
 
-    ccfg = ControllerConfig() if cfg.e_m is None else ControllerConfig(e_m_mode="fixed", e_m=cfg.e_m)
-    ctrl = Controller(route.images, ccfg)
     log = RunLog()
-    obs = robot.reset(pose=start, seed=seed)
-    log.poses.append(obs.pose)
-    max_steps = int(cfg.max_steps_factor * len(route) + 50)
-    while True:
-        decision = ctrl.decide(obs.image)
-        if decision.action in (Action.ADVANCE, Action.JUMP):
-            for k in range(log.subgoals_reached, ctrl.index):
-                log.switch_poses.setdefault(k, obs.pose)
-            log.subgoals_reached = max(log.subgoals_reached, min(ctrl.index, len(route)))
-            continue
-        if decision.action in (Action.FINISHED, Action.STALLED):
-            log.outcome = decision.action.value
-            break
-        if log.steps >= max_steps:
-            log.outcome = "step_limit"
-            break
-        t0 = time.perf_counter()
-        vel = predict(obs.image, ctrl.subgoal)  # (2, N)
-        log.policy_ms.append((time.perf_counter() - t0) * 1e3)
-        v, w = float(vel[0, 0]), float(vel[1, 0])
-        obs = robot.step(v, w, cfg.dt)
-        if decision.then_stop:
-            robot.stop()
-        log.steps += 1
-        log.collisions += int(obs.collided)
-        log.poses.append(obs.pose)
-        log.commands.append((v, w))
-    log.sim_time = float(obs.stamp)
+    first = robot.reset(pose=start, seed=seed)
+    log.poses.append(first.pose)
+    rec = RecordingRobot(robot, log)
+    ccfg = ControllerConfig() if cfg.e_m is None else ControllerConfig(e_m_mode="fixed", e_m=cfg.e_m)
+    rcfg = RepeatConfig(controller=ccfg, dt=cfg.dt, max_steps=int(cfg.max_steps_factor * len(route) + 50))
+    policy = TimedPolicy(predict, route.image_shape, log)
+    pose_before: list[tuple[float, float, float]] = [first.pose]
+
+    def on_record(record: dict[str, Any]) -> None:
+        if "summary" in record:
+            return
+        # the decisions of this record were taken on the image seen at the pose before its step
+        pose = pose_before[record["step"]]
+        for k in range(record["subgoal"] - record["advanced"], record["subgoal"]):
+            log.switch_poses.setdefault(k, pose)
+        pose_before.append(log.poses[-1])
+
+    summary = repeat(rec, policy, route, rcfg, log=on_record)
+    if summary.completed:
+        for k in range(len(route)):
+            log.switch_poses.setdefault(k, log.poses[-1])
+    log.subgoals_reached = summary.subgoals_reached
+    log.steps = summary.steps
+    log.outcome = summary.reason
+    log.e_m = summary.e_m
+    log.sim_time = float(summary.sim_time_s)
     return log
 
 
 def repeat_open_loop(
-    robot: Any, route: Any, start: tuple[float, float, float], seed: int, dt: float
+    robot: Any, script: Any, start: tuple[float, float, float], seed: int, dt: float
 ) -> RunLog:
-    """Replay the taught commands blind: where the noise pushes the robot, it stays."""
+    """Replay the taught commands blind (the script's segments, step by step as taught): no correction."""
     log = RunLog()
     obs = robot.reset(pose=start, seed=seed)
     log.poses.append(obs.pose)
-    for v, w in route.commands:
-        obs = robot.step(float(v), float(w), dt)
-        robot.stop()
-        log.steps += 1
-        log.collisions += int(obs.collided)
-        log.poses.append(obs.pose)
-        log.commands.append((float(v), float(w)))
-    log.subgoals_reached = len(route)
+    t0 = obs.stamp
+    for segment in script.segments:
+        for _ in range(max(1, round(segment.duration / dt))):
+            obs = robot.step(segment.v, segment.w, dt)
+            robot.stop()
+            log.steps += 1
+            log.collisions += int(obs.collided)
+            log.poses.append(obs.pose)
+            log.commands.append((segment.v, segment.w))
     log.outcome = "replayed"
-    log.sim_time = float(obs.stamp)
+    log.sim_time = float(obs.stamp - t0)
     return log
 
 
-def score(route: Any, log: RunLog) -> dict[str, Any]:
-    """All metrics of one run, plus its trajectory (rounded) for plots."""
+def score(route: Any, log: RunLog, open_loop: bool = False) -> dict[str, Any]:
+    """All metrics of one run, plus its trajectory (rounded) for plots.
+
+    Open-loop replay has no subgoals to reach: it always plays to the end, so its completion is 1 and
+    only its errors say how far it drifted.
+    """
     repeated = np.asarray(log.poses, dtype=np.float64)
     cmds = np.asarray(log.commands, dtype=np.float64).reshape(-1, 2)
-    out = metrics.route_metrics(route.poses, repeated, cmds, log.subgoals_reached)
+    reached = len(route) if open_loop else log.subgoals_reached
+    out = metrics.route_metrics(route.poses, repeated, cmds, reached)
     switch = {k: p for k, p in log.switch_poses.items() if k < len(route)}
     if switch:
         idx = np.array(sorted(switch))
@@ -254,7 +303,8 @@ def score(route: Any, log: RunLog) -> dict[str, Any]:
         sim_time_s=log.sim_time,
         collisions=log.collisions,
         outcome=log.outcome,
-        subgoals_reached=log.subgoals_reached,
+        e_m=log.e_m,
+        subgoals_reached=reached,
         subgoals=len(route),
         repeated_poses=np.round(repeated, 5).tolist(),
     )
@@ -356,7 +406,7 @@ def evaluate_route(script_path: Path, cfg: EvalConfig) -> dict[str, Any]:
     t_start = time.perf_counter()
     fp32 = OnnxPolicy(cfg.model, threads=cfg.threads)
     image_size = fp32.image_shape
-    route = teach(script_path, image_size, cfg.dt)
+    route, script = teach(script_path, image_size, cfg.dt)
     start = tuple(float(v) for v in route.poses[0])
     methods: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray] | None] = {"velocitynet": fp32.predict}
     if cfg.int8_model is not None:
@@ -381,10 +431,10 @@ def evaluate_route(script_path: Path, cfg: EvalConfig) -> dict[str, Any]:
         for name, predict in methods.items():
             robot = make_robot(noise, image_size)
             if predict is None:
-                log = repeat_open_loop(robot, route, pose, cfg.seed, cfg.dt)
+                log = repeat_open_loop(robot, script, pose, cfg.seed, cfg.dt)
             else:
                 log = repeat_closed_loop(robot, predict, route, pose, cfg, cfg.seed)
-            results[scen][name] = score(route, log)
+            results[scen][name] = score(route, log, open_loop=predict is None)
     return {
         "name": script_path.stem,
         "file": str(script_path),
