@@ -362,7 +362,7 @@ def bench_zmq(cfg: LatencyConfig) -> dict[str, Any]:
     from benchmarks import runtime_adapter as ra
 
     try:
-        return ra.zmq_round_trip(cfg.steps, cfg.warmup)
+        return ra.zmq_round_trip(cfg.steps, cfg.warmup, _model_io(cfg.model)[:2])
     except Exception as err:  # simulator server not installed or not reachable
         return {"skipped": f"{type(err).__name__}: {err}"}
 
@@ -472,7 +472,9 @@ def format_report(result: dict[str, Any]) -> str:
         lines.append(f"  {'zmq_round_trip':<16}   skipped: {z['skipped']}")
     else:
         for name, t in z["calls"].items():
-            lines.append(f"  {'zmq ' + name:<16}{t['p50_ms']:>10.3f}{t['p99_ms']:>10.3f}")
+            label = "zmq " + name if name != "render_in_process" else "(sim render)"
+            lines.append(f"  {label:<16}{t['p50_ms']:>10.3f}{t['p99_ms']:>10.3f}")
+        lines.append(f"  {'zmq transport':<16}{z['transport_p50_ms']:>10.3f}  (observe round trip - render)")
     for threads, entry in result["backends"]["threads"].items():
         mm = entry["matmul"]
         np_rate = "n/a" if mm["numpy_gflops"] is None else f"{mm['numpy_gflops']:.1f}"

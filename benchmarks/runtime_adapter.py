@@ -53,24 +53,65 @@ def _fallback_codec() -> FrameCodec:
 
 
 def frame_codec() -> FrameCodec:
-    """The runtime's wire codec when installed, else the fallback."""
+    """The runtime's wire codec (runtime.protocol) when installed, else the fallback."""
     try:
-        from runtime import protocol  # noqa: F401
+        from runtime import protocol
     except ImportError:
         return _fallback_codec()
-    return _runtime_codec()
+    session = "bench"
 
+    def enc_obs(image: np.ndarray) -> list[bytes]:
+        return protocol.encode_image_reply("step", 1, session, 1.0, image, pose=None)
 
-def _runtime_codec() -> FrameCodec:
-    # Bound once runtime.protocol has landed; until then the fallback is used.
-    return _fallback_codec()
+    def dec_obs(frames: list[bytes]) -> np.ndarray:
+        # what SimClient does with a reply: validate header, cmd, seq and shape, then view the pixels
+        reply = protocol.decode_reply(frames, expect_cmd="step", expect_seq=1)
+        assert reply.image is not None
+        return reply.image
+
+    def enc_cmd(v: float, w: float) -> list[bytes]:
+        return protocol.encode_request("step", 2, stamp=time.time(), v=v, w=w, duration=0.1)
+
+    return FrameCodec("runtime.protocol (encode_image_reply / decode_reply / encode_request)", enc_obs, dec_obs,
+                      enc_cmd)  # fmt: skip
 
 
 class ControlStep:
-    """One control step: encoded frame in -> image error -> (maybe) inference -> encoded command out.
+    """One control step: encoded frame in -> image error -> inference -> encoded command out.
 
-    Always runs inference (the worst case, a step that does not switch subgoal).
+    With the runtime installed this is its own code: ``runtime.controller.Controller.decide`` (image error
+    against the subgoal) and ``runtime.policy.OnnxPolicy.predict`` (preprocess, inference, postprocess).
+    The controller is set up so that every step commands (fixed e_m below any error, no stall guard): the
+    worst case, a step that does not switch subgoal.
     """
+
+    def __init__(self, model: str | Path, threads: int, subgoal: np.ndarray, codec: FrameCodec) -> None:
+        from runtime.controller import Controller, ControllerConfig
+        from runtime.policy import OnnxPolicy
+
+        self.policy = OnnxPolicy(model, threads=threads)
+        self._subgoals = np.ascontiguousarray(subgoal[None])
+        self._cfg = ControllerConfig(e_m_mode="fixed", e_m=1e-3, stall_steps=0)
+        self.controller = Controller(self._subgoals, self._cfg)
+        self._codec = codec
+        self.name = "runtime: protocol decode + Controller.decide + OnnxPolicy.predict + encode_request"
+
+    def infer(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        from runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
+
+        return self.policy.infer({INPUT_CURRENT: x, INPUT_SUBGOAL: y})
+
+    def __call__(self, frames: list[bytes]) -> list[bytes]:
+        image = self._codec.decode_observation(frames)
+        decision = self.controller.decide(image)
+        if decision.action.value != "command":  # the identical frame matched: start over
+            self.controller = type(self.controller)(self._subgoals, self._cfg)
+        vel = self.policy.predict(image, self.controller.subgoal)  # (2, N)
+        return self._codec.encode_command(float(vel[0, 0]), float(vel[1, 0]))
+
+
+class FallbackControlStep:
+    """The same step from runtime.preprocess + onnxruntime, for when the runtime's modules are absent."""
 
     def __init__(self, model: str | Path, threads: int, subgoal: np.ndarray, codec: FrameCodec) -> None:
         import onnxruntime as ort
@@ -99,10 +140,50 @@ class ControlStep:
         return self._codec.encode_command(float(vel[0, 0, 0]), float(vel[0, 1, 0]))
 
 
-def control_step(model: str | Path, threads: int, subgoal: np.ndarray, codec: FrameCodec) -> ControlStep:
+def control_step(
+    model: str | Path, threads: int, subgoal: np.ndarray, codec: FrameCodec
+) -> ControlStep | FallbackControlStep:
+    try:
+        import runtime.controller  # noqa: F401
+        import runtime.policy  # noqa: F401
+    except ImportError:
+        return FallbackControlStep(model, threads, subgoal, codec)
     return ControlStep(model, threads, subgoal, codec)
 
 
-def zmq_round_trip(steps: int, warmup: int) -> dict[str, Any]:
-    """Round trip of observe / step requests to a simulator server on loopback."""
-    raise ImportError("sim2d.server / runtime.client not available yet")
+def zmq_round_trip(steps: int, warmup: int, image_size: tuple[int, int] = (128, 128)) -> dict[str, Any]:
+    """Round trips of observe and step requests to a simulator server process on loopback.
+
+    Each is the client's full exchange (encode, send, server work, receive, validate); the server's share
+    (rendering the camera) is measured in-process alongside, so the transport's cost is the difference.
+    """
+    from runtime.client import SimClient
+    from sim2d.server import ServerConfig, start_server_process
+
+    from benchmarks.latency import time_interleaved
+    from sim2d import CameraConfig, SimConfig, Simulator
+
+    h, w = image_size
+    sim_cfg = SimConfig(camera=CameraConfig(width=w, height=h), noise=0.0)
+    server = start_server_process(ServerConfig(bind="tcp://127.0.0.1:*", sim=sim_cfg))
+    try:
+        client = SimClient(server.endpoint, timeout_s=5.0, expect_shape=(h, w))
+        try:
+            client.reset(seed=0)
+            local = Simulator(sim_cfg)
+            local.reset(seed=0)
+            calls = time_interleaved(
+                {
+                    "observe": client.observe,
+                    "step": lambda: client.step(0.0, 0.0, 0.1),
+                    "render_in_process": local.observe,
+                },
+                steps,
+                warmup,
+            )
+        finally:
+            client.close()
+    finally:
+        server.terminate()
+    transport = calls["observe"]["p50_ms"] - calls["render_in_process"]["p50_ms"]
+    return {"endpoint": server.endpoint, "calls": calls, "transport_p50_ms": transport}
