@@ -271,25 +271,18 @@ def write_png(result: dict[str, Any], path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from benchmarks.evaluate import house_outline
+    from benchmarks.evaluate import draw_house, frame_route
 
     taught = np.asarray(result["taught_poses"])
     rep = np.asarray(result["repeated_poses"])
-    fig, ax = plt.subplots(figsize=(6, 6))
-    for name, poly in house_outline():
-        closed = np.vstack([poly, poly[:1]])
-        ax.plot(closed[:, 0], closed[:, 1], color="0.75", lw=1)
-        c = poly.mean(axis=0)
-        ax.text(c[0], c[1], name, color="0.6", fontsize=7, ha="center")
+    fig, ax = plt.subplots(figsize=(7, 6))
+    draw_house(ax)
     if "open_loop_poses" in result:
         ol = np.asarray(result["open_loop_poses"])
         ax.plot(ol[:, 0], ol[:, 1], "-", color="tab:gray", lw=1, label="open-loop replay (no camera)")
     ax.scatter(taught[:, 0], taught[:, 1], s=14, color="tab:blue", label="taught subgoals", zorder=3)
     ax.scatter(rep[:, 0], rep[:, 1], s=5, color="tab:red", label="repeated with VelocityNet", zorder=4)
-    pad = 0.6
-    ax.set_xlim(taught[:, 0].min() - pad, taught[:, 0].max() + pad)
-    ax.set_ylim(taught[:, 1].min() - pad, taught[:, 1].max() + pad)
-    ax.set_aspect("equal")
+    frame_route(ax, taught)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     mean = result["velocitynet"]["position_error_m"]["mean"]

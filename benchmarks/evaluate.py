@@ -620,15 +620,28 @@ def markdown_report(result: dict[str, Any]) -> str:
 # ---------------------------------------------------------------- plots
 
 
-def house_outline() -> list[tuple[str, np.ndarray]]:
-    """(room name, polygon (K, 2)) for the plots' background; empty if the simulator cannot say."""
+def draw_house(ax: Any) -> bool:
+    """Draw the house top-down on a matplotlib axis: walls dark, furniture light, room names.
+
+    Returns False (and draws nothing) when the simulator's house cannot be loaded: a plot without a floor
+    plan is still a plot.
+    """
     try:
         from sim2d import load_house
 
         house = load_house()
-        return [(room.name, np.asarray(room.polygon, dtype=np.float64)) for room in house.rooms]
-    except Exception:  # a plot without a floor plan is still a plot
-        return []
+        seg = house.segments
+        walls = np.asarray(seg.is_wall, dtype=bool)
+        a, b = np.asarray(seg.a), np.asarray(seg.b)
+    except Exception:
+        return False
+    for mask, colour, width in ((~walls, "0.7", 0.8), (walls, "0.25", 1.6)):
+        for p, q in zip(a[mask], b[mask], strict=True):
+            ax.plot([p[0], q[0]], [p[1], q[1]], color=colour, lw=width, zorder=1)
+    for room in house.rooms:
+        c = np.asarray(room.polygon, dtype=np.float64).mean(axis=0)
+        ax.text(c[0], c[1], room.name, color="0.55", fontsize=8, ha="center", va="center", zorder=1)
+    return True
 
 
 def write_plots(result: dict[str, Any], out_dir: Path) -> list[Path]:
@@ -639,29 +652,19 @@ def write_plots(result: dict[str, Any], out_dir: Path) -> list[Path]:
     import matplotlib.pyplot as plt
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    rooms = house_outline()
     written = []
     colours = {"velocitynet": "tab:red", "velocitynet_int8": "tab:orange", "ablation_w2_0": "tab:purple",
                "online_mpc": "tab:green", "open_loop": "tab:gray"}  # fmt: skip
     for r in result["routes"]:
         taught = np.asarray(r["taught_poses"])
         runs = r["scenarios"].get("noise", {})
-        fig, ax = plt.subplots(figsize=(6, 6))
-        for name, poly in rooms:
-            closed = np.vstack([poly, poly[:1]])
-            ax.plot(closed[:, 0], closed[:, 1], color="0.75", lw=1)
-            c = poly.mean(axis=0)
-            ax.text(c[0], c[1], name, color="0.6", fontsize=7, ha="center")
+        fig, ax = plt.subplots(figsize=(7, 6))
+        draw_house(ax)
         ax.scatter(taught[:, 0], taught[:, 1], s=10, color="tab:blue", label="taught (subgoals)", zorder=3)
         for m, run in runs.items():
             rep = np.asarray(run["repeated_poses"])
             ax.scatter(rep[:, 0], rep[:, 1], s=4, color=colours.get(m, "k"), label=f"repeated: {m}", zorder=4)
-        pad = 0.5
-        lo, hi = taught[:, :2].min(axis=0) - pad, taught[:, :2].max(axis=0) + pad
-        if rooms:
-            ax.set_xlim(min(lo[0], hi[0] - 2), max(hi[0], lo[0] + 2))
-            ax.set_ylim(min(lo[1], hi[1] - 2), max(hi[1], lo[1] + 2))
-        ax.set_aspect("equal")
+        frame_route(ax, taught)
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
         ax.set_title(f"{r['name']}: taught vs repeated (noise {result['config']['noise']})")
@@ -694,6 +697,15 @@ def write_plots(result: dict[str, Any], out_dir: Path) -> list[Path]:
             ax.legend(fontsize=7)
             written.append(_save(fig, out_dir / f"{r['name']}_yaw.png"))
     return written
+
+
+def frame_route(ax: Any, taught: np.ndarray, margin: float = 1.0) -> None:
+    """Zoom on the route with a margin of house around it (at least 3 m wide, equal axes)."""
+    lo, hi = taught[:, :2].min(axis=0) - margin, taught[:, :2].max(axis=0) + margin
+    centre, half = (lo + hi) / 2, max(1.5, *(hi - lo) / 2)
+    ax.set_xlim(centre[0] - half, centre[0] + half)
+    ax.set_ylim(centre[1] - half, centre[1] + half)
+    ax.set_aspect("equal", adjustable="box")
 
 
 def _save(fig: Any, path: Path) -> Path:
