@@ -275,11 +275,11 @@ def write_png(result: dict[str, Any], path: Path) -> Path:
 
     taught = np.asarray(result["taught_poses"])
     rep = np.asarray(result["repeated_poses"])
-    fig, ax = plt.subplots(figsize=(7, 6))
+    fig, ax = plt.subplots(figsize=(6.5, 7))
     draw_house(ax)
     if "open_loop_poses" in result:
         ol = np.asarray(result["open_loop_poses"])
-        ax.plot(ol[:, 0], ol[:, 1], "-", color="tab:gray", lw=1, label="open-loop replay (no camera)")
+        ax.plot(ol[:, 0], ol[:, 1], "--", color="tab:gray", lw=1.2, label="open-loop replay (no camera)", zorder=5)
     ax.scatter(taught[:, 0], taught[:, 1], s=14, color="tab:blue", label="taught subgoals", zorder=3)
     ax.scatter(rep[:, 0], rep[:, 1], s=5, color="tab:red", label="repeated with VelocityNet", zorder=4)
     frame_route(ax, taught)
@@ -287,7 +287,7 @@ def write_png(result: dict[str, Any], path: Path) -> Path:
     ax.set_ylabel("y (m)")
     mean = result["velocitynet"]["position_error_m"]["mean"]
     ax.set_title(f"{result['route']}: taught vs repeated (mean error {mean * 1000:.1f} mm)")
-    ax.legend(fontsize=8, loc="best")
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, frameon=False)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.stem + ".tmp.png")

@@ -640,7 +640,9 @@ def draw_house(ax: Any) -> bool:
             ax.plot([p[0], q[0]], [p[1], q[1]], color=colour, lw=width, zorder=1)
     for room in house.rooms:
         c = np.asarray(room.polygon, dtype=np.float64).mean(axis=0)
-        ax.text(c[0], c[1], room.name, color="0.55", fontsize=8, ha="center", va="center", zorder=1)
+        ax.text(
+            c[0], c[1], room.name, color="0.55", fontsize=8, ha="center", va="center", zorder=1, clip_on=True
+        )
     return True
 
 
@@ -658,7 +660,7 @@ def write_plots(result: dict[str, Any], out_dir: Path) -> list[Path]:
     for r in result["routes"]:
         taught = np.asarray(r["taught_poses"])
         runs = r["scenarios"].get("noise", {})
-        fig, ax = plt.subplots(figsize=(7, 6))
+        fig, ax = plt.subplots(figsize=(6.5, 7))
         draw_house(ax)
         ax.scatter(taught[:, 0], taught[:, 1], s=10, color="tab:blue", label="taught (subgoals)", zorder=3)
         for m, run in runs.items():
@@ -668,7 +670,7 @@ def write_plots(result: dict[str, Any], out_dir: Path) -> list[Path]:
         ax.set_xlabel("x (m)")
         ax.set_ylabel("y (m)")
         ax.set_title(f"{r['name']}: taught vs repeated (noise {result['config']['noise']})")
-        ax.legend(fontsize=7, loc="best")
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, frameon=False)
         written.append(_save(fig, out_dir / f"{r['name']}_path.png"))
 
         rotation = r["name"] == "rotation" or any(run["rotation_only"] for run in runs.values())
