@@ -279,7 +279,9 @@ def write_png(result: dict[str, Any], path: Path) -> Path:
     draw_house(ax)
     if "open_loop_poses" in result:
         ol = np.asarray(result["open_loop_poses"])
-        ax.plot(ol[:, 0], ol[:, 1], "--", color="tab:gray", lw=1.2, label="open-loop replay (no camera)", zorder=5)
+        ax.plot(
+            ol[:, 0], ol[:, 1], "--", color="tab:gray", lw=1.2, label="open-loop replay (no camera)", zorder=5
+        )
     ax.scatter(taught[:, 0], taught[:, 1], s=14, color="tab:blue", label="taught subgoals", zorder=3)
     ax.scatter(rep[:, 0], rep[:, 1], s=5, color="tab:red", label="repeated with VelocityNet", zorder=4)
     frame_route(ax, taught)

@@ -55,6 +55,7 @@ class LatencyConfig:
     matmul_size: int = 512  # n of the n x n x n float32 matmul used as the hardware reference
     zmq: bool = True  # time the ZeroMQ round trip to a local simulator server
     memory: bool = True  # measure peak RSS of a runtime-only subprocess
+    sim_steps: int = 500  # simulator throughput steps (`vtr bench sim`) in the same summary; 0 = skip
     json_path: Path | None = None  # where to write every number (atomic write)
 
     def __post_init__(self) -> None:
@@ -71,6 +72,8 @@ class LatencyConfig:
             raise ValueError(f"steps must be >= 2, got {self.steps}")
         if self.warmup < 0:
             raise ValueError(f"warmup must be >= 0, got {self.warmup}")
+        if self.sim_steps < 0:
+            raise ValueError(f"sim_steps must be >= 0, got {self.sim_steps}")
         unknown = set(self.backends) - {"ort_fp32", "ort_int8", "torch_eager", "cv2_dnn"}
         if unknown:
             raise ValueError(f"unknown backends: {sorted(unknown)}")
@@ -367,6 +370,18 @@ def bench_zmq(cfg: LatencyConfig) -> dict[str, Any]:
         return {"skipped": f"{type(err).__name__}: {err}"}
 
 
+def bench_sim(cfg: LatencyConfig, image_size: tuple[int, int]) -> dict[str, Any]:
+    """`vtr bench sim` (the simulator's own benchmark) at the model's camera size."""
+    try:
+        from benchmarks.sim_throughput import SimBenchConfig
+        from benchmarks.sim_throughput import run as run_sim
+
+        h, w = image_size
+        return run_sim(SimBenchConfig(steps=cfg.sim_steps, warmup=min(50, cfg.sim_steps), width=w, height=h))
+    except Exception as err:  # simulator not installed
+        return {"skipped": f"{type(err).__name__}: {err}"}
+
+
 _RSS_SCRIPT = """
 import json, resource, sys
 for blocked in ("torch", "cv2", "pymunk", "matplotlib"):
@@ -501,6 +516,14 @@ def format_report(result: dict[str, Any]) -> str:
             f"runtime-only process peak RSS: {mem['peak_rss_mb']:.1f} MB over {mem['steps']} steps "
             f"(heavy modules loaded: {', '.join(mem['heavy_modules_loaded']) or 'none'})"
         )
+    sim = result.get("sim", {})
+    if "skipped" in sim:
+        lines.append(f"simulator throughput: skipped ({sim['skipped']})")
+    elif sim:
+        lines.append(
+            f"simulator throughput (`vtr bench sim`): {sim['steps_per_s']:.0f} steps/s "
+            f"(render {sim['render_ms_median']:.2f} ms, physics {sim['physics_ms_median']:.2f} ms median)"
+        )
     r = result["ratios"]
     lines += ["", "targets (issue 5), at 1 thread:"]
     for key, (desc, op, threshold) in TARGETS.items():
@@ -534,6 +557,7 @@ def run(cfg: LatencyConfig) -> dict[str, Any]:
         "zmq": bench_zmq(cfg) if cfg.zmq else {"skipped": "disabled"},
         "backends": bench_backends(cfg, x, y, flops["gflop"]),
         "memory": bench_memory(cfg) if cfg.memory else {"skipped": "disabled"},
+        "sim": bench_sim(cfg, (h, w)) if cfg.sim_steps else {"skipped": "disabled"},
     }
     result["ratios"] = ratios(result)
     if cfg.json_path is not None:
@@ -581,6 +605,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--matmul-size", type=int, default=512, help="n of the reference n^3 float32 matmul")
     parser.add_argument("--no-zmq", action="store_true", help="skip the ZeroMQ round trip")
     parser.add_argument("--no-memory", action="store_true", help="skip the runtime-only peak RSS subprocess")
+    parser.add_argument("--sim-steps", type=int, default=500, help="simulator throughput steps (0 = skip)")
     parser.add_argument("--json", type=Path, default=None, help="write every number here")
     parser.add_argument(
         "--standin", action="store_true", help="write a random-weight stand-in VelocityNet to --model first"
@@ -606,6 +631,7 @@ def config_from_args(args: argparse.Namespace) -> LatencyConfig:
         matmul_size=args.matmul_size,
         zmq=not args.no_zmq,
         memory=not args.no_memory,
+        sim_steps=args.sim_steps,
         json_path=args.json,
     )
 

@@ -49,6 +49,7 @@ def test_latency_smoke_run(tiny_model: Path, tmp_path: Path) -> None:
         warmup=1,
         matmul_size=32,
         zmq=False,
+        sim_steps=0,
         json_path=tmp_path / "lat.json",
     )
     result = latency.run(cfg)
