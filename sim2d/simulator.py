@@ -89,6 +89,11 @@ class Simulator:
 
     def step(self, v: float, w: float, duration: float) -> np.ndarray:
         """Drive with (v, w), clamped to the limits, for `duration` s of simulated time; returns the image."""
+        self.advance(v, w, duration)
+        return self.observe()
+
+    def advance(self, v: float, w: float, duration: float) -> None:
+        """Like step() without rendering (for callers that need many poses and few images)."""
         if not (isinstance(duration, (int, float)) and math.isfinite(duration)) or not (
             0.0 <= duration <= self.cfg.max_step_duration
         ):
@@ -96,7 +101,6 @@ class Simulator:
                 f"step duration must be in [0, {self.cfg.max_step_duration}] s, got {duration!r}"
             )
         self._state = sim_step(self._require(), v, w, float(duration), self._rng, self.cfg)
-        return self.observe()
 
     def observe(self) -> np.ndarray:
         """The camera image at the current pose (no time advance)."""
