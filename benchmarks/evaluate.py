@@ -526,6 +526,18 @@ def bar_checks(routes: list[dict[str, Any]], agg: dict[str, Any]) -> dict[str, A
     checks["beats_open_loop_cross_track"] = (
         None if not (vn and ol) else vn["mean_cross_track_error_m"] < ol["mean_cross_track_error_m"]
     )
+    # int8 is judged by closed-loop results: its paper-metric mean within 10% of fp32's on each paper route
+    ratios = []
+    for name in PAPER_ROUTES:
+        if name in by_name:
+            fp, q = _paper_stat(by_name[name], "velocitynet"), _paper_stat(by_name[name], "velocitynet_int8")
+            if fp is not None and q is not None:
+                ratios.append(q["mean"] / max(fp["mean"], 1e-12))
+    checks["int8_within_10pct_of_fp32"] = bool(max(ratios) <= 1.10) if ratios else None
+    # the stretch goal: half the paper's errors
+    checks["half_paper_translation_mean"] = None if t is None else t["mean"] <= 0.006
+    checks["half_paper_translation_rotation_mean"] = None if tr is None else tr["mean"] <= 0.00252
+    checks["half_paper_rotation_mae"] = None if rot is None else rot["mean"] <= 0.789
     return checks
 
 
