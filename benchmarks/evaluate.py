@@ -63,6 +63,7 @@ class EvalConfig:
     mpc_samples: int = 32  # candidate (v, w) sequences per MPC step
     mpc_iterations: int = 2  # cross-entropy refinements of the candidate distribution
     open_loop: bool = True  # run the open-loop replay baseline
+    oracle: bool = False  # also run the pose-oracle diagnostic (true poses; the floor e_m switching leaves)
     e_m: float | None = None  # fixed switch threshold (the paper's 17); None = the runtime's calibrated e_m
     dt: float = 0.1  # s each command is applied for (the paper's control step)
     max_steps_factor: float = 4.0  # give up after factor * subgoals + 50 control steps
@@ -215,6 +216,40 @@ class TimedPolicy:
         return out
 
 
+class PoseOracle:
+    """Diagnostic upper bound, not a visual method: steers to the subgoal's taught pose using true poses.
+
+    It runs inside the same daemon and controller as VelocityNet, so the subgoal switching (e_m on images)
+    is identical; its errors are the floor that switching rule leaves, and VelocityNet's distance above it is
+    what the network costs. It reads the robot's true pose and finds the subgoal's index from the image
+    array the controller hands over.
+    """
+
+    def __init__(self, v_max: float, w_max: float, horizon: int, dt: float) -> None:
+        self.v_max, self.w_max, self.horizon, self.dt = v_max, w_max, horizon, dt
+        self.robot: RecordingRobot | None = None
+        self.route: Any = None
+
+    def bind(self, robot: RecordingRobot, route: Any) -> None:
+        self.robot, self.route = robot, route
+
+    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+        assert self.robot is not None and self.robot.last_pose is not None
+        images = self.route.images
+        index = (
+            subgoal.__array_interface__["data"][0] - images.__array_interface__["data"][0]
+        ) // images.strides[0]
+        gx, gy, gyaw = self.route.poses[int(np.clip(index, 0, len(images) - 1))]
+        x, y, yaw = self.robot.last_pose
+        c, s = math.cos(yaw), math.sin(yaw)
+        ex, ey = c * (gx - x) + s * (gy - y), -s * (gx - x) + c * (gy - y)  # goal in the robot frame
+        eyaw = float(metrics.wrap_angle(gyaw - yaw))
+        # close the gap in about two control steps; turn toward the goal point when it lies to the side
+        v = float(np.clip(ex / (2 * self.dt), -self.v_max, self.v_max))
+        w = float(np.clip((eyaw + 2.0 * ey) / (2 * self.dt), -self.w_max, self.w_max))
+        return np.tile(np.array([[v], [w]], dtype=np.float32), (1, self.horizon))
+
+
 def repeat_closed_loop(
     robot: Any,
     predict: Callable[[np.ndarray, np.ndarray], np.ndarray],
@@ -231,6 +266,8 @@ def repeat_closed_loop(
     first = robot.reset(pose=start, seed=seed)
     log.poses.append(first.pose)
     rec = RecordingRobot(robot, log)
+    if isinstance(getattr(predict, "__self__", None), PoseOracle):
+        predict.__self__.bind(rec, route)
     ccfg = ControllerConfig() if cfg.e_m is None else ControllerConfig(e_m_mode="fixed", e_m=cfg.e_m)
     rcfg = RepeatConfig(controller=ccfg, dt=cfg.dt, max_steps=int(cfg.max_steps_factor * len(route) + 50))
     policy = TimedPolicy(predict, route.image_shape, log)
@@ -419,6 +456,9 @@ def evaluate_route(script_path: Path, cfg: EvalConfig) -> dict[str, Any]:
             cfg.viewnet, fp32.meta.horizon, cfg.mpc_samples, cfg.mpc_iterations, cfg.threads, cfg.seed
         )
         methods["online_mpc"] = mpc.predict
+    if cfg.oracle:
+        meta = fp32.meta
+        methods["pose_oracle"] = PoseOracle(meta.v_max, meta.w_max, meta.horizon, cfg.dt).predict
     if cfg.open_loop:
         methods["open_loop"] = None
 
@@ -562,7 +602,7 @@ def markdown_report(result: dict[str, Any]) -> str:
         f"from the taught start. e_m: {'calibrated per route' if cfg['e_m'] is None else cfg['e_m']}.",
         "",
     ]
-    methods = [m for m in ("velocitynet", "velocitynet_int8", "ablation_w2_0", "online_mpc", "open_loop")
+    methods = [m for m in ("velocitynet", "velocitynet_int8", "ablation_w2_0", "online_mpc", "open_loop", "pose_oracle")
                if any(m in r["scenarios"].get("noise", {}) for r in routes.values())]  # fmt: skip
     for title, names, unit in (
         ("Table 1: nearest-point position error (m)", ("translation", "translation_rotation"), "m"),
@@ -670,7 +710,7 @@ def write_plots(result: dict[str, Any], out_dir: Path) -> list[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     colours = {"velocitynet": "tab:red", "velocitynet_int8": "tab:orange", "ablation_w2_0": "tab:purple",
-               "online_mpc": "tab:green", "open_loop": "tab:gray"}  # fmt: skip
+               "online_mpc": "tab:green", "open_loop": "tab:gray", "pose_oracle": "tab:olive"}  # fmt: skip
     for r in result["routes"]:
         taught = np.asarray(r["taught_poses"])
         runs = r["scenarios"].get("noise", {})
@@ -804,6 +844,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--mpc-routes", nargs="*", default=list(PAPER_ROUTES), help="routes the MPC runs on")
     parser.add_argument("--mpc-samples", type=int, default=32, help="candidate sequences per MPC step")
     parser.add_argument("--no-open-loop", action="store_true", help="skip the open-loop replay baseline")
+    parser.add_argument("--oracle", action="store_true", help="add the pose-oracle diagnostic (not visual)")
     parser.add_argument("--e-m", type=float, default=None, help="fixed e_m (paper: 17); default calibrated")
     parser.add_argument("--seed", type=int, default=0, help="actuation noise seed")
     parser.add_argument("--threads", type=int, default=1, help="inference threads per worker")
@@ -823,6 +864,7 @@ def config_from_args(args: argparse.Namespace) -> EvalConfig:
         mpc_routes=tuple(args.mpc_routes),
         mpc_samples=args.mpc_samples,
         open_loop=not args.no_open_loop,
+        oracle=args.oracle,
         e_m=args.e_m,
         seed=args.seed,
         threads=args.threads,

@@ -76,7 +76,7 @@ def test_route_metrics_identity_run_is_perfect() -> None:
     assert out["position_error_m"]["max"] == 0.0
     assert out["yaw_error_deg"]["max"] == 0.0
     assert out["completed"] is True
-    assert out["mean_cross_track_error_m"] == 0.0
+    assert out["mean_cross_track_error_m"] == pytest.approx(0.0, abs=1e-12)
     assert out["rotation_only"] is False
     rot = np.stack([np.zeros(5), np.zeros(5), np.linspace(0, 3, 5)], axis=1)
     assert metrics.route_metrics(rot, rot, np.zeros((0, 2)), 2)["rotation_only"] is True
@@ -87,3 +87,23 @@ def test_bad_shapes_raise() -> None:
         metrics.nearest_point_errors(np.zeros(3), np.zeros((2, 2)))
     with pytest.raises(ValueError, match="empty"):
         metrics.nearest_point_errors(np.zeros((0, 2)), np.zeros((2, 2)))
+
+
+def test_densify_path_interpolates_and_wraps_yaw() -> None:
+    poses = np.array([[0.0, 0.0, math.radians(170)], [1.0, 2.0, math.radians(-170)]])
+    dense = metrics.densify_path(poses, 4)
+    assert dense.shape == (5, 3)
+    np.testing.assert_allclose(dense[:, 0], [0.0, 0.25, 0.5, 0.75, 1.0])
+    np.testing.assert_allclose(dense[:, 1], [0.0, 0.5, 1.0, 1.5, 2.0])
+    # 170 -> -170 deg goes the short way through 180, not back through 0
+    np.testing.assert_allclose(np.degrees(metrics.wrap_angle(dense[2, 2] - math.pi)), 0.0, atol=1e-9)
+    np.testing.assert_allclose(metrics.densify_path(poses, 1), poses)
+
+
+def test_route_metrics_scores_the_path_between_steps() -> None:
+    # taught points halfway between the repeated step poses: the path passes through them
+    taught = np.array([[0.05, 0.0, 0.0], [0.15, 0.0, 0.0]])
+    repeated = np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.2, 0.0, 0.0]])
+    out = metrics.route_metrics(taught, repeated, np.zeros((2, 2)), 2, per_step=10)
+    assert out["position_error_m"]["max"] == pytest.approx(0.0, abs=1e-12)
+    assert out["step_sampled_position_error_m"]["max"] == pytest.approx(0.05)
