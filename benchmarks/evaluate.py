@@ -568,6 +568,10 @@ def bar_checks(routes: list[dict[str, Any]], agg: dict[str, Any]) -> dict[str, A
     checks["beats_open_loop_cross_track"] = (
         None if not (vn and ol) else vn["mean_cross_track_error_m"] < ol["mean_cross_track_error_m"]
     )
+    vo, oo = agg.get("offset", {}).get("velocitynet"), agg.get("offset", {}).get("open_loop")
+    checks["beats_open_loop_cross_track_offset_start"] = (
+        None if not (vo and oo) else vo["mean_cross_track_error_m"] < oo["mean_cross_track_error_m"]
+    )
     # int8 is judged by closed-loop results: its paper-metric mean within 10% of fp32's on each paper route
     ratios = []
     for name in PAPER_ROUTES:
