@@ -450,7 +450,6 @@ def evaluate_route(script_path: Path, cfg: EvalConfig) -> dict[str, Any]:
         methods["velocitynet_int8"] = onnx_predict(cfg.int8_model, cfg.threads)
     if cfg.ablation_model is not None:
         methods["ablation_w2_0"] = onnx_predict(cfg.ablation_model, cfg.threads)
-    notes: dict[str, str] = {}
     if cfg.viewnet is not None and not cfg.quick and script_path.stem in cfg.mpc_routes:
         mpc = ViewNetMPC(
             cfg.viewnet, fp32.meta.horizon, cfg.mpc_samples, cfg.mpc_iterations, cfg.threads, cfg.seed
@@ -485,7 +484,6 @@ def evaluate_route(script_path: Path, cfg: EvalConfig) -> dict[str, Any]:
         "taught_poses": np.round(route.poses, 5).tolist(),
         "start": list(start),
         "scenarios": results,
-        "notes": notes,
         "wall_s": time.perf_counter() - t_start,
     }
 
@@ -669,6 +667,8 @@ def markdown_report(result: dict[str, Any]) -> str:
                 f"| {scen} | {m} | {a['completed']}/{a['routes']} | {_fmt(a['mean_position_error_m'])} "
                 f"| {_fmt(a['mean_cross_track_error_m'])} | {'-' if pm is None else f'{pm:.2f}'} |"
             )
+    if result.get("notes"):
+        lines += ["", "Not run: " + "; ".join(result["notes"]) + "."]
     lines += ["", "### Bar (issue 5)", ""]
     for key, ok in result["bar"].items():
         lines.append(f"- {key}: {'-' if ok is None else ('met' if ok else 'MISSED')}")
@@ -799,7 +799,17 @@ def run(cfg: EvalConfig) -> dict[str, Any]:
     else:
         routes = [evaluate_route(f, cfg) for f in files]
     agg = aggregate(routes)
+    notes = []
+    if cfg.int8_model is None:
+        notes.append("int8: not run (no <model>-int8.onnx beside the model; pass --int8-model)")
+    if cfg.ablation_model is None:
+        notes.append("w2 = 0 ablation: not run (pass --ablation-model)")
+    if cfg.viewnet is None:
+        notes.append("online MPC: not run (pass --viewnet with a ViewNet checkpoint)")
+    elif cfg.quick:
+        notes.append("online MPC: not run in --quick")
     result: dict[str, Any] = {
+        "notes": notes,
         "config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
         "paper": PAPER,
         "routes": routes,
