@@ -801,13 +801,13 @@ def run(cfg: EvalConfig) -> dict[str, Any]:
     agg = aggregate(routes)
     notes = []
     if cfg.int8_model is None:
-        notes.append("int8: not run (no <model>-int8.onnx beside the model; pass --int8-model)")
+        notes.append("int8 (no <model>-int8.onnx beside the model; pass --int8-model)")
     if cfg.ablation_model is None:
-        notes.append("w2 = 0 ablation: not run (pass --ablation-model)")
+        notes.append("w2 = 0 ablation (pass --ablation-model)")
     if cfg.viewnet is None:
-        notes.append("online MPC: not run (pass --viewnet with a ViewNet checkpoint)")
+        notes.append("online MPC (pass --viewnet with a ViewNet checkpoint)")
     elif cfg.quick:
-        notes.append("online MPC: not run in --quick")
+        notes.append("online MPC (skipped in --quick)")
     result: dict[str, Any] = {
         "notes": notes,
         "config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
