@@ -98,3 +98,16 @@ def test_demo_runs_end_to_end(small_model: Path, short_route: Path, tmp_path: Pa
     assert Path(result["png"]).is_file()
     assert result["summary"]["subgoals_total"] >= 2
     assert result["velocitynet"]["position_error_m"]["n"] == result["summary"]["subgoals_total"]
+
+
+def test_pose_oracle_closes_the_loop(small_model: Path, short_route: Path) -> None:
+    # The harness end to end (daemon, controller, pose recording, scoring) with a policy that can succeed.
+    from benchmarks import evaluate
+
+    cfg = evaluate.EvalConfig(
+        model=small_model, routes=(str(short_route),), quick=True, workers=1, oracle=True, open_loop=False
+    )
+    run = evaluate.run(cfg)["routes"][0]["scenarios"]["noise"]["pose_oracle"]
+    assert run["completed"] and run["outcome"] == "finished"
+    assert run["position_error_m"]["mean"] < 0.02
+    assert sorted(run["switch_poses"]["index"]) == list(range(run["subgoals"]))
