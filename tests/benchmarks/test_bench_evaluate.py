@@ -90,12 +90,12 @@ def test_open_loop_drifts_under_noise_and_not_without(short_route: Path) -> None
     assert load_route_script(short_route).name == "short"
 
 
-@pytest.mark.slow
 def test_demo_runs_end_to_end(small_model: Path, short_route: Path, tmp_path: Path) -> None:
     from benchmarks import demo
 
     result = demo.run(demo.DemoConfig(model=small_model, route=str(short_route), out=tmp_path))
-    assert Path(result["png"]).is_file()
+    assert Path(result["png"]).is_file() and (tmp_path / "short.npz").is_file()
+    assert len(result["open_loop_poses"]) == round(0.8 / 0.1) + round(0.6 / 0.1) + 1
     assert result["summary"]["subgoals_total"] >= 2
     assert result["velocitynet"]["position_error_m"]["n"] == result["summary"]["subgoals_total"]
 
