@@ -99,6 +99,8 @@ class SimServer:
         self.errors = 0
         #: The last twist commanded (v, w); stop sets it to zero. In lockstep it matters only for the record.
         self.twist = (0.0, 0.0)
+        #: Command of the last well-formed request (for logs and tests).
+        self.last_cmd: str | None = None
         self.endpoint: str | None = None
         self._stop = threading.Event()
         self._ready = threading.Event()
@@ -113,6 +115,7 @@ class SimServer:
             self.errors += 1
             cmd, seq = protocol.peek_cmd_seq(frames)
             return protocol.encode_error(str(exc), cmd, seq, self.session)
+        self.last_cmd = req.cmd
         try:
             return self._dispatch(req)
         except Exception as exc:  # a simulator failure must not kill the server
