@@ -274,6 +274,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--stall-steps", type=int, default=20, help="stall guard patience; 0 disables it")
     parser.add_argument("--localise", action="store_true", help="start at the best-matching subgoal")
     parser.add_argument("--continuous", action="store_true", help="no zero command between control steps")
+    parser.add_argument(
+        "--start",
+        choices=("route", "here"),
+        default="route",
+        help="route: reset the simulator to the route's first pose first; here: start where the robot is",
+    )
+    parser.add_argument(
+        "--seed", type=int, default=1, help="actuation-noise seed for the reset (--start route)"
+    )
     parser.add_argument("--timeout", type=float, default=2.0, help="seconds to wait for each reply")
     parser.add_argument("--retries", type=int, default=3, help="tries per request before giving up")
     parser.add_argument(
@@ -292,9 +301,16 @@ class RepeatRunConfig:
     threads: int = 1  # onnxruntime intra-op threads
     timeout_s: float = 2.0  # per-reply timeout
     retries: int = 3  # tries per request
+    #: "route": reset the simulator to the route's first pose before repeating; "here": start where it is
+    #: (a real robot placed by hand, or a bridge that does not implement reset).
+    start: str = "route"
+    #: Actuation-noise seed for the reset ("route" start only).
+    seed: int | None = 1
     repeat: RepeatConfig = field(default_factory=RepeatConfig)
 
     def __post_init__(self) -> None:
+        if self.start not in ("route", "here"):
+            raise ValueError(f"start must be 'route' or 'here', got {self.start!r}")
         if "://" not in self.sim:
             raise ValueError(f"sim must be a ZeroMQ endpoint like tcp://127.0.0.1:5555, got {self.sim!r}")
         if self.threads < 1:
@@ -316,6 +332,11 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Repe
     log_file = open(cfg.log, "w", encoding="utf-8") if cfg.log else None  # noqa: SIM115
     try:
         with SimClient(cfg.sim, cfg.timeout_s, cfg.retries, expect_shape=policy.image_shape) as client:
+            if cfg.start == "route":
+                pose = route.poses[0]
+                if not np.all(np.isfinite(pose)):
+                    raise ValueError("the route's first pose is unknown; use --start here")
+                client.reset(pose=(float(pose[0]), float(pose[1]), float(pose[2])), seed=cfg.seed)
             return repeat(client, policy, route, cfg.repeat, log_file, stop_event)
     finally:
         if log_file is not None:
@@ -338,6 +359,8 @@ def run_cli(args: argparse.Namespace) -> int:
         threads=args.threads,
         timeout_s=args.timeout,
         retries=args.retries,
+        start=args.start,
+        seed=args.seed,
         repeat=RepeatConfig(
             controller=controller, max_steps=args.max_steps, frame_timeout_s=args.frame_timeout
         ),
