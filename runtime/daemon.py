@@ -9,6 +9,20 @@ Safety rules, in order of precedence:
   Robot) is counted and never reaches the network: the robot is stopped and re-polled with ``observe``
   until a valid frame arrives, or ``frame_timeout_s`` passes without one (then the run ends);
 - the step limit ends a run whose robot is lost.
+
+The log has one JSON object per control step (a command sent), then ``{"summary": {...}}``:
+
+- ``step``: control step number; ``stamp``/``pose``: the robot's clock and pose (null when unknown) of
+  the image the decisions were taken on;
+- ``from_subgoal``: subgoal index before this image was judged; ``advanced``: subgoals reached on it
+  (error <= e_m); ``jumped_to``: indices the stall guard or localisation jumped to; ``subgoal``: the
+  subgoal steered to; ``error``: that subgoal's image error (0..255); ``e_m``: the threshold in force;
+- ``v``, ``w``: the command applied for dt (the first of VelocityNet's N);
+- ``latency_ms``: ``error`` (controller), ``preprocess`` and ``inference`` (policy), ``compute``
+  (image in to command ready), ``robot`` (step round trip plus the zero command), ``receive`` and
+  ``decode`` (SimClient: the step's reply wait and its validation), ``total``.
+
+Subgoals reached on the last image (the run finishing) appear only in the summary.
 """
 
 from __future__ import annotations
@@ -174,11 +188,14 @@ def repeat(
                 reason = "interrupted"
                 break
             t0 = time.perf_counter()
-            advances = 0
+            from_subgoal, advances, jumps = controller.index, 0, []
             while True:
                 decision = controller.decide(obs.image)
-                if decision.action in (Action.ADVANCE, Action.JUMP):
+                if decision.action is Action.ADVANCE:
                     advances += 1
+                    continue
+                if decision.action is Action.JUMP:
+                    jumps.append(decision.index)
                     continue
                 break
             t_error = time.perf_counter() - t0
@@ -200,7 +217,9 @@ def repeat(
             record = {
                 "step": steps,
                 "subgoal": decision.index,
+                "from_subgoal": from_subgoal,
                 "advanced": advances,
+                "jumped_to": jumps,
                 "error": round(decision.error, 4),
                 "e_m": round(controller.e_m, 4),
                 "v": v,

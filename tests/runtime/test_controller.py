@@ -182,7 +182,11 @@ def test_loop_contract_command_then_zero_switch_at_e_m_finish_after_l_subgoals()
     # then steered towards the next subgoal
     assert policy.inputs == [(50, 0), (17, 100), (117, 200)]
     steps = [r for r in records if "step" in r]
-    assert [(r["subgoal"], r["advanced"], r["error"]) for r in steps] == [(0, 0, 50), (1, 1, 83), (2, 1, 83)]
+    assert [(r["from_subgoal"], r["subgoal"], r["advanced"], r["error"]) for r in steps] == [
+        (0, 0, 0, 50),
+        (0, 1, 1, 83),
+        (1, 2, 1, 83),
+    ]
     assert summary.completed and summary.reason == "finished"
     assert summary.steps == 3 and summary.subgoals_reached == 3 == summary.subgoals_total
     assert records[-1]["summary"]["reason"] == "finished"

@@ -19,7 +19,20 @@ from runtime.robot import Observation
 from sim2d.local_robot import LocalRobot
 from sim2d.server import ServerConfig, ServerThread, start_server_process
 
-LOG_KEYS = {"step", "subgoal", "advanced", "error", "e_m", "v", "w", "stamp", "pose", "latency_ms"}
+LOG_KEYS = {
+    "step",
+    "subgoal",
+    "from_subgoal",
+    "advanced",
+    "jumped_to",
+    "error",
+    "e_m",
+    "v",
+    "w",
+    "stamp",
+    "pose",
+    "latency_ms",
+}
 
 
 @pytest.fixture(scope="module")
@@ -283,5 +296,7 @@ def test_repeat_config_validation():
 def test_localise_option_starts_mid_route(policy_path):
     sim = FakeSim(x=0.2)
     cfg = RepeatConfig(controller=ControllerConfig(localise=True))
-    summary = repeat(LocalRobot(sim), OnnxPolicy(policy_path), corridor_route(), cfg)
+    records: list[dict] = []
+    summary = repeat(LocalRobot(sim), OnnxPolicy(policy_path), corridor_route(), cfg, log=records.append)
     assert summary.completed and summary.localised_to == 4
+    assert records[0]["from_subgoal"] == 0 and records[0]["jumped_to"] == [4]
