@@ -90,9 +90,16 @@ class SimClient:
             if self._sock is None:
                 self._sock = self._open()
             t0 = time.perf_counter()
-            self._sock.send_multipart(request)
-            if self._sock.poll(int(self.timeout_s * 1000), zmq.POLLIN):
-                frames = self._sock.recv_multipart()
+            try:
+                self._sock.send_multipart(request)
+                ready = self._sock.poll(int(self.timeout_s * 1000), zmq.POLLIN)
+                frames = self._sock.recv_multipart() if ready else None
+            except BaseException:
+                # interrupted mid-exchange (e.g. KeyboardInterrupt): the REQ socket now waits for a reply
+                # that nobody will read, so the zero command that follows needs a fresh socket
+                self._drop()
+                raise
+            if frames is not None:
                 t1 = time.perf_counter()
                 reply = self._validate(frames, cmd, seq)
                 self.last_timing_ms = {"receive": (t1 - t0) * 1e3, "decode": (time.perf_counter() - t1) * 1e3}

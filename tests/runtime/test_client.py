@@ -186,3 +186,21 @@ def test_client_argument_validation():
 def test_server_config_with_ephemeral_port_reports_the_real_endpoint():
     with ServerThread(FakeSim(), ServerConfig(bind="tcp://127.0.0.1:*")) as server:
         assert server.endpoint.startswith("tcp://127.0.0.1:") and not server.endpoint.endswith("*")
+
+
+def test_an_interrupted_exchange_does_not_block_the_zero_command_that_follows(monkeypatch):
+    sim = FakeSim()
+    with ServerThread(sim) as server, SimClient(server.endpoint, timeout_s=5.0) as client:
+        client.observe()
+        sock_type = type(client._sock)
+        real_poll = sock_type.poll
+
+        def interrupted(self, *args, **kwargs):
+            monkeypatch.setattr(sock_type, "poll", real_poll)
+            raise KeyboardInterrupt
+
+        monkeypatch.setattr(sock_type, "poll", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            client.step(0.2, 0.0, 0.1)
+        client.stop()  # a fresh socket: the stop goes through
+        assert server.server.last_cmd == "stop"
