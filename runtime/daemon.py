@@ -151,29 +151,35 @@ def repeat(
     last_valid = time.monotonic()
     reason, detail = "", ""
 
+    last_rejected = ""
+
     def valid(obs: Observation) -> bool:
-        nonlocal bad_frames
-        ok = (
-            isinstance(obs.image, np.ndarray)
-            and obs.image.dtype == np.uint8
-            and obs.image.shape == expect
-            and math.isfinite(obs.stamp)
-        )
-        if not ok:
-            bad_frames += 1
-        return ok
+        nonlocal bad_frames, last_rejected
+        image = obs.image
+        if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.shape != expect:
+            shape = getattr(image, "shape", None)
+            last_rejected = (
+                f"image {shape} {getattr(image, 'dtype', type(image).__name__)}, expected {expect} uint8"
+            )
+        elif not math.isfinite(obs.stamp):
+            last_rejected = f"non-finite stamp {obs.stamp}"
+        else:
+            return True
+        bad_frames += 1
+        return False
 
     def fetch(call: Callable[[], Observation]) -> Observation:
         """A valid frame from ``call``, else stop the robot and re-poll observe() until the deadline."""
-        nonlocal bad_frames, last_valid
+        nonlocal bad_frames, last_valid, last_rejected
         while True:
             try:
                 obs = call()
                 if valid(obs):
                     last_valid = time.monotonic()
                     return obs
-            except BadFrameError:
+            except BadFrameError as exc:
                 bad_frames += 1
+                last_rejected = str(exc)
             _safe_stop(robot)
             if time.monotonic() - last_valid > cfg.frame_timeout_s or stop_event.is_set():
                 raise _NoValidFrame()
@@ -244,7 +250,10 @@ def repeat(
             obs = new_obs
             last_stamp = obs.stamp
     except _NoValidFrame:
-        reason, detail = "no_valid_frame", f"no valid frame for {cfg.frame_timeout_s} s"
+        reason, detail = (
+            "no_valid_frame",
+            f"no valid frame for {cfg.frame_timeout_s} s; last rejected: {last_rejected}",
+        )
     except RobotError as exc:
         reason, detail = "robot_error", str(exc)
     except KeyboardInterrupt:
@@ -262,7 +271,7 @@ def repeat(
         e_m=controller.e_m,
         sim_time_s=(last_stamp - first_stamp) if first_stamp is not None and last_stamp is not None else 0.0,
         wall_time_s=time.perf_counter() - t_start,
-        bad_frames=bad_frames + int(getattr(robot, "bad_frames", 0)),
+        bad_frames=bad_frames,
         nonfinite_outputs=int(getattr(policy, "nonfinite_count", 0)),
         jumps=controller.jumps,
         localised_to=controller.localised_to,

@@ -127,6 +127,7 @@ def test_no_valid_frame_within_the_timeout_stops_the_run(policy_path):
         RepeatConfig(frame_timeout_s=0.2, bad_frame_backoff_s=0.01),
     )
     assert summary.reason == "no_valid_frame" and not summary.completed and summary.steps == 0
+    assert "last rejected: truncated pixel frame" in summary.detail
     assert robot.log[-1] == "stop"
 
 
@@ -300,3 +301,16 @@ def test_localise_option_starts_mid_route(policy_path):
     summary = repeat(LocalRobot(sim), OnnxPolicy(policy_path), corridor_route(), cfg, log=records.append)
     assert summary.completed and summary.localised_to == 4
     assert records[0]["from_subgoal"] == 0 and records[0]["jumped_to"] == [4]
+
+
+def test_camera_at_the_wrong_resolution_never_reaches_the_network(policy_path):
+    policy = SpyPolicy(OnnxPolicy(policy_path))
+    with (
+        ServerThread(FakeSim(h=8, w=8)) as server,
+        SimClient(server.endpoint, 2.0, expect_shape=(16, 16)) as client,
+    ):
+        cfg = RepeatConfig(frame_timeout_s=0.3, bad_frame_backoff_s=0.02)
+        summary = repeat(client, policy, corridor_route(), cfg)
+        assert server.server.last_cmd == "stop"
+    assert summary.reason == "no_valid_frame" and "image is 8x8, expected 16x16" in summary.detail
+    assert policy.seen == 0 and summary.bad_frames >= 2 and client.bad_frames == summary.bad_frames
