@@ -1,7 +1,14 @@
 """Serve an in-process simulator over ZeroMQ with the wire contract of ``runtime.protocol``.
 
-One REP socket, one simulator, lockstep: simulated time advances only inside ``step`` requests, so a
-run is deterministic whatever the client's speed. Every request gets exactly one reply; a bad request
+One REP socket, one simulator. Two clocks (``ServerConfig.mode``):
+
+- ``"lockstep"`` (default): simulated time advances only inside ``step`` requests, so a run is
+  deterministic whatever the client's speed; ``stop`` only records the zero twist.
+- ``"realtime"``: simulated time follows the wall clock (times ``realtime_factor``). The last twist keeps
+  driving the robot between requests until ``stop``, and a ``step`` reply is sent once ``duration``
+  has passed. This is how a real robot behaves, and what makes the daemon's continuous mode (no zero
+  command while the next command is computed) differ from stop-and-go.
+ Every request gets exactly one reply; a bad request
 gets ``{"ok": false, "error": ...}`` naming the problem and the server keeps serving. The loop polls
 with a timeout and checks a stop flag, so SIGINT/SIGTERM shut it down cleanly.
 
@@ -64,6 +71,10 @@ class ServerConfig:
     max_step_duration: float = protocol.MAX_DURATION
     #: How often the loop wakes up to check for shutdown, in milliseconds.
     poll_ms: int = 100
+    #: "lockstep": time advances only in step requests; "realtime": time follows the wall clock.
+    mode: str = "lockstep"
+    #: "realtime" only: simulated seconds per wall-clock second.
+    realtime_factor: float = 1.0
 
     def __post_init__(self) -> None:
         if not isinstance(self.bind, str) or "://" not in self.bind:
@@ -81,18 +92,37 @@ class ServerConfig:
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}")
         if self.poll_ms < 1:
             raise ValueError(f"poll_ms must be >= 1, got {self.poll_ms}")
+        if self.mode not in ("lockstep", "realtime"):
+            raise ValueError(f"mode must be 'lockstep' or 'realtime', got {self.mode!r}")
+        if not (math.isfinite(self.realtime_factor) and self.realtime_factor > 0):
+            raise ValueError(f"realtime_factor must be a positive number, got {self.realtime_factor!r}")
 
     @property
     def limits(self) -> Limits:
         return Limits(v_max=self.v_max, w_max=self.w_max, max_duration=self.max_step_duration)
 
 
-class SimServer:
-    """Request handling (pure: frames in, frames out) plus a socket loop around it."""
+@dataclass
+class Deferred:
+    """A realtime ``step`` whose reply is due once the wall clock reaches ``deadline``."""
 
-    def __init__(self, simulator: Any, cfg: ServerConfig | None = None) -> None:
+    deadline: float
+    req: protocol.Request
+
+
+class SimServer:
+    """Request handling (frames in, frames out) plus a socket loop around it.
+
+    ``clock`` (monotonic seconds) is injectable so that realtime mode can be tested without sleeping.
+    """
+
+    def __init__(
+        self, simulator: Any, cfg: ServerConfig | None = None, clock: Callable[[], float] = time.monotonic
+    ) -> None:
         self.sim = simulator
         self.cfg = cfg or ServerConfig()
+        self.clock = clock
+        self._wall = clock()  # realtime: wall-clock instant the simulator has been advanced to
         #: Changes at every server start, so a client can tell a restarted server from a stale reply.
         self.session = uuid.uuid4().hex[:12]
         self.requests = 0
@@ -105,9 +135,49 @@ class SimServer:
         self._stop = threading.Event()
         self._ready = threading.Event()
 
-    # ------------------------------------------------------------------ pure part
+    # ------------------------------------------------------------------ request handling
+    @property
+    def realtime(self) -> bool:
+        return self.cfg.mode == "realtime"
+
+    def catch_up(self, now: float | None = None) -> None:
+        """Realtime: drive the simulator with the current twist up to wall-clock instant ``now``."""
+        now = self.clock() if now is None else now
+        remaining = (now - self._wall) * self.cfg.realtime_factor
+        self._wall = max(self._wall, now)
+        advance = getattr(self.sim, "advance", None)  # no render when the simulator offers it
+        while remaining > 1e-9:
+            chunk = min(remaining, self.cfg.max_step_duration)
+            if advance is not None:
+                advance(self.twist[0], self.twist[1], chunk)
+            else:
+                self.sim.step(self.twist[0], self.twist[1], chunk)
+            remaining -= chunk
+
     def handle(self, frames: list[bytes]) -> list[bytes]:
-        """One request -> one reply. Never raises for a bad request."""
+        """One request -> one reply (a realtime step is answered at once, after waiting). Never raises."""
+        result = self.handle_deferred(frames)
+        if isinstance(result, Deferred):
+            wait = result.deadline - self.clock()
+            if wait > 0:
+                time.sleep(wait)
+            return self.finish(result)
+        return result
+
+    def finish(self, deferred: Deferred) -> list[bytes]:
+        """The reply of a realtime step, once its deadline has passed."""
+        try:
+            self.catch_up(max(deferred.deadline, self.clock()))
+            return self._image_reply(deferred.req, self.sim.observe())
+        except Exception as exc:
+            self.errors += 1
+            req = deferred.req
+            return protocol.encode_error(
+                f"simulator error on {req.cmd!r}: {exc}", req.cmd, req.seq, self.session
+            )
+
+    def handle_deferred(self, frames: list[bytes]) -> list[bytes] | Deferred:
+        """Like :meth:`handle`, but a realtime step returns a :class:`Deferred` instead of waiting."""
         self.requests += 1
         try:
             req = protocol.decode_request(frames, self.cfg.limits, self.cfg.max_message_bytes)
@@ -117,6 +187,11 @@ class SimServer:
             return protocol.encode_error(str(exc), cmd, seq, self.session)
         self.last_cmd = req.cmd
         try:
+            if self.realtime:
+                self.catch_up()
+                if req.cmd == "step":
+                    self.twist = (req.fields["v"], req.fields["w"])
+                    return Deferred(self._wall + req.fields["duration"] / self.cfg.realtime_factor, req)
             return self._dispatch(req)
         except Exception as exc:  # a simulator failure must not kill the server
             self.errors += 1
@@ -148,13 +223,14 @@ class SimServer:
                 camera=info.get("camera") if isinstance(info, dict) else None,
                 limits=self.cfg.limits.to_dict(),
                 time=float(sim.time),
-                mode="lockstep",
+                mode=self.cfg.mode,
                 info=info,
             )
         if req.cmd == "reset":
             pose = req.fields.get("pose")
             image = sim.reset(pose=None if pose is None else make_pose(*pose), seed=req.fields.get("seed"))
             self.twist = (0.0, 0.0)
+            self._wall = self.clock()
             return self._image_reply(req, image)
         if req.cmd == "observe":
             return self._image_reply(req, sim.observe())
@@ -163,7 +239,7 @@ class SimServer:
             self.twist = (v, w)
             image = sim.step(v, w, duration)
             return self._image_reply(req, image)
-        # stop: lockstep time does not run between requests, so zero velocity needs no physics step.
+        # stop: from now on the robot stands still (realtime); in lockstep no time runs between requests.
         self.twist = (0.0, 0.0)
         return protocol.encode_ok("stop", req.seq, self.session, float(sim.time))
 
@@ -191,11 +267,25 @@ class SimServer:
             self._ready.set()
             poller = zmq.Poller()
             poller.register(sock, zmq.POLLIN)
+            pending: Deferred | None = None
             while not self._stop.is_set():
-                if not poller.poll(self.cfg.poll_ms):
+                if pending is not None:  # realtime step: wait for its deadline, still watching the flag
+                    wait = pending.deadline - self.clock()
+                    if wait > 0:
+                        time.sleep(min(wait, self.cfg.poll_ms / 1000))
+                        continue
+                    sock.send_multipart(self.finish(pending))
+                    pending = None
                     continue
-                frames = sock.recv_multipart()
-                sock.send_multipart(self.handle(frames))
+                if not poller.poll(self.cfg.poll_ms):
+                    if self.realtime:
+                        self.catch_up()
+                    continue
+                result = self.handle_deferred(sock.recv_multipart())
+                if isinstance(result, Deferred):
+                    pending = result
+                else:
+                    sock.send_multipart(result)
         finally:
             sock.close(linger=0)
             ctx.term()
@@ -229,7 +319,7 @@ def _announce(server: SimServer) -> None:
         endpoint = server.wait_ready()
     except TimeoutError:
         return
-    print(f"vtr sim serve: listening on {endpoint} (session {server.session}, lockstep)", flush=True)
+    print(f"vtr sim serve: listening on {endpoint} (session {server.session}, {server.cfg.mode})", flush=True)
 
 
 # ---------------------------------------------------------------------------------------- background runs

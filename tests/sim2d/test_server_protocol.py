@@ -182,9 +182,56 @@ def test_server_process_shuts_down_cleanly_on_sigterm():
         ({"max_message_bytes": 10}, "max_message_bytes"),
         ({"v_max": float("nan")}, "v_max"),
         ({"poll_ms": 0}, "poll_ms"),
+        ({"mode": "fast"}, "mode"),
+        ({"realtime_factor": 0.0}, "realtime_factor"),
         ({"max_message_bytes": 10**6, "hard_max_message_bytes": 10**5}, "hard_max_message_bytes"),
     ],
 )
 def test_server_config_validation(kwargs, fragment):
     with pytest.raises(ValueError, match=fragment):
         ServerConfig(**kwargs)
+
+
+class FakeClock:
+    def __init__(self) -> None:
+        self.t = 100.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+def test_realtime_mode_keeps_driving_until_stop():
+    from sim2d.server import Deferred
+
+    sim, clock = TinySim(), FakeClock()
+    server = SimServer(sim, ServerConfig(mode="realtime"), clock=clock)
+    deferred = server.handle_deferred(protocol.encode_request("step", 1, v=0.5, w=0.0, duration=0.2))
+    assert isinstance(deferred, Deferred) and deferred.deadline == pytest.approx(100.2)
+    clock.t = 100.2
+    reply = protocol.decode_reply(server.finish(deferred))
+    assert reply.stamp == pytest.approx(0.2) and reply.pose[0] == pytest.approx(0.1)
+    clock.t = 100.5  # no zero command yet: the robot kept moving while the client was thinking
+    reply = protocol.decode_reply(server.handle(protocol.encode_request("observe", 2)))
+    assert reply.stamp == pytest.approx(0.5) and reply.pose[0] == pytest.approx(0.25)
+    server.handle(protocol.encode_request("stop", 3))
+    clock.t = 101.5
+    reply = protocol.decode_reply(server.handle(protocol.encode_request("observe", 4)))
+    assert reply.stamp == pytest.approx(1.5) and reply.pose[0] == pytest.approx(
+        0.25
+    )  # time runs, robot still
+    hello = protocol.decode_reply(server.handle(protocol.encode_request("hello", 5)))
+    assert hello.header["mode"] == "realtime"
+
+
+def test_realtime_server_over_zeromq_answers_steps_after_their_duration():
+    sim = TinySim()
+    cfg = ServerConfig(bind="tcp://127.0.0.1:*", mode="realtime", realtime_factor=10.0, poll_ms=5)
+    with ServerThread(sim, cfg) as server:
+        from runtime.client import SimClient
+
+        with SimClient(server.endpoint, timeout_s=5.0) as client:
+            first = client.observe()
+            obs = client.step(0.5, 0.0, 1.0)  # 1 simulated second = 0.1 s of wall clock at factor 10
+            client.stop()
+            assert obs.stamp >= first.stamp + 1.0 and obs.pose[0] >= 0.5 - 1e-9
+        assert server.server.twist == (0.0, 0.0)
