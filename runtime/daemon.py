@@ -117,10 +117,6 @@ def _emit(log: IO[str] | Callable[[dict[str, Any]], None] | None, record: dict[s
     log.flush()
 
 
-def _finite_or_none(x: float) -> float | None:
-    return round(x, 4) if math.isfinite(x) else None
-
-
 def repeat(
     robot: Robot,
     policy: Any,
@@ -149,9 +145,7 @@ def repeat(
     totals: dict[str, float] = {}
     t_start = time.perf_counter()
     last_valid = time.monotonic()
-    reason, detail = "", ""
-
-    last_rejected = ""
+    reason, detail, last_rejected = "", "", ""
 
     def valid(obs: Observation) -> bool:
         nonlocal bad_frames, last_rejected
@@ -250,10 +244,13 @@ def repeat(
             obs = new_obs
             last_stamp = obs.stamp
     except _NoValidFrame:
-        reason, detail = (
-            "no_valid_frame",
-            f"no valid frame for {cfg.frame_timeout_s} s; last rejected: {last_rejected}",
-        )
+        if stop_event.is_set():
+            reason = "interrupted"
+        else:
+            reason, detail = (
+                "no_valid_frame",
+                f"no valid frame for {cfg.frame_timeout_s} s; last rejected: {last_rejected}",
+            )
     except RobotError as exc:
         reason, detail = "robot_error", str(exc)
     except KeyboardInterrupt:
