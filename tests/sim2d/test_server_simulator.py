@@ -50,3 +50,38 @@ def test_simulator_refusal_is_an_error_reply_and_the_server_keeps_serving():
         with pytest.raises(RobotError, match="not free space"):
             client.reset(pose=(-100.0, -100.0, 0.0))
         assert client.observe().image.shape == (32, 32, 3)
+
+
+@pytest.mark.parametrize("sig", ["SIGINT", "SIGTERM"])
+def test_vtr_sim_serve_shuts_down_cleanly_on_signals(sig):
+    import os
+    import signal
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from runtime.client import SimClient
+    from sim2d.server import ServerThread
+
+    with ServerThread(small_sim()) as probe:  # borrow a free port
+        endpoint = probe.endpoint
+    root = Path(__file__).resolve().parents[2]
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "runtime.cli", "sim", "serve", "--bind", endpoint],
+        cwd=root,
+        env=dict(os.environ, PYTHONPATH=str(root)),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert "listening on" in proc.stdout.readline()
+        with SimClient(endpoint, timeout_s=10.0) as client:
+            assert client.observe().image.shape == (128, 128, 3)
+        proc.send_signal(getattr(signal, sig))
+        out, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert "stopped after 1 requests (0 refused)" in out
