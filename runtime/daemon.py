@@ -31,6 +31,7 @@ import argparse
 import json
 import math
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -396,6 +397,9 @@ def run_cli(args: argparse.Namespace) -> int:
     }
     try:
         summary = run(cfg, stop_event)
+    except (OSError, ValueError, RobotError) as exc:  # bad model/route files, refusals: say so, no traceback
+        print(f"vtr repeat: {exc}", file=sys.stderr)
+        return 2
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)

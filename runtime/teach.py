@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import sys
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,7 +27,7 @@ import numpy as np
 
 from runtime.preprocess import image_error
 from runtime.protocol import jsonable
-from runtime.robot import Observation, ResettableRobot
+from runtime.robot import Observation, ResettableRobot, RobotError
 from runtime.route import Route
 from runtime.route_script import RouteScript
 
@@ -215,6 +216,10 @@ def run_cli(args: argparse.Namespace) -> int:
         ),
         timeout_s=args.timeout,
     )
-    route = run(cfg)
+    try:
+        route = run(cfg)
+    except (OSError, ValueError, RobotError) as exc:  # bad ROUTE.json, unreachable or refusing simulator
+        print(f"vtr teach: {exc}", file=sys.stderr)
+        return 2
     print(f"vtr teach: {len(route)} subgoals ({cfg.teach.spacing} spacing) -> {os.path.abspath(cfg.out)}")
     return 0

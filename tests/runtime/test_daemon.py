@@ -314,3 +314,26 @@ def test_camera_at_the_wrong_resolution_never_reaches_the_network(policy_path):
         assert server.server.last_cmd == "stop"
     assert summary.reason == "no_valid_frame" and "image is 8x8, expected 16x16" in summary.detail
     assert policy.seen == 0 and summary.bad_frames >= 2 and client.bad_frames == summary.bad_frames
+
+
+def test_cli_reports_bad_inputs_without_a_traceback(policy_path, tmp_path, capsys):
+    from runtime.cli import main
+
+    route = tmp_path / "route.npz"
+    corridor_route(h=8, w=8).save(route)
+    argv = ["repeat", "--sim", "tcp://127.0.0.1:1", "--model", policy_path, "--route", str(route)]
+    assert main(argv) == 2
+    assert "route images are 8x8 but the model takes 16x16" in capsys.readouterr().err
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"start": {"x": 0, "y": 0, "yaw": 0}, "segments": [{"v": 3, "w": 0, "duration": 1}]}')
+    assert (
+        main(["teach", "--sim", "tcp://127.0.0.1:1", "--route", str(bad), "--out", str(tmp_path / "o.npz")])
+        == 2
+    )
+    assert "v_max" in capsys.readouterr().err
+    good = tmp_path / "good.json"
+    good.write_text('{"start": {"x": 0, "y": 0, "yaw": 0}, "segments": [{"v": 0.1, "w": 0, "duration": 1}]}')
+    argv = ["teach", "--sim", "tcp://127.0.0.1:1", "--route", str(good), "--out", str(tmp_path / "o.npz")]
+    assert main([*argv, "--timeout", "0.05"]) == 2
+    assert "no reply from tcp://127.0.0.1:1" in capsys.readouterr().err
+    assert not (tmp_path / "o.npz").exists()
