@@ -63,7 +63,9 @@ class EvalConfig:
     mpc_samples: int = 32  # candidate (v, w) sequences per MPC step
     mpc_iterations: int = 2  # cross-entropy refinements of the candidate distribution
     open_loop: bool = True  # run the open-loop replay baseline
-    oracle: bool = False  # also run the pose-oracle diagnostic (true poses; the floor e_m switching leaves)
+    oracle: bool = (
+        False  # pose-oracle diagnostic (true poses; the floor e_m switching leaves), noise scenario only
+    )
     e_m: float | None = None  # fixed switch threshold (the paper's 17); None = the runtime's calibrated e_m
     dt: float = 0.1  # s each command is applied for (the paper's control step)
     max_steps_factor: float = 4.0  # give up after factor * subgoals + 50 control steps
@@ -131,9 +133,8 @@ def route_files(names: tuple[str, ...]) -> list[Path]:
 
 
 def make_robot(noise: float, image_size: tuple[int, int]) -> Any:
-    from sim2d.local_robot import LocalRobot
-
     from sim2d import CameraConfig, SimConfig, Simulator
+    from sim2d.local_robot import LocalRobot
 
     h, w = image_size
     return LocalRobot(Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=noise)))
@@ -227,6 +228,7 @@ class PoseOracle:
 
     def __init__(self, v_max: float, w_max: float, horizon: int, dt: float) -> None:
         self.v_max, self.w_max, self.horizon, self.dt = v_max, w_max, horizon, dt
+        self.position_tolerance = 0.01  # m: closer than this, only the heading is corrected
         self.robot: RecordingRobot | None = None
         self.route: Any = None
 
@@ -244,9 +246,17 @@ class PoseOracle:
         c, s = math.cos(yaw), math.sin(yaw)
         ex, ey = c * (gx - x) + s * (gy - y), -s * (gx - x) + c * (gy - y)  # goal in the robot frame
         eyaw = float(metrics.wrap_angle(gyaw - yaw))
-        # close the gap in about two control steps; turn toward the goal point when it lies to the side
-        v = float(np.clip(ex / (2 * self.dt), -self.v_max, self.v_max))
-        w = float(np.clip((eyaw + 2.0 * ey) / (2 * self.dt), -self.w_max, self.w_max))
+        rho, alpha = math.hypot(ex, ey), math.atan2(ey, ex)
+        # a differential drive cannot slide sideways: turn toward the goal point (backing up when it lies
+        # behind), drive, and once there turn to the goal's heading; each gap closed in about two steps
+        if rho > self.position_tolerance:
+            backwards = abs(alpha) > math.pi / 2
+            heading = float(metrics.wrap_angle(alpha - math.pi)) if backwards else alpha
+            v = (-1.0 if backwards else 1.0) * rho * max(math.cos(heading), 0.0) / (2 * self.dt)
+            w = heading / (2 * self.dt)
+        else:
+            v, w = 0.0, eyaw / (2 * self.dt)
+        v, w = float(np.clip(v, -self.v_max, self.v_max)), float(np.clip(w, -self.w_max, self.w_max))
         return np.tile(np.array([[v], [w]], dtype=np.float32), (1, self.horizon))
 
 
@@ -468,7 +478,7 @@ def evaluate_route(script_path: Path, cfg: EvalConfig) -> dict[str, Any]:
     for scen, (pose, noise) in scenarios.items():
         results[scen] = {}
         for name, predict in methods.items():
-            if name == "online_mpc" and scen != "noise":
+            if name in ("online_mpc", "pose_oracle") and scen != "noise":
                 continue
             robot = make_robot(noise, image_size)
             if predict is None:
