@@ -122,6 +122,8 @@ def run(cfg: DemoConfig) -> dict[str, Any]:
 
             pose_robot = _PoseKeeper(client, poses)
             summary = repeat(pose_robot, policy, route, RepeatConfig(), log=on_record)
+            if summary.reason == "interrupted":  # the daemon stopped the robot on Ctrl-C; end the demo too
+                raise KeyboardInterrupt
             say(
                 f"repeated: {summary.reason} after {summary.steps} steps, {summary.subgoals_reached}/"
                 f"{summary.subgoals_total} subgoals, e_m {summary.e_m:.1f}"
