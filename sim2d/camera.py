@@ -2,15 +2,20 @@
 
 One frame is:
 
-1. one ray per image column against every front-facing surface segment (one small matmul gives every
-   ray/segment cross product at once), keeping two layers per column: the nearest wall and the nearest
-   furniture in front of it (furniture is lower than walls, so the wall shows above it);
-2. per pixel, the height z where the pixel's ray meets each layer's depth decides what it sees: furniture,
-   else wall, else floor (below) or ceiling (above);
+1. one ray per image column against the surface segments that face the camera and overlap the field of
+   view (one small matmul gives every ray/segment cross product at once), keeping two layers per column:
+   the nearest wall and the nearest furniture in front of it (furniture is lower than walls, so the wall
+   shows above it; furniture hidden behind other furniture is not drawn, a limit of two layers);
+2. per pixel, the texture row v = a - yr * b (linear in the pixel's ray slope yr, per-column a and b) says
+   whether the pixel sees that layer (0 <= v < height) and where in the texture; pixels that see no layer
+   see the floor (below) or the ceiling (above). Per-pixel work is limited to the bounding box of rows and
+   columns where each layer can appear;
 3. a single gather from one packed texture atlas (uint32 RGBA) that holds every surface texture with its
-   mip levels, the floor mosaic with its mip levels and the ceiling colour; the mip level of a floor pixel
-   depends only on its row, of a surface only on its column's depth, so anti-aliasing costs no extra pass;
-4. distance shading (precomputed per row for floor and ceiling, per column for surfaces) times brightness.
+   mip levels, the floor mosaic with its mip levels, and the ceiling and far colours; the mip level of a
+   floor pixel depends only on its row, of a surface only on its column's depth, so anti-aliasing costs
+   no extra pass;
+4. distance shading times brightness as an 8-bit fixed-point factor per pixel (precomputed per row for
+   floor and ceiling, per column for surfaces), applied to two channels per integer multiply.
 
 Everything that does not depend on the pose (ray directions in the camera frame, per-row ground depth,
 mip levels and shading of floor rows, the atlas) is computed once in the constructor.
@@ -27,8 +32,10 @@ from sim2d.house import House
 from sim2d.textures import TEX, mip_levels
 
 _TEX_LEVELS = 4  # mip levels kept per surface texture: 64, 32, 16, 8 texels
+_TEX_SHIFT = TEX.bit_length() - 1  # log2(TEX)
 _FLOOR_LEVELS = 7  # 512 .. 8 texels
 _NO_HIT = 1e6  # depth used for "nothing hit" (finite, so that no inf/nan warnings arise)
+_RGB = np.dtype({"names": ["rgb"], "formats": ["V3"], "offsets": [0], "itemsize": 4})  # RGB bytes of RGBA
 
 
 def _pack(img: np.ndarray) -> np.ndarray:
@@ -56,17 +63,23 @@ class Camera:
             )
 
         # ---- rays: column c looks along (1, -xc) in the camera frame (x forward, y left)
-        self.xc = ((np.arange(self.rw) + 0.5 - self.rw / 2) / f).astype(np.float64)  # (W,)
-        self.yr = ((np.arange(self.rh) + 0.5 - self.rh / 2) / f).astype(np.float32)  # (H,) +down
-        self._yr_col = self.yr[:, None]  # (H, 1)
+        self.xc = (np.arange(self.rw) + 0.5 - self.rw / 2) / f  # (W,)
+        yr = (np.arange(self.rh) + 0.5 - self.rh / 2) / f  # (H,) ray slope, positive downwards
+        self.yr = yr
+        self._yr_col = yr.astype(np.float32)[:, None]  # (H, 1)
+        self._cam_dirs = np.stack([np.ones_like(self.xc), -self.xc], axis=1)  # (W, 2) camera frame
+        self._cols = np.arange(self.rw)[None, :]
 
         # ---- segments, walls first
         seg = house.segments
         order = np.argsort(~seg.is_wall, kind="stable")
         self.seg_a = seg.a[order]
-        e = seg.b[order] - seg.a[order]
-        self.seg_e = e
-        self.seg_len = np.hypot(e[:, 0], e[:, 1])
+        self.seg_b = seg.b[order]
+        self.seg_e = self.seg_b - self.seg_a
+        self.seg_len = np.hypot(self.seg_e[:, 0], self.seg_e[:, 1])
+        # cross(p, e) = p @ e_perp with e_perp = (e_y, -e_x)
+        self._e_perp_t = np.stack([self.seg_e[:, 1], -self.seg_e[:, 0]])  # (2, S)
+        self._e_perp = np.ascontiguousarray(self._e_perp_t.T)  # (S, 2)
         self.seg_u0 = seg.u0[order]
         self.seg_tex = seg.texture[order]
         self.seg_height = np.where(seg.is_wall[order], cfg.wall_height, seg.height[order])
@@ -76,7 +89,7 @@ class Camera:
         chunks: list[np.ndarray] = []
         offset = 0
         n_tex = len(house.texture_images)
-        self.tex_offset = np.zeros((n_tex, _TEX_LEVELS), dtype=np.int64)
+        self.tex_offset = np.zeros((n_tex, _TEX_LEVELS), dtype=np.intp)
         for t, img in enumerate(house.texture_images):
             for lvl, m in enumerate(mip_levels(img, _TEX_LEVELS)):
                 self.tex_offset[t, lvl] = offset
@@ -94,144 +107,183 @@ class Camera:
         ceiling = house.ceiling_color.astype(np.uint8)
         chunks.append(_pack(np.stack([ceiling, np.array([20, 20, 25], np.uint8)])))
         self.atlas = np.concatenate(chunks)  # (N,) uint32
-        self.tex_size_u = house.texture_sizes[:, 0]
-        self.tex_size_v = house.texture_sizes[:, 1]
+        self.inv_su = 1.0 / house.texture_sizes[:, 0]
+        self.inv_sv = 1.0 / house.texture_sizes[:, 1]
+        self.texel = house.texture_sizes.min(axis=1) / TEX  # metres per texel at level 0
 
-        # ---- floor rows (below the horizon): ground depth, mip level, shading
-        below = self.yr > 0
+        # ---- floor rows (below the horizon): ground depth, mip level
+        below = yr > 0
         self.floor_row0 = int(np.argmax(below)) if below.any() else self.rh
-        yr_b = self.yr[self.floor_row0 :].astype(np.float64)
-        g = cfg.camera_height / yr_b  # (Hb,) forward depth of the floor seen by each row
+        g = cfg.camera_height / yr[self.floor_row0 :]  # (Hb,) forward depth of the floor seen by each row
         res0 = house.floor_extent / floor_sizes[0]
         # Footprint of one pixel on the floor: g/f across, g^2/(f*h) along the view; take the geometric mean.
         foot = np.sqrt((g / f) * (g * g / (f * cfg.camera_height)))
         level = np.clip(np.round(np.log2(np.maximum(foot / res0, 1e-9))), 0, len(floor_sizes) - 1).astype(int)
-        n_row = np.asarray(floor_sizes)[level].astype(np.int64)
+        n_row = np.asarray(floor_sizes)[level]
+        far = g > cfg.max_range
         inv_cell = n_row / house.floor_extent  # texels per metre at each row's level
-        self._floor_g = g
-        self._floor_inv = inv_cell
+        self._floor_inv = inv_cell[:, None].astype(np.float32)  # (Hb, 1)
         self._floor_gi = (g * inv_cell)[:, None].astype(np.float32)  # (Hb, 1)
-        self._floor_mask = (n_row - 1)[:, None].astype(np.int32)
-        self._floor_n = n_row[:, None].astype(np.int32)
-        self._floor_off = np.asarray(floor_offsets, dtype=np.int64)[level][:, None].astype(np.int32)
-        self._floor_far = (g > cfg.max_range)[:, None]
+        # Rows beyond max_range read the far colour: mask 0 makes x, y vanish, the offset points at it.
+        self._floor_mask = np.where(far, 0, n_row - 1)[:, None].astype(np.intp)
+        self._floor_shift = np.log2(n_row).astype(np.intp)[:, None]
+        self._floor_off = np.where(far, self.far_index, np.asarray(floor_offsets)[level])[:, None].astype(
+            np.intp
+        )
         self._floor_origin = house.floor_origin
 
-        # ---- background (ceiling above the horizon) and per-row shading of floor and ceiling
+        # ---- background indices and per-row shading (8-bit fixed point, brightness included)
         depth_rows = np.full(self.rh, _NO_HIT)
-        with np.errstate(divide="ignore"):
-            up = self.yr < 0
-            depth_rows[up] = (cfg.wall_height - cfg.camera_height) / (-self.yr[up].astype(np.float64))
+        up = yr < 0
+        depth_rows[up] = (cfg.wall_height - cfg.camera_height) / (-yr[up])
         depth_rows[self.floor_row0 :] = g
-        self._row_shade = self._shade(depth_rows).astype(np.float32)[:, None]  # (H, 1)
-        self._ceiling_rows = np.full((self.floor_row0, self.rw), self.ceiling_index, dtype=np.int32)
+        self._bg_shade = np.ascontiguousarray(
+            np.broadcast_to(self._light(depth_rows)[:, None], (self.rh, self.rw))
+        )  # (H, W) uint32
+        self._ceiling = np.full((self.floor_row0, self.rw), self.ceiling_index, dtype=np.intp)
 
-        if self.atlas.size >= 2**31:
-            raise ValueError("texture atlas too large for int32 indices")
-
-    def _shade(self, depth: np.ndarray) -> np.ndarray:
+    def _light(self, depth: np.ndarray) -> np.ndarray:
+        """Distance shading times brightness, as a uint32 factor with 8 fractional bits."""
         c = self.cfg
-        return c.ambient + (1.0 - c.ambient) * np.exp(-np.asarray(depth) / c.shading_distance)
+        shade = c.ambient + (1.0 - c.ambient) * np.exp(-np.asarray(depth) / c.shading_distance)
+        return np.rint(shade * c.brightness * 256.0).astype(np.uint32)
 
     # ------------------------------------------------------------------------------------------------
     def raycast(self, x: float, y: float, yaw: float) -> dict[str, np.ndarray]:
-        """Per column: depth (forward distance), segment index and position along it, for both layers."""
+        """Per column, for both layers (row 0: walls, row 1: furniture in front of the wall):
+        depth (forward distance, _NO_HIT when nothing), segment index and position s in [0, 1] along it."""
         cos, sin = math.cos(yaw), math.sin(yaw)
-        dx = cos + sin * self.xc  # (W,) world ray directions, forward component 1
-        dy = sin - cos * self.xc
-        ap = self.seg_a - np.array([x, y])  # (S, 2)
-        e = self.seg_e
-        t_num = ap[:, 0] * e[:, 1] - ap[:, 1] * e[:, 0]  # (S,) < 0 where the camera sees the front face
+        dirs = self._cam_dirs @ np.array([[cos, sin], [-sin, cos]])  # (W, 2) world, forward component 1
+        ap = self.seg_a - (x, y)  # (S, 2)
+        t_num = np.einsum(
+            "ij,ij->i", ap, self._e_perp
+        )  # (S,) cross(ap, e) < 0 where the camera sees the front face
         front = np.flatnonzero(t_num < 0)
-        n_w = int(np.searchsorted(front, self.n_walls))  # front faces that are walls come first
-        ef, apf = e[front], ap[front]
-        m = np.empty((2, 2 * len(front)))
-        m[0, : len(front)] = ef[:, 1]
-        m[1, : len(front)] = -ef[:, 0]
-        m[0, len(front) :] = -apf[:, 1]
-        m[1, len(front) :] = apf[:, 0]
-        r = np.stack([dx, dy], axis=1) @ m  # (W, 2S'): [denom | s_num]
-        denom = r[:, : len(front)]
-        s_num = r[:, len(front) :]
-        # A front face is hit iff the ray points at it (denom < 0) within the segment (0 <= s <= 1).
-        # Then depth t = t_num / denom > 0; we maximise 1/t = denom / t_num to avoid a division per pair.
-        valid = (denom < 0) & (s_num <= 0) & (s_num >= denom)
-        inv_t = np.where(valid, denom * (1.0 / t_num[front]), 0.0)  # (W, S')
-        cols = np.arange(self.rw)
-        out = {}
-        for name, lo, hi in (("wall", 0, n_w), ("furn", n_w, len(front))):
-            if hi <= lo:
-                out[name + "_depth"] = np.full(self.rw, _NO_HIT)
-                out[name + "_seg"] = np.zeros(self.rw, dtype=np.int64)
-                out[name + "_s"] = np.zeros(self.rw)
-                continue
-            k = np.argmax(inv_t[:, lo:hi], axis=1) + lo  # (W,)
-            best = inv_t[cols, k]
-            hit = best > 1.0 / self.cfg.max_range
-            depth = np.where(hit, 1.0 / np.where(hit, best, 1.0), _NO_HIT)
-            s = np.where(hit, s_num[cols, k] / np.where(hit, denom[cols, k], -1.0), 0.0)
-            out[name + "_depth"] = depth
-            out[name + "_seg"] = front[k]
-            out[name + "_s"] = s
-        out["dx"], out["dy"] = dx, dy
-        return out
-
-    def _layer(self, depth: np.ndarray, seg: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, ...]:
-        """Per-column atlas base index, v scale, v mask and shift, and height of one layer."""
-        tex = self.seg_tex[seg]
-        u = self.seg_u0[seg] + s * self.seg_len[seg]  # (W,) metres along the surface
-        # Mip level from the pixel footprint (depth / f metres) over the texel size at level 0.
-        texel = np.minimum(self.tex_size_u[tex], self.tex_size_v[tex]) / TEX
-        lvl = np.clip(np.floor(np.log2(np.maximum(depth / self.focal / texel, 1e-9))), 0, _TEX_LEVELS - 1)
-        lvl = lvl.astype(np.int64)
-        n = TEX >> lvl  # texels per side at that level
-        upix = (u * (n / self.tex_size_u[tex])).astype(np.int64) & (n - 1)
-        base = self.tex_offset[tex, lvl] + upix
-        vscale = (n / self.tex_size_v[tex]).astype(np.float32)
-        shift = (TEX.bit_length() - 1 - lvl).astype(np.int32)
-        return (
-            base.astype(np.int32),
-            vscale,
-            (n - 1).astype(np.int32),
-            shift,
-            self.seg_height[seg].astype(np.float32),
-        )
+        n_w = int(np.searchsorted(front, self.n_walls))  # front faces of walls come first
+        n = len(front)
+        m = np.empty((2, 2 * n))
+        m[:, :n] = self._e_perp_t[:, front]
+        m[0, n:] = -ap[front, 1]
+        m[1, n:] = ap[front, 0]
+        r = dirs @ m  # (W, 2S'): [denom | s_num], cross(dir, e) and cross(ap, dir)
+        denom = r[:, :n]
+        s_num = r[:, n:]
+        # A front face is hit iff the ray points at it (denom < 0) within the segment (0 <= s <= 1); then
+        # t = t_num / denom > 0. Maximise 1/t = denom / t_num (no division per pair); where denom >= 0 it
+        # is <= 0 and loses to any real hit, so that test is folded into the range test below.
+        inv_t = denom * (1.0 / t_num[front])
+        inv_t[(s_num > 0) | (s_num < denom)] = 0.0
+        k = np.zeros((2, self.rw), dtype=np.intp)
+        if n_w > 0:
+            k[0] = np.argmax(inv_t[:, :n_w], axis=1)
+        if n > n_w:
+            k[1] = np.argmax(inv_t[:, n_w:], axis=1) + n_w
+        else:
+            k[1] = k[0]
+        cols = self._cols
+        best = inv_t[cols, k]  # (2, W)
+        hit = best > 1.0 / self.cfg.max_range
+        hit[1] &= best[1] > best[0]  # furniture only in front of the wall
+        best[~hit] = 1.0
+        depth = 1.0 / best
+        depth[~hit] = _NO_HIT
+        den = denom[cols, k]
+        den[~hit] = -1.0
+        s = s_num[cols, k] / den
+        s[~hit] = 0.0
+        return {"depth": depth, "seg": front[k] if n else k, "s": s, "dx": dirs[:, 0], "dy": dirs[:, 1]}
 
     def render(self, x: float, y: float, yaw: float) -> np.ndarray:
         """The (height, width, 3) uint8 RGB image seen from pose (x, y, yaw)."""
         cfg = self.cfg
+        rh, rw, f = self.rh, self.rw, self.focal
         rc = self.raycast(x, y, yaw)
-        dw = rc["wall_depth"]
-        df = rc["furn_depth"]
-        df = np.where(df < dw, df, _NO_HIT)
-        yr = self._yr_col
+        depth, seg = rc["depth"], rc["seg"]  # (2, W)
 
-        # ---- background: ceiling above the horizon, mosaic floor below
+        # ---- per column and layer: texture, mip level, texture column, v = a - yr * b, visible v range
+        tex = self.seg_tex[seg]
+        u = self.seg_u0[seg] + rc["s"] * self.seg_len[seg]  # metres along the surface
+        lvl = np.log2(np.maximum(depth / (f * self.texel[tex]), 1e-9))
+        lvl = np.clip(lvl, 0, _TEX_LEVELS - 1).astype(np.intp)
+        n = TEX >> lvl  # texels per side at that level
+        base = self.tex_offset[tex, lvl] + ((u * (n * self.inv_su[tex])).astype(np.intp) & (n - 1))
+        vscale = n * self.inv_sv[tex]
+        a = (cfg.camera_height * vscale).astype(np.float32)
+        b = (depth * vscale).astype(np.float32)
+        height = self.seg_height[seg]
+        hv = (height * vscale).astype(np.float32)
+        shift = _TEX_SHIFT - lvl
+        vmask = n - 1
+        light = self._light(depth)
+        # Rows a layer can cover: z in [0, height) <=> yr in ((h_cam - height) / d, h_cam / d].
+        centre = rh / 2 - 0.5
+        top = np.floor(centre + f * (cfg.camera_height - height) / depth) - 1
+        bottom = np.ceil(centre + f * cfg.camera_height / depth) + 2
+        top = np.clip(top, 0, rh).astype(np.intp)
+        bottom = np.clip(bottom, 0, rh).astype(np.intp)
+
+        # ---- background: ceiling, and the floor from the highest row a wall does not cover
+        idx = np.empty((rh, rw), dtype=np.intp)
+        f0 = self.floor_row0
+        idx[:f0] = self._ceiling
+        r0 = max(f0, int(bottom[0].min()) - 2)
+        rows = slice(r0 - f0, None)
         ox, oy = self._floor_origin
-        fx = (x - ox) * self._floor_inv[:, None] + self._floor_gi * rc["dx"].astype(np.float32)  # (Hb, W)
-        fy = (y - oy) * self._floor_inv[:, None] + self._floor_gi * rc["dy"].astype(np.float32)
-        ix = fx.astype(np.int32) & self._floor_mask
-        iy = fy.astype(np.int32) & self._floor_mask
-        floor_idx = self._floor_off + iy * self._floor_n + ix
-        floor_idx = np.where(self._floor_far, self.far_index, floor_idx)
-        idx = np.concatenate([self._ceiling_rows, floor_idx], axis=0)  # (H, W)
-        shade = np.broadcast_to(self._row_shade, idx.shape)
+        inv = self._floor_inv[rows]
+        gi = self._floor_gi[rows]
+        fx = (x - ox) * inv + gi * rc["dx"].astype(np.float32)  # (Hf, W) texel coordinates
+        fy = (y - oy) * inv + gi * rc["dy"].astype(np.float32)
+        ix = fx.astype(np.intp)
+        iy = fy.astype(np.intp)
+        mask = self._floor_mask[rows]
+        ix &= mask
+        iy &= mask
+        iy <<= self._floor_shift[rows]
+        iy += ix
+        iy += self._floor_off[rows]
+        idx[f0:r0] = self.far_index  # rows that walls cover in every column: no floor visible
+        idx[r0:] = iy
+        light_px = self._bg_shade.copy()
 
-        # ---- walls, then furniture on top
-        for depth, seg, s in ((dw, rc["wall_seg"], rc["wall_s"]), (df, rc["furn_seg"], rc["furn_s"])):
-            base, vscale, vmask, shift, height = self._layer(depth, seg, s)
-            z = cfg.camera_height - yr * depth.astype(np.float32)  # (H, W) height seen on this layer
-            vis = (z >= 0) & (z < height)
-            vpix = (z * vscale).astype(np.int32) & vmask
-            idx = np.where(vis, base + (vpix << shift), idx)
-            shade = np.where(vis, self._shade(depth).astype(np.float32), shade)
+        # ---- walls, then furniture on top, each within its bounding box of rows and columns
+        yr = self._yr_col
+        for layer in (0, 1):
+            hit = np.flatnonzero(depth[layer] < _NO_HIT)
+            if hit.size == 0:
+                continue
+            c0, c1 = int(hit[0]), int(hit[-1]) + 1
+            t0, b1 = int(top[layer, c0:c1].min()), int(bottom[layer, c0:c1].max())
+            if b1 <= t0:
+                continue
+            box = (slice(t0, b1), slice(c0, c1))
+            v = a[layer, c0:c1] - yr[t0:b1] * b[layer, c0:c1]  # (h, w) texture row, float
+            vis = (v >= 0) & (v < hv[layer, c0:c1])
+            vi = v.astype(np.intp)
+            vi &= vmask[layer, c0:c1]
+            vi <<= shift[layer, c0:c1]
+            vi += base[layer, c0:c1]
+            idx[box] = np.where(vis, vi, idx[box])
+            light_px[box] = np.where(vis, light[layer, c0:c1], light_px[box])
 
-        rgb = self.atlas[idx].view(np.uint8).reshape(self.rh, self.rw, 4)[..., :3]
-        light = shade * np.float32(cfg.brightness)
-        img = rgb * light[..., None]
-        np.clip(img, 0, 255, out=img)
+        rgba = np.take(self.atlas, idx)  # (H, W) uint32
+        if cfg.brightness * 256 <= 256:
+            # Fixed-point shading of R and B, then G (and A), each pair in one uint32 multiply.
+            rb = rgba & 0x00FF00FF
+            rb *= light_px
+            rb >>= 8
+            rb &= 0x00FF00FF
+            ga = rgba >> 8
+            ga &= 0x00FF00FF
+            ga *= light_px
+            ga &= 0xFF00FF00
+            rb |= ga
+            out = np.empty((rh, rw), dtype="V3")
+            np.copyto(out, rb.view(_RGB)["rgb"])
+            img = out.view(np.uint8).reshape(rh, rw, 3)
+        else:  # brightness > 1 may saturate: the slower float path clips
+            rgb = rgba.view(np.uint8).reshape(rh, rw, 4)[..., :3]
+            img = np.minimum(rgb * (light_px[..., None] / np.float32(256.0)), 255).astype(np.uint8)
         if cfg.supersample > 1:
             ss = cfg.supersample
-            img = img.reshape(cfg.height, ss, cfg.width, ss, 3).mean(axis=(1, 3))
-            return np.rint(img).astype(np.uint8)
-        return img.astype(np.uint8)
+            img = np.rint(img.reshape(cfg.height, ss, cfg.width, ss, 3).mean(axis=(1, 3))).astype(np.uint8)
+        return img
