@@ -66,9 +66,12 @@ class Camera:
         self.xc = (np.arange(self.rw) + 0.5 - self.rw / 2) / f  # (W,)
         yr = (np.arange(self.rh) + 0.5 - self.rh / 2) / f  # (H,) ray slope, positive downwards
         self.yr = yr
-        self._yr_col = yr.astype(np.float32)[:, None]  # (H, 1)
+        self.yr_col = yr[:, None].astype(np.float32)  # (H, 1)
         self._cam_dirs = np.stack([np.ones_like(self.xc), -self.xc], axis=1)  # (W, 2) camera frame
         self._cols = np.arange(self.rw)[None, :]
+        k = float(np.max(np.abs(self.xc))) * 1.001  # tan of half the field of view (a hair wider)
+        # Columns: forward * -1 (behind), left - k * forward (beyond left), -left - k * forward (beyond right).
+        self._planes = np.array([[-1.0, -k, -k], [0.0, 1.0, -1.0]])
 
         # ---- segments, walls first
         seg = house.segments
@@ -84,6 +87,7 @@ class Camera:
         self.seg_tex = seg.texture[order]
         self.seg_height = np.where(seg.is_wall[order], cfg.wall_height, seg.height[order])
         self.n_walls = int(seg.is_wall.sum())
+        self._ends = np.stack([self.seg_a, self.seg_b], axis=1).reshape(-1, 2)  # (2S, 2): a0, b0, a1, b1...
 
         # ---- atlas: [surface textures x mip levels] + [floor mip levels] + [ceiling, far]
         chunks: list[np.ndarray] = []
@@ -107,9 +111,31 @@ class Camera:
         ceiling = house.ceiling_color.astype(np.uint8)
         chunks.append(_pack(np.stack([ceiling, np.array([20, 20, 25], np.uint8)])))
         self.atlas = np.concatenate(chunks)  # (N,) uint32
-        self.inv_su = 1.0 / house.texture_sizes[:, 0]
-        self.inv_sv = 1.0 / house.texture_sizes[:, 1]
-        self.texel = house.texture_sizes.min(axis=1) / TEX  # metres per texel at level 0
+        # Per (segment, mip level) tables, row = segment * _TEX_LEVELS + level, so that a frame needs one
+        # gather per table: ints (atlas offset, texel mask, log2 texels) and floats (texels per metre
+        # along u and v, v at the camera's height, v at the top of the surface).
+        tex = self.seg_tex
+        n_lvl = TEX >> np.arange(_TEX_LEVELS)  # (L,) texels per side
+        size_u = house.texture_sizes[tex, 0][:, None]  # (S, 1)
+        size_v = house.texture_sizes[tex, 1][:, None]
+        nsv = n_lvl / size_v  # (S, L)
+        self._tab_int = np.stack(
+            [
+                self.tex_offset[tex],
+                np.broadcast_to(n_lvl - 1, nsv.shape),
+                np.broadcast_to(_TEX_SHIFT - np.arange(_TEX_LEVELS), nsv.shape),
+            ],
+            axis=-1,
+        ).reshape(-1, 3)
+        self._tab_float = (
+            np.stack([n_lvl / size_u, nsv, cfg.camera_height * nsv, self.seg_height[:, None] * nsv], axis=-1)
+            .reshape(-1, 4)
+            .astype(np.float32)
+        )
+        texel = house.texture_sizes[tex].min(axis=1) / TEX  # (S,) metres per texel at level 0
+        self._inv_texel_px = 1.0 / (f * texel)  # depth * this = texels per pixel at level 0
+        self._lvl_edges = 2.0 ** np.arange(1, _TEX_LEVELS)  # level l while texels per pixel in [2^l, 2^(l+1))
+        self._max_furniture_height = max((fu.height for fu in house.furniture), default=0.0)
 
         # ---- floor rows (below the horizon): ground depth, mip level
         below = yr > 0
@@ -122,8 +148,10 @@ class Camera:
         n_row = np.asarray(floor_sizes)[level]
         far = g > cfg.max_range
         inv_cell = n_row / house.floor_extent  # texels per metre at each row's level
-        self._floor_inv = inv_cell[:, None].astype(np.float32)  # (Hb, 1)
-        self._floor_gi = (g * inv_cell)[:, None].astype(np.float32)  # (Hb, 1)
+        self._floor_inv = inv_cell[:, None].astype(np.float32)  # (Hb, 1) texels per metre
+        self._floor_gi = (g * inv_cell)[:, None].astype(
+            np.float32
+        )  # (Hb, 1) texels per unit of ray direction
         # Rows beyond max_range read the far colour: mask 0 makes x, y vanish, the offset points at it.
         self._floor_mask = np.where(far, 0, n_row - 1)[:, None].astype(np.intp)
         self._floor_shift = np.log2(n_row).astype(np.intp)[:, None]
@@ -155,10 +183,18 @@ class Camera:
         cos, sin = math.cos(yaw), math.sin(yaw)
         dirs = self._cam_dirs @ np.array([[cos, sin], [-sin, cos]])  # (W, 2) world, forward component 1
         ap = self.seg_a - (x, y)  # (S, 2)
-        t_num = np.einsum(
-            "ij,ij->i", ap, self._e_perp
-        )  # (S,) cross(ap, e) < 0 where the camera sees the front face
-        front = np.flatnonzero(t_num < 0)
+        # cross(ap, e) < 0 where the camera sees the front face
+        t_num = np.einsum("ij,ij->i", ap, self._e_perp)  # (S,)
+        # Both endpoints in camera coordinates (forward, left) and their offsets from the three planes
+        # bounding the view (behind, beyond the left edge, beyond the right edge): a segment with both
+        # endpoints beyond the same plane cannot be seen.
+        q = self._ends @ np.array([[cos, -sin], [sin, cos]]) - (
+            x * cos + y * sin,
+            y * cos - x * sin,
+        )  # (2S, 2)
+        out = q @ self._planes  # (2S, 3) > 0 beyond a plane
+        beyond = (out > 0).reshape(-1, 2, 3).all(axis=1).any(axis=1)  # (S,)
+        front = np.flatnonzero((t_num < 0) & ~beyond)
         n_w = int(np.searchsorted(front, self.n_walls))  # front faces of walls come first
         n = len(front)
         m = np.empty((2, 2 * n))
@@ -181,102 +217,92 @@ class Camera:
         else:
             k[1] = k[0]
         cols = self._cols
-        best = inv_t[cols, k]  # (2, W)
+        best = inv_t[cols, k]  # (2, W) 1 / depth
         hit = best > 1.0 / self.cfg.max_range
         hit[1] &= best[1] > best[0]  # furniture only in front of the wall
-        best[~hit] = 1.0
-        depth = 1.0 / best
-        depth[~hit] = _NO_HIT
-        den = denom[cols, k]
-        den[~hit] = -1.0
-        s = s_num[cols, k] / den
-        s[~hit] = 0.0
+        depth = np.divide(1.0, best, out=np.full((2, self.rw), _NO_HIT), where=hit)
+        s = np.divide(s_num[cols, k], denom[cols, k], out=np.zeros((2, self.rw)), where=hit)
         return {"depth": depth, "seg": front[k] if n else k, "s": s, "dx": dirs[:, 0], "dy": dirs[:, 1]}
 
     def render(self, x: float, y: float, yaw: float) -> np.ndarray:
         """The (height, width, 3) uint8 RGB image seen from pose (x, y, yaw)."""
         cfg = self.cfg
         rh, rw, f = self.rh, self.rw, self.focal
+        h_cam = cfg.camera_height
         rc = self.raycast(x, y, yaw)
         depth, seg = rc["depth"], rc["seg"]  # (2, W)
 
-        # ---- per column and layer: texture, mip level, texture column, v = a - yr * b, visible v range
-        tex = self.seg_tex[seg]
+        # ---- per column and layer: mip level, atlas base, texture row v = a - yr * b, v at the top
+        lvl = np.searchsorted(self._lvl_edges, depth * self._inv_texel_px[seg])
+        key = seg * _TEX_LEVELS + lvl
+        ti = self._tab_int[key]  # (2, W, 3) offset, mask, shift
+        tf = self._tab_float[key]  # (2, W, 4) texels/m along u and v, v at camera height, v at the top
         u = self.seg_u0[seg] + rc["s"] * self.seg_len[seg]  # metres along the surface
-        lvl = np.log2(np.maximum(depth / (f * self.texel[tex]), 1e-9))
-        lvl = np.clip(lvl, 0, _TEX_LEVELS - 1).astype(np.intp)
-        n = TEX >> lvl  # texels per side at that level
-        base = self.tex_offset[tex, lvl] + ((u * (n * self.inv_su[tex])).astype(np.intp) & (n - 1))
-        vscale = n * self.inv_sv[tex]
-        a = (cfg.camera_height * vscale).astype(np.float32)
-        b = (depth * vscale).astype(np.float32)
-        height = self.seg_height[seg]
-        hv = (height * vscale).astype(np.float32)
-        shift = _TEX_SHIFT - lvl
-        vmask = n - 1
-        light = self._light(depth)
-        # Rows a layer can cover: z in [0, height) <=> yr in ((h_cam - height) / d, h_cam / d].
-        centre = rh / 2 - 0.5
-        top = np.floor(centre + f * (cfg.camera_height - height) / depth) - 1
-        bottom = np.ceil(centre + f * cfg.camera_height / depth) + 2
-        top = np.clip(top, 0, rh).astype(np.intp)
-        bottom = np.clip(bottom, 0, rh).astype(np.intp)
+        base = ti[..., 0] + ((u * tf[..., 0]).astype(np.intp) & ti[..., 1])
+        b = depth.astype(np.float32) * tf[..., 1]
+        shade = cfg.ambient + (1.0 - cfg.ambient) * np.exp(depth * (-1.0 / cfg.shading_distance))
+        light = (shade * (256.0 * cfg.brightness) + 0.5).astype(np.uint32)
 
-        # ---- background: ceiling, and the floor from the highest row a wall does not cover
-        idx = np.empty((rh, rw), dtype=np.intp)
+        # ---- background: ceiling above the horizon, the floor below the highest row a wall leaves free
+        centre = rh / 2 - 0.5
+        wall_cols = np.flatnonzero(depth[0] < _NO_HIT)
+        d_far = float(depth[0].max())
         f0 = self.floor_row0
+        r0 = min(rh, max(f0, math.floor(centre + f * h_cam / d_far) - 2))
+        idx = np.empty((rh, rw), dtype=np.intp)
         idx[:f0] = self._ceiling
-        r0 = max(f0, int(bottom[0].min()) - 2)
+        idx[f0:r0] = self.far_index  # every column sees a wall there: no floor visible
         rows = slice(r0 - f0, None)
         ox, oy = self._floor_origin
-        inv = self._floor_inv[rows]
-        gi = self._floor_gi[rows]
-        fx = (x - ox) * inv + gi * rc["dx"].astype(np.float32)  # (Hf, W) texel coordinates
-        fy = (y - oy) * inv + gi * rc["dy"].astype(np.float32)
-        ix = fx.astype(np.intp)
-        iy = fy.astype(np.intp)
-        mask = self._floor_mask[rows]
-        ix &= mask
-        iy &= mask
-        iy <<= self._floor_shift[rows]
-        iy += ix
-        iy += self._floor_off[rows]
-        idx[f0:r0] = self.far_index  # rows that walls cover in every column: no floor visible
-        idx[r0:] = iy
+        # Texel coordinates (x, y) of the floor point each pixel sees: origin + ground depth * ray direction.
+        start = (
+            np.array([(x - ox), (y - oy)], np.float32)[:, None, None] * self._floor_inv[rows]
+        )  # (2, Hf, 1)
+        ray = np.stack([rc["dx"], rc["dy"]]).astype(np.float32)[:, None, :]  # (2, 1, W)
+        fxy = (start + self._floor_gi[rows] * ray).astype(np.intp)  # (2, Hf, W)
+        fxy &= self._floor_mask[rows]
+        fxy[1] <<= self._floor_shift[rows]
+        fxy[1] += fxy[0]
+        fxy[1] += self._floor_off[rows]
+        idx[r0:] = fxy[1]
         light_px = self._bg_shade.copy()
 
-        # ---- walls, then furniture on top, each within its bounding box of rows and columns
-        yr = self._yr_col
-        for layer in (0, 1):
-            hit = np.flatnonzero(depth[layer] < _NO_HIT)
-            if hit.size == 0:
+        # ---- walls, then furniture on top, each within the bounding box of rows and columns it can cover
+        heights = (cfg.wall_height, self._max_furniture_height)
+        for layer, cols in ((0, wall_cols), (1, np.flatnonzero(depth[1] < _NO_HIT))):
+            if cols.size == 0:
                 continue
-            c0, c1 = int(hit[0]), int(hit[-1]) + 1
-            t0, b1 = int(top[layer, c0:c1].min()), int(bottom[layer, c0:c1].max())
+            c0, c1 = int(cols[0]), int(cols[-1]) + 1
+            d_near = float(depth[layer, c0:c1].min())
+            # Rows where z in [0, height) can show: yr in ((h_cam - height) / d, h_cam / d].
+            t0 = max(0, math.floor(centre + f * (h_cam - heights[layer]) / d_near) - 1)
+            b1 = min(rh, math.ceil(centre + f * h_cam / d_near) + 2)
             if b1 <= t0:
                 continue
-            box = (slice(t0, b1), slice(c0, c1))
-            v = a[layer, c0:c1] - yr[t0:b1] * b[layer, c0:c1]  # (h, w) texture row, float
-            vis = (v >= 0) & (v < hv[layer, c0:c1])
+            cs = slice(c0, c1)
+            v = tf[layer, cs, 2] - self.yr_col[t0:b1] * b[layer, cs]  # (h, w) texture row
+            vis = v >= 0
+            vis &= v < tf[layer, cs, 3]
             vi = v.astype(np.intp)
-            vi &= vmask[layer, c0:c1]
-            vi <<= shift[layer, c0:c1]
-            vi += base[layer, c0:c1]
+            vi &= ti[layer, cs, 1]
+            vi <<= ti[layer, cs, 2]
+            vi += base[layer, cs]
+            box = (slice(t0, b1), cs)
             idx[box] = np.where(vis, vi, idx[box])
-            light_px[box] = np.where(vis, light[layer, c0:c1], light_px[box])
+            light_px[box] = np.where(vis, light[layer, cs], light_px[box])
 
         rgba = np.take(self.atlas, idx)  # (H, W) uint32
-        if cfg.brightness * 256 <= 256:
+        if cfg.brightness <= 1.0:
             # Fixed-point shading of R and B, then G (and A), each pair in one uint32 multiply.
             rb = rgba & 0x00FF00FF
             rb *= light_px
             rb >>= 8
             rb &= 0x00FF00FF
-            ga = rgba >> 8
-            ga &= 0x00FF00FF
-            ga *= light_px
-            ga &= 0xFF00FF00
-            rb |= ga
+            rgba >>= 8
+            rgba &= 0x00FF00FF
+            rgba *= light_px
+            rgba &= 0xFF00FF00
+            rb |= rgba
             out = np.empty((rh, rw), dtype="V3")
             np.copyto(out, rb.view(_RGB)["rgb"])
             img = out.view(np.uint8).reshape(rh, rw, 3)

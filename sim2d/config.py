@@ -86,8 +86,9 @@ class SimConfig:
     """Camera parameters."""
     robot_radius: float = 0.17
     """Radius of the circular differential-drive robot (m)."""
-    physics_dt: float = 0.01
-    """Physics substep (s); a step of `duration` runs ceil(duration / physics_dt) substeps."""
+    physics_dt: float = 0.02
+    """Physics substep (s); a step of `duration` runs ceil(duration / physics_dt) equal substeps. At 0.5 m/s
+    a substep moves 1 cm, far less than the robot radius and the wall thickness, so nothing tunnels."""
     noise: float = 0.0
     """Actuation noise level, 0 = off. Each step() draws, from the generator seeded by reset(seed),
     v' = v * (1 + noise * e1) + 0.1 * noise * V_MAX * e2 and w' = w * (1 + noise * e3) + 0.1 * noise * W_MAX * e4
