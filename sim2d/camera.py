@@ -34,6 +34,7 @@ from sim2d.textures import TEX, mip_levels
 _TEX_LEVELS = 4  # mip levels kept per surface texture: 64, 32, 16, 8 texels
 _TEX_SHIFT = TEX.bit_length() - 1  # log2(TEX)
 _FLOOR_LEVELS = 7  # 512 .. 8 texels
+_DEPTH_BINS = 64  # surfaces: distance bins from 0.1 m to max range (ratio ~1.09: shading steps < 2%)
 _NO_HIT = 1e6  # depth used for "nothing hit" (finite, so that no inf/nan warnings arise)
 _RGB = np.dtype({"names": ["rgb"], "formats": ["V3"], "offsets": [0], "itemsize": 4})  # RGB bytes of RGBA
 
@@ -71,7 +72,7 @@ class Camera:
         self._cols = np.arange(self.rw)[None, :]
         k = float(np.max(np.abs(self.xc))) * 1.001  # tan of half the field of view (a hair wider)
         # Columns: forward * -1 (behind), left - k * forward (beyond left), -left - k * forward (beyond right).
-        self._planes = np.array([[-1.0, -k, -k], [0.0, 1.0, -1.0]])
+        self._planes_t = np.array([[-1.0, -k, -k], [0.0, 1.0, -1.0]]).T.copy()  # (3, 2)
 
         # ---- segments, walls first
         seg = house.segments
@@ -87,66 +88,80 @@ class Camera:
         self.seg_tex = seg.texture[order]
         self.seg_height = np.where(seg.is_wall[order], cfg.wall_height, seg.height[order])
         self.n_walls = int(seg.is_wall.sum())
-        self._ends = np.stack([self.seg_a, self.seg_b], axis=1).reshape(-1, 2)  # (2S, 2): a0, b0, a1, b1...
+        self._n_seg = len(self.seg_a)
+        self._ends_t = np.concatenate([self.seg_a, self.seg_b]).T.copy()  # (2, 2S): all a ends, then b ends
 
-        # ---- atlas: [surface textures x mip levels] + [floor mip levels] + [ceiling, far]
-        chunks: list[np.ndarray] = []
-        offset = 0
+        # ---- the atlas: every texel the renderer can show, already shaded and scaled by brightness, so
+        # that a frame is one gather with no per-pixel arithmetic on colours.
+        #  - surfaces: for each texture and depth bin, the mip level and shading of that distance;
+        #  - floor: for each (mip level, shading) pair that some floor row uses;
+        #  - ceiling: one colour per row above the horizon; and the far colour.
+        self._atlas_chunks: list[np.ndarray] = []
+        self._atlas_size = 0
         n_tex = len(house.texture_images)
-        self.tex_offset = np.zeros((n_tex, _TEX_LEVELS), dtype=np.intp)
+        d_lo, d_hi = 0.1, max(cfg.max_range, 1.0) * 1.01  # a surface is never nearer than ~0.12 m
+        ratio = (d_hi / d_lo) ** (1.0 / _DEPTH_BINS)
+        self._bin_edges = d_lo * ratio ** np.arange(1, _DEPTH_BINS)  # (K-1,) searchsorted -> bin 0..K-1
+        centres = d_lo * ratio ** (np.arange(_DEPTH_BINS) + 0.5)  # (K,)
+        bin_light = self._shade(centres)
+        texel = house.texture_sizes.min(axis=1) / TEX  # (T,) metres per texel at level 0
+        # Mip level l while one pixel covers [2^l, 2^(l+1)) texels of level 0.
+        level = np.clip(np.floor(np.log2(centres[None, :] / (f * texel[:, None]))), 0, _TEX_LEVELS - 1)
+        level = level.astype(int)  # (T, K)
+        tex_off = np.zeros((n_tex, _DEPTH_BINS), dtype=np.intp)
         for t, img in enumerate(house.texture_images):
             for lvl, m in enumerate(mip_levels(img, _TEX_LEVELS)):
-                self.tex_offset[t, lvl] = offset
-                chunks.append(_pack(m).ravel())
-                offset += m.shape[0] * m.shape[1]
-        floor_offsets = []
-        floor_sizes = []
-        for m in mip_levels(house.floor_image, _FLOOR_LEVELS):
-            floor_offsets.append(offset)
-            floor_sizes.append(m.shape[0])
-            chunks.append(_pack(m).ravel())
-            offset += m.shape[0] * m.shape[1]
-        self.ceiling_index = offset
-        self.far_index = offset + 1
-        ceiling = house.ceiling_color.astype(np.uint8)
-        chunks.append(_pack(np.stack([ceiling, np.array([20, 20, 25], np.uint8)])))
-        self.atlas = np.concatenate(chunks)  # (N,) uint32
-        # Per (segment, mip level) tables, row = segment * _TEX_LEVELS + level, so that a frame needs one
-        # gather per table: ints (atlas offset, texel mask, log2 texels) and floats (texels per metre
-        # along u and v, v at the camera's height, v at the top of the surface).
+                bins = np.flatnonzero(level[t] == lvl)
+                if bins.size:
+                    tex_off[t, bins] = self._add(m.astype(np.float32)[None], bin_light[bins])
+        # Per (segment, depth bin) tables, row = segment * K + bin, so that a frame needs one gather per
+        # table: ints (atlas offset, texel mask, log2 texels) and floats (texels per metre along u and v,
+        # v at the camera's height, v at the top of the surface).
         tex = self.seg_tex
-        n_lvl = TEX >> np.arange(_TEX_LEVELS)  # (L,) texels per side
-        size_u = house.texture_sizes[tex, 0][:, None]  # (S, 1)
-        size_v = house.texture_sizes[tex, 1][:, None]
-        nsv = n_lvl / size_v  # (S, L)
+        n_side = (TEX >> level[tex]).astype(np.float64)  # (S, K) texels per side
+        nsv = n_side / house.texture_sizes[tex, 1][:, None]
         self._tab_int = np.stack(
-            [
-                self.tex_offset[tex],
-                np.broadcast_to(n_lvl - 1, nsv.shape),
-                np.broadcast_to(_TEX_SHIFT - np.arange(_TEX_LEVELS), nsv.shape),
-            ],
-            axis=-1,
+            [tex_off[tex], n_side.astype(np.intp) - 1, _TEX_SHIFT - level[tex]], axis=-1
         ).reshape(-1, 3)
         self._tab_float = (
-            np.stack([n_lvl / size_u, nsv, cfg.camera_height * nsv, self.seg_height[:, None] * nsv], axis=-1)
+            np.stack(
+                [
+                    n_side / house.texture_sizes[tex, 0][:, None],
+                    nsv,
+                    cfg.camera_height * nsv,
+                    self.seg_height[:, None] * nsv,
+                ],
+                axis=-1,
+            )
             .reshape(-1, 4)
             .astype(np.float32)
         )
-        texel = house.texture_sizes[tex].min(axis=1) / TEX  # (S,) metres per texel at level 0
-        self._inv_texel_px = 1.0 / (f * texel)  # depth * this = texels per pixel at level 0
-        self._lvl_edges = 2.0 ** np.arange(1, _TEX_LEVELS)  # level l while texels per pixel in [2^l, 2^(l+1))
         self._max_furniture_height = max((fu.height for fu in house.furniture), default=0.0)
 
-        # ---- floor rows (below the horizon): ground depth, mip level
+        # ---- floor rows (below the horizon): ground depth, mip level, shading
         below = yr > 0
-        self.floor_row0 = int(np.argmax(below)) if below.any() else self.rh
-        g = cfg.camera_height / yr[self.floor_row0 :]  # (Hb,) forward depth of the floor seen by each row
-        res0 = house.floor_extent / floor_sizes[0]
+        self.floor_row0 = f0 = int(np.argmax(below)) if below.any() else self.rh
+        g = cfg.camera_height / yr[f0:]  # (Hb,) forward depth of the floor seen by each row
+        floor_mips = [m.astype(np.float32) for m in mip_levels(house.floor_image, _FLOOR_LEVELS)]
+        res0 = house.floor_extent / floor_mips[0].shape[0]
         # Footprint of one pixel on the floor: g/f across, g^2/(f*h) along the view; take the geometric mean.
         foot = np.sqrt((g / f) * (g * g / (f * cfg.camera_height)))
-        level = np.clip(np.round(np.log2(np.maximum(foot / res0, 1e-9))), 0, len(floor_sizes) - 1).astype(int)
-        n_row = np.asarray(floor_sizes)[level]
+        flevel = np.clip(np.round(np.log2(np.maximum(foot / res0, 1e-9))), 0, len(floor_mips) - 1).astype(int)
+        # Shading quantised to 1/64 so that rows share shaded copies of a level (steps < 2% brightness).
+        flight = np.round(self._shade(g) * 64.0) / 64.0
         far = g > cfg.max_range
+        self.far_index = self._add(np.array([[[20.0, 20.0, 25.0]]]), 1.0)
+        copies: dict[tuple[int, float], int] = {}
+        row_off = np.empty(len(g), dtype=np.intp)
+        for r in range(len(g)):
+            if far[r]:
+                row_off[r] = self.far_index
+                continue
+            key = (int(flevel[r]), float(flight[r]))
+            if key not in copies:
+                copies[key] = self._add(floor_mips[key[0]][None], key[1])
+            row_off[r] = copies[key]
+        n_row = np.array([m.shape[0] for m in floor_mips])[flevel]
         inv_cell = n_row / house.floor_extent  # texels per metre at each row's level
         self._floor_inv = inv_cell[:, None].astype(np.float32)  # (Hb, 1) texels per metre
         self._floor_gi = (g * inv_cell)[:, None].astype(
@@ -155,26 +170,36 @@ class Camera:
         # Rows beyond max_range read the far colour: mask 0 makes x, y vanish, the offset points at it.
         self._floor_mask = np.where(far, 0, n_row - 1)[:, None].astype(np.intp)
         self._floor_shift = np.log2(n_row).astype(np.intp)[:, None]
-        self._floor_off = np.where(far, self.far_index, np.asarray(floor_offsets)[level])[:, None].astype(
-            np.intp
-        )
+        self._floor_off = row_off[:, None]
         self._floor_origin = house.floor_origin
 
-        # ---- background indices and per-row shading (8-bit fixed point, brightness included)
-        depth_rows = np.full(self.rh, _NO_HIT)
-        up = yr < 0
-        depth_rows[up] = (cfg.wall_height - cfg.camera_height) / (-yr[up])
-        depth_rows[self.floor_row0 :] = g
-        self._bg_shade = np.ascontiguousarray(
-            np.broadcast_to(self._light(depth_rows)[:, None], (self.rh, self.rw))
-        )  # (H, W) uint32
-        self._ceiling = np.full((self.floor_row0, self.rw), self.ceiling_index, dtype=np.intp)
+        # ---- ceiling: one shaded colour per row above the horizon
+        ceiling_depth = (cfg.wall_height - cfg.camera_height) / np.maximum(-yr[:f0], 1e-9)
+        ceiling = house.ceiling_color[None, None, :] * self._shade(ceiling_depth)[None, :, None]  # (1, f0, 3)
+        ceiling = ceiling[None]  # (1, 1, f0, 3): one copy of f0 texels
+        first = self._add(ceiling, 1.0) if f0 else 0
+        self._ceiling = np.broadcast_to((first + np.arange(f0))[:, None], (f0, self.rw)).copy()
+        self.atlas = np.concatenate(self._atlas_chunks)  # (N,) uint32 RGBA
+        del self._atlas_chunks
 
-    def _light(self, depth: np.ndarray) -> np.ndarray:
-        """Distance shading times brightness, as a uint32 factor with 8 fractional bits."""
+    def _shade(self, depth: np.ndarray) -> np.ndarray:
+        """Distance shading: 1 at the camera, falling towards the ambient level far away."""
         c = self.cfg
-        shade = c.ambient + (1.0 - c.ambient) * np.exp(-np.asarray(depth) / c.shading_distance)
-        return np.rint(shade * c.brightness * 256.0).astype(np.uint32)
+        return c.ambient + (1.0 - c.ambient) * np.exp(
+            -np.asarray(depth, dtype=np.float64) / c.shading_distance
+        )
+
+    def _add(self, texels: np.ndarray, light: np.ndarray | float) -> np.ndarray | int:
+        """Append copies of texels (1, ..., 3) scaled by each light (times brightness, clipped) to the atlas.
+
+        Returns the offset of each copy (an int for a scalar light)."""
+        lights = np.atleast_1d(np.asarray(light, dtype=np.float32)) * np.float32(self.cfg.brightness)
+        scaled = texels * lights.reshape((-1,) + (1,) * (texels.ndim - 1))  # (n, ..., 3)
+        packed = _pack(np.clip(np.rint(scaled), 0, 255).astype(np.uint8)).reshape(len(lights), -1)
+        offsets = self._atlas_size + packed.shape[1] * np.arange(len(lights))
+        self._atlas_chunks.append(packed.ravel())
+        self._atlas_size += packed.size
+        return int(offsets[0]) if np.ndim(light) == 0 else offsets
 
     # ------------------------------------------------------------------------------------------------
     def raycast(self, x: float, y: float, yaw: float) -> dict[str, np.ndarray]:
@@ -185,15 +210,12 @@ class Camera:
         ap = self.seg_a - (x, y)  # (S, 2)
         # cross(ap, e) < 0 where the camera sees the front face
         t_num = np.einsum("ij,ij->i", ap, self._e_perp)  # (S,)
-        # Both endpoints in camera coordinates (forward, left) and their offsets from the three planes
-        # bounding the view (behind, beyond the left edge, beyond the right edge): a segment with both
-        # endpoints beyond the same plane cannot be seen.
-        q = self._ends @ np.array([[cos, -sin], [sin, cos]]) - (
-            x * cos + y * sin,
-            y * cos - x * sin,
-        )  # (2S, 2)
-        out = q @ self._planes  # (2S, 3) > 0 beyond a plane
-        beyond = (out > 0).reshape(-1, 2, 3).all(axis=1).any(axis=1)  # (S,)
+        # Signed offsets of both endpoints from the three planes bounding the view (behind, beyond the left
+        # edge, beyond the right edge), > 0 outside: a segment with both endpoints beyond the same plane
+        # cannot be seen. planes^T @ camera-from-world rotation, applied to all endpoints in one product.
+        to_planes = self._planes_t @ np.array([[cos, sin], [-sin, cos]])  # (3, 2)
+        off = to_planes @ self._ends_t - (to_planes @ (x, y))[:, None]  # (3, 2S): a ends, then b ends
+        beyond = np.minimum(off[:, : self._n_seg], off[:, self._n_seg :]).max(axis=0) > 0  # (S,)
         front = np.flatnonzero((t_num < 0) & ~beyond)
         n_w = int(np.searchsorted(front, self.n_walls))  # front faces of walls come first
         n = len(front)
@@ -208,7 +230,7 @@ class Camera:
         # t = t_num / denom > 0. Maximise 1/t = denom / t_num (no division per pair); where denom >= 0 it
         # is <= 0 and loses to any real hit, so that test is folded into the range test below.
         inv_t = denom * (1.0 / t_num[front])
-        inv_t[(s_num > 0) | (s_num < denom)] = 0.0
+        inv_t *= (s_num <= 0) & (s_num >= denom)
         k = np.zeros((2, self.rw), dtype=np.intp)
         if n_w > 0:
             k[0] = np.argmax(inv_t[:, :n_w], axis=1)
@@ -232,16 +254,13 @@ class Camera:
         rc = self.raycast(x, y, yaw)
         depth, seg = rc["depth"], rc["seg"]  # (2, W)
 
-        # ---- per column and layer: mip level, atlas base, texture row v = a - yr * b, v at the top
-        lvl = np.searchsorted(self._lvl_edges, depth * self._inv_texel_px[seg])
-        key = seg * _TEX_LEVELS + lvl
+        # ---- per column and layer: depth bin (mip level and shading), atlas base, v = a - yr * b, v at the top
+        key = seg * _DEPTH_BINS + np.searchsorted(self._bin_edges, depth)
         ti = self._tab_int[key]  # (2, W, 3) offset, mask, shift
         tf = self._tab_float[key]  # (2, W, 4) texels/m along u and v, v at camera height, v at the top
         u = self.seg_u0[seg] + rc["s"] * self.seg_len[seg]  # metres along the surface
         base = ti[..., 0] + ((u * tf[..., 0]).astype(np.intp) & ti[..., 1])
         b = depth.astype(np.float32) * tf[..., 1]
-        shade = cfg.ambient + (1.0 - cfg.ambient) * np.exp(depth * (-1.0 / cfg.shading_distance))
-        light = (shade * (256.0 * cfg.brightness) + 0.5).astype(np.uint32)
 
         # ---- background: ceiling above the horizon, the floor below the highest row a wall leaves free
         centre = rh / 2 - 0.5
@@ -263,9 +282,7 @@ class Camera:
         fxy &= self._floor_mask[rows]
         fxy[1] <<= self._floor_shift[rows]
         fxy[1] += fxy[0]
-        fxy[1] += self._floor_off[rows]
-        idx[r0:] = fxy[1]
-        light_px = self._bg_shade.copy()
+        np.add(fxy[1], self._floor_off[rows], out=idx[r0:])
 
         # ---- walls, then furniture on top, each within the bounding box of rows and columns it can cover
         heights = (cfg.wall_height, self._max_furniture_height)
@@ -289,26 +306,11 @@ class Camera:
             vi += base[layer, cs]
             box = (slice(t0, b1), cs)
             idx[box] = np.where(vis, vi, idx[box])
-            light_px[box] = np.where(vis, light[layer, cs], light_px[box])
 
-        rgba = np.take(self.atlas, idx)  # (H, W) uint32
-        if cfg.brightness <= 1.0:
-            # Fixed-point shading of R and B, then G (and A), each pair in one uint32 multiply.
-            rb = rgba & 0x00FF00FF
-            rb *= light_px
-            rb >>= 8
-            rb &= 0x00FF00FF
-            rgba >>= 8
-            rgba &= 0x00FF00FF
-            rgba *= light_px
-            rgba &= 0xFF00FF00
-            rb |= rgba
-            out = np.empty((rh, rw), dtype="V3")
-            np.copyto(out, rb.view(_RGB)["rgb"])
-            img = out.view(np.uint8).reshape(rh, rw, 3)
-        else:  # brightness > 1 may saturate: the slower float path clips
-            rgb = rgba.view(np.uint8).reshape(rh, rw, 4)[..., :3]
-            img = np.minimum(rgb * (light_px[..., None] / np.float32(256.0)), 255).astype(np.uint8)
+        rgba = np.take(self.atlas, idx)  # (H, W) uint32, already shaded
+        out = np.empty((rh, rw), dtype="V3")
+        np.copyto(out, rgba.view(_RGB)["rgb"])  # drop the alpha byte
+        img = out.view(np.uint8).reshape(rh, rw, 3)
         if cfg.supersample > 1:
             ss = cfg.supersample
             img = np.rint(img.reshape(cfg.height, ss, cfg.width, ss, 3).mean(axis=(1, 3))).astype(np.uint8)
