@@ -36,13 +36,6 @@ _TEX_SHIFT = TEX.bit_length() - 1  # log2(TEX)
 _FLOOR_LEVELS = 7  # 512 .. 8 texels
 _DEPTH_BINS = 64  # surfaces: distance bins from 0.1 m to max range (ratio ~1.09: shading steps < 2%)
 _NO_HIT = 1e6  # depth used for "nothing hit" (finite, so that no inf/nan warnings arise)
-_RGB = np.dtype({"names": ["rgb"], "formats": ["V3"], "offsets": [0], "itemsize": 4})  # RGB bytes of RGBA
-
-
-def _pack(img: np.ndarray) -> np.ndarray:
-    """(..., 3) uint8 RGB -> (...) uint32 whose little-endian bytes are R, G, B, 255."""
-    rgba = np.concatenate([img, np.full(img.shape[:-1] + (1,), 255, np.uint8)], axis=-1)
-    return np.ascontiguousarray(rgba).view("<u4")[..., 0]
 
 
 class Camera:
@@ -179,7 +172,7 @@ class Camera:
         ceiling = ceiling[None]  # (1, 1, f0, 3): one copy of f0 texels
         first = self._add(ceiling, 1.0) if f0 else 0
         self._ceiling = np.broadcast_to((first + np.arange(f0))[:, None], (f0, self.rw)).copy()
-        self.atlas = np.concatenate(self._atlas_chunks)  # (N,) uint32 RGBA
+        self.atlas = np.concatenate(self._atlas_chunks)  # (N,) 3-byte RGB items
         del self._atlas_chunks
 
     def _shade(self, depth: np.ndarray) -> np.ndarray:
@@ -195,7 +188,8 @@ class Camera:
         Returns the offset of each copy (an int for a scalar light)."""
         lights = np.atleast_1d(np.asarray(light, dtype=np.float32)) * np.float32(self.cfg.brightness)
         scaled = texels * lights.reshape((-1,) + (1,) * (texels.ndim - 1))  # (n, ..., 3)
-        packed = _pack(np.clip(np.rint(scaled), 0, 255).astype(np.uint8)).reshape(len(lights), -1)
+        rgb = np.ascontiguousarray(np.clip(np.rint(scaled), 0, 255).astype(np.uint8))
+        packed = rgb.view("V3").reshape(len(lights), -1)  # one 3-byte RGB item per texel
         offsets = self._atlas_size + packed.shape[1] * np.arange(len(lights))
         self._atlas_chunks.append(packed.ravel())
         self._atlas_size += packed.size
@@ -307,10 +301,7 @@ class Camera:
             box = (slice(t0, b1), cs)
             idx[box] = np.where(vis, vi, idx[box])
 
-        rgba = np.take(self.atlas, idx)  # (H, W) uint32, already shaded
-        out = np.empty((rh, rw), dtype="V3")
-        np.copyto(out, rgba.view(_RGB)["rgb"])  # drop the alpha byte
-        img = out.view(np.uint8).reshape(rh, rw, 3)
+        img = np.take(self.atlas, idx).view(np.uint8).reshape(rh, rw, 3)  # one 3-byte item per pixel
         if cfg.supersample > 1:
             ss = cfg.supersample
             img = np.rint(img.reshape(cfg.height, ss, cfg.width, ss, 3).mean(axis=(1, 3))).astype(np.uint8)
