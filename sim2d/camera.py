@@ -6,19 +6,22 @@ One frame is:
    view (one small matmul gives every ray/segment cross product at once), keeping two layers per column:
    the nearest wall and the nearest furniture in front of it (furniture is lower than walls, so the wall
    shows above it; furniture hidden behind other furniture is not drawn, a limit of two layers);
-2. per pixel, the texture row v = a - yr * b (linear in the pixel's ray slope yr, per-column a and b) says
-   whether the pixel sees that layer (0 <= v < height) and where in the texture; pixels that see no layer
-   see the floor (below) or the ceiling (above). Per-pixel work is limited to the bounding box of rows and
-   columns where each layer can appear;
-3. a single gather from one packed texture atlas (uint32 RGBA) that holds every surface texture with its
-   mip levels, the floor mosaic with its mip levels, and the ceiling and far colours; the mip level of a
-   floor pixel depends only on its row, of a surface only on its column's depth, so anti-aliasing costs
-   no extra pass;
-4. distance shading times brightness as an 8-bit fixed-point factor per pixel (precomputed per row for
-   floor and ceiling, per column for surfaces), applied to two channels per integer multiply.
+2. per column and layer, one lookup in a (segment, depth bin) table gives the texture block to read
+   (mip level and distance shading of that bin), the texture column, and the texture row as a linear
+   function of the pixel's ray slope, v = a - yr * b; per pixel, 0 <= v < v_top says whether the pixel
+   sees that layer. Pixels that see no layer see the floor (below the horizon) or the ceiling (above).
+   Per-pixel work is limited to the bounding box of rows and columns where each layer can appear;
+3. the floor point a pixel sees is the camera position plus the row's ground depth times the column's
+   ray direction; the row also fixes the floor's mip level and shading, so the mosaic is anti-aliased and
+   shaded at no per-pixel cost;
+4. a single gather from one atlas of 3-byte RGB items that holds every texel already shaded and scaled
+   by the brightness: surface textures for each depth bin (64 bins from 0.1 m to max range, ratio ~1.09,
+   so shading steps stay under 2%), floor mip levels for each shading the floor rows use, one ceiling
+   colour per row, and the far colour. No arithmetic on colours is left per frame.
 
 Everything that does not depend on the pose (ray directions in the camera frame, per-row ground depth,
-mip levels and shading of floor rows, the atlas) is computed once in the constructor.
+mip levels and shading, the atlas) is computed once in the constructor (~0.2 s, ~23 MB for the default
+house at 128x128).
 """
 
 from __future__ import annotations
