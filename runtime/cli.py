@@ -13,7 +13,11 @@ import sys
 
 # name -> (module, one-line summary, extra that provides its heavy dependencies)
 COMMANDS: dict[str, tuple[str, str, str | None]] = {
-    "demo": ("benchmarks.demo", "start the simulator, teach a route, repeat it with the shipped model", "sim"),
+    "demo": (
+        "benchmarks.demo",
+        "start the simulator, teach a route, repeat it with the shipped model",
+        "sim",
+    ),
     "sim": ("sim2d.cli", "simulator: serve over ZeroMQ, snapshot the house", "sim"),
     "teach": ("runtime.teach", "drive a scripted route and record its visual trajectory", None),
     "repeat": ("runtime.daemon", "follow a taught route from camera images alone (the robot daemon)", None),
@@ -24,8 +28,16 @@ COMMANDS: dict[str, tuple[str, str, str | None]] = {
     "eval": ("benchmarks.evaluate", "closed-loop tracking against the paper's tables", "sim"),
 }
 
-_EXTRA_OF_MODULE = {"pymunk": "sim", "cv2": "sim", "matplotlib": "sim", "torch": "train", "onnx": "train",
-                    "onnxscript": "train", "tqdm": "train", "gymnasium": "dev"}
+_EXTRA_OF_MODULE = {
+    "pymunk": "sim",
+    "cv2": "sim",
+    "matplotlib": "sim",
+    "torch": "train",
+    "onnx": "train",
+    "onnxscript": "train",
+    "tqdm": "train",
+    "gymnasium": "dev",
+}
 
 
 def _top_help() -> str:

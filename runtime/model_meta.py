@@ -48,12 +48,20 @@ class ModelMeta:
             key = PREFIX + name
             if key not in props:
                 raise ValueError(f"model metadata lacks {key!r}; was it exported with `vtr export`?")
-            typ = field.type if isinstance(field.type, type) else {"int": int, "float": float, "str": str}[field.type]
+            typ = (
+                field.type
+                if isinstance(field.type, type)
+                else {"int": int, "float": float, "str": str}[field.type]
+            )
             try:
                 kwargs[name] = typ(props[key])
             except ValueError as err:
-                raise ValueError(f"model metadata {key}={props[key]!r} is not a valid {typ.__name__}") from err
+                raise ValueError(
+                    f"model metadata {key}={props[key]!r} is not a valid {typ.__name__}"
+                ) from err
         meta = cls(**kwargs)
         if meta.format_version != FORMAT_VERSION:
-            raise ValueError(f"model format version {meta.format_version}, this runtime reads {FORMAT_VERSION}")
+            raise ValueError(
+                f"model format version {meta.format_version}, this runtime reads {FORMAT_VERSION}"
+            )
         return meta
