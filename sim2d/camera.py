@@ -116,9 +116,11 @@ class Camera:
         tex = self.seg_tex
         n_side = (TEX >> level[tex]).astype(np.float64)  # (S, K) texels per side
         nsv = n_side / house.texture_sizes[tex, 1][:, None]
-        self._tab_int = np.stack(
-            [tex_off[tex], n_side.astype(np.intp) - 1, _TEX_SHIFT - level[tex]], axis=-1
-        ).reshape(-1, 3)
+        self._tab_int = (
+            np.stack([tex_off[tex], n_side.astype(np.intp) - 1, _TEX_SHIFT - level[tex]], axis=-1)
+            .reshape(-1, 3)
+            .astype(np.int32)
+        )
         self._tab_float = (
             np.stack(
                 [
@@ -164,9 +166,9 @@ class Camera:
             np.float32
         )  # (Hb, 1) texels per unit of ray direction
         # Rows beyond max_range read the far colour: mask 0 makes x, y vanish, the offset points at it.
-        self._floor_mask = np.where(far, 0, n_row - 1)[:, None].astype(np.intp)
-        self._floor_shift = np.log2(n_row).astype(np.intp)[:, None]
-        self._floor_off = row_off[:, None]
+        self._floor_mask = np.where(far, 0, n_row - 1)[:, None].astype(np.int32)
+        self._floor_shift = np.log2(n_row).astype(np.int32)[:, None]
+        self._floor_off = row_off[:, None].astype(np.int32)
         self._floor_origin = house.floor_origin
 
         # ---- ceiling: one shaded colour per row above the horizon
@@ -174,9 +176,13 @@ class Camera:
         ceiling = house.ceiling_color[None, None, :] * self._shade(ceiling_depth)[None, :, None]  # (1, f0, 3)
         ceiling = ceiling[None]  # (1, 1, f0, 3): one copy of f0 texels
         first = self._add(ceiling, 1.0) if f0 else 0
-        self._ceiling = np.broadcast_to((first + np.arange(f0))[:, None], (f0, self.rw)).copy()
+        self._ceiling = np.broadcast_to(
+            (first + np.arange(f0, dtype=np.int32))[:, None], (f0, self.rw)
+        ).copy()
         self.atlas = np.concatenate(self._atlas_chunks)  # (N,) 3-byte RGB items
         del self._atlas_chunks
+        if self.atlas.size >= 2**31:
+            raise ValueError(f"texture atlas of {self.atlas.size} texels is too large for int32 indices")
 
     def _shade(self, depth: np.ndarray) -> np.ndarray:
         """Distance shading: 1 at the camera, falling towards the ambient level far away."""
@@ -256,7 +262,7 @@ class Camera:
         ti = self._tab_int[key]  # (2, W, 3) offset, mask, shift
         tf = self._tab_float[key]  # (2, W, 4) texels/m along u and v, v at camera height, v at the top
         u = self.seg_u0[seg] + rc["s"] * self.seg_len[seg]  # metres along the surface
-        base = ti[..., 0] + ((u * tf[..., 0]).astype(np.intp) & ti[..., 1])
+        base = ti[..., 0] + ((u * tf[..., 0]).astype(np.int32) & ti[..., 1])
         b = depth.astype(np.float32) * tf[..., 1]
 
         # ---- background: ceiling above the horizon, the floor below the highest row a wall leaves free
@@ -265,7 +271,7 @@ class Camera:
         d_far = float(depth[0].max())
         f0 = self.floor_row0
         r0 = min(rh, max(f0, math.floor(centre + f * h_cam / d_far) - 2))
-        idx = np.empty((rh, rw), dtype=np.intp)
+        idx = np.empty((rh, rw), dtype=np.int32)  # int32: per-pixel integer work is ~2x faster than int64
         idx[:f0] = self._ceiling
         idx[f0:r0] = self.far_index  # every column sees a wall there: no floor visible
         rows = slice(r0 - f0, None)
@@ -275,7 +281,7 @@ class Camera:
             np.array([(x - ox), (y - oy)], np.float32)[:, None, None] * self._floor_inv[rows]
         )  # (2, Hf, 1)
         ray = np.stack([rc["dx"], rc["dy"]]).astype(np.float32)[:, None, :]  # (2, 1, W)
-        fxy = (start + self._floor_gi[rows] * ray).astype(np.intp)  # (2, Hf, W)
+        fxy = (start + self._floor_gi[rows] * ray).astype(np.int32)  # (2, Hf, W)
         fxy &= self._floor_mask[rows]
         fxy[1] <<= self._floor_shift[rows]
         fxy[1] += fxy[0]
@@ -297,12 +303,11 @@ class Camera:
             v = tf[layer, cs, 2] - self.yr_col[t0:b1] * b[layer, cs]  # (h, w) texture row
             vis = v >= 0
             vis &= v < tf[layer, cs, 3]
-            vi = v.astype(np.intp)
+            vi = v.astype(np.int32)
             vi &= ti[layer, cs, 1]
             vi <<= ti[layer, cs, 2]
             vi += base[layer, cs]
-            box = (slice(t0, b1), cs)
-            idx[box] = np.where(vis, vi, idx[box])
+            np.putmask(idx[t0:b1, cs], vis, vi)
 
         img = np.take(self.atlas, idx).view(np.uint8).reshape(rh, rw, 3)  # one 3-byte item per pixel
         if cfg.supersample > 1:
