@@ -32,7 +32,7 @@ from sim2d.textures import make_texture, mosaic_floor
 
 MAPS_DIR = Path(__file__).resolve().parent / "maps"
 FLOOR_TEX = 512  # texels per side of the floor mosaic (power of two)
-CIRCLE_SIDES = 20  # circles are drawn as polygons with this many faces (physics uses the true circle)
+CIRCLE_SIDES = 16  # circles are drawn as polygons with this many faces (physics uses the true circle)
 # Start poses are checked against a robot of this radius, the largest one we expect to simulate.
 START_CLEARANCE = 0.25
 
