@@ -312,7 +312,11 @@ class Camera:
             np.putmask(idx[t0:b1, cs], vis, vi)
 
         img = np.take(self.atlas, idx).view(np.uint8).reshape(rh, rw, 3)  # one 3-byte item per pixel
-        if cfg.supersample > 1:
+        if cfg.supersample > 1:  # box filter: add the ss x ss sub-images, round, divide
             ss = cfg.supersample
-            img = np.rint(img.reshape(cfg.height, ss, cfg.width, ss, 3).mean(axis=(1, 3))).astype(np.uint8)
+            acc = np.full((cfg.height, cfg.width, 3), (ss * ss) // 2, dtype=np.uint32)
+            for i in range(ss):
+                for j in range(ss):
+                    acc += img[i::ss, j::ss]
+            img = (acc // (ss * ss)).astype(np.uint8)
         return img
