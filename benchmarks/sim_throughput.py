@@ -108,6 +108,18 @@ def run(cfg: SimBenchConfig) -> dict:
 
     drive(cfg.warmup)
     physics, render = drive(cfg.steps)
+    # The raycast alone (the rest of a render is per-pixel work), over poses along the first routes.
+    raycast = []
+    for start, commands in routes:
+        sim.reset(pose=start, seed=0)
+        for v, w, d in commands:
+            sim.advance(v, w, d)
+            p = sim.pose
+            t0 = time.perf_counter()
+            sim.camera.raycast(p.x, p.y, p.yaw)
+            raycast.append(time.perf_counter() - t0)
+        if len(raycast) >= min(cfg.steps, 1000):
+            break
     total = float(np.sum(physics) + np.sum(render))
     per_step = np.asarray(physics) + np.asarray(render)
     result = {
@@ -120,6 +132,7 @@ def run(cfg: SimBenchConfig) -> dict:
         "step_ms_median": 1e3 * float(np.median(per_step)),
         "render_ms_median": 1e3 * statistics.median(render),
         "render_ms_mean": 1e3 * statistics.fmean(render),
+        "raycast_ms_median": 1e3 * statistics.median(raycast),
         "physics_ms_median": 1e3 * statistics.median(physics),
         "physics_ms_mean": 1e3 * statistics.fmean(physics),
         "physics_substeps_per_step": math.ceil(cfg.duration / sim.cfg.physics_dt - 1e-9),
@@ -145,6 +158,7 @@ def format_table(r: dict) -> str:
         ("steps/s from the median step", f"{r['steps_per_s_from_median']:.0f}"),
         ("step ms median / mean", f"{r['step_ms_median']:.3f} / {r['step_ms_mean']:.3f}"),
         ("render ms median / mean", f"{r['render_ms_median']:.3f} / {r['render_ms_mean']:.3f}"),
+        ("  of which raycast, ms median", f"{r['raycast_ms_median']:.3f}"),
         (
             f"physics ms median / mean ({r['physics_substeps_per_step']} substeps)",
             f"{r['physics_ms_median']:.3f} / {r['physics_ms_mean']:.3f}",
