@@ -350,17 +350,6 @@ def _inside(poly: np.ndarray, x: float, y: float) -> bool:
     return bool(np.count_nonzero(crosses & (x < xint)) % 2)
 
 
-def _poly_distance(poly: np.ndarray, x: float, y: float) -> float:
-    """Distance from (x, y) to the boundary of a polygon."""
-    a = poly
-    b = np.roll(poly, -1, axis=0)
-    ab = b - a
-    ap = np.array([x, y]) - a
-    t = np.clip(np.sum(ap * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), 1e-12), 0.0, 1.0)
-    closest = a + ab * t[:, None]
-    return float(np.min(np.hypot(closest[:, 0] - x, closest[:, 1] - y)))
-
-
 def _signed_area(poly: np.ndarray) -> float:
     x, y = poly[:, 0], poly[:, 1]
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))

@@ -23,8 +23,8 @@ COLLISION_SLOP = 5e-4
 # Fraction of an overlap left after one second; pymunk's default (0.0018) corrects only ~6% per 10 ms substep,
 # which let a robot pushing into a wall sink ~6 mm; this corrects about half per 20 ms substep (~1 mm).
 COLLISION_BIAS = 1e-16
-ROBOT_MASS = 10.0
-ROBOT, OBSTACLE = 1, 2  # pymunk collision types  # kg; only matters against the (immovable) static obstacles
+ROBOT_MASS = 10.0  # kg; only matters against the (immovable) static obstacles
+ROBOT, OBSTACLE = 1, 2  # pymunk collision types
 
 
 @dataclass
