@@ -83,8 +83,9 @@ class ViewNet(nn.Module):
         x = self.stem(torch.cat([feat, vel], dim=1))  # (B, dec0, 4, 4)
         x = self.up(x)  # (B, decL, R, R), R = flow_resolution
         flow = self.flow(x)  # (B, 2, R, R)
-        if flow.shape[-1] != image.shape[-1]:
-            flow = F.interpolate(flow, size=image.shape[-2:], mode="bilinear", align_corners=False)
+        if self.cfg.flow_resolution != self.cfg.image_size:
+            size = (self.cfg.image_size, self.cfg.image_size)
+            flow = F.interpolate(flow, size=size, mode="bilinear", align_corners=False)
         return flow  # (B, 2, H, W)
 
     def forward(self, image: torch.Tensor, velocity: torch.Tensor) -> torch.Tensor:
