@@ -37,11 +37,14 @@ class CollectConfig:
     noise: float = 0.0  # actuation noise passed to SimConfig(noise=...); 0 = noiseless
     dt: float = 0.1  # s between recorded frames; each command is applied for dt
     image_size: int = 128  # camera width = height in pixels
-    episode_min: int = 40  # shortest episode in frames before a new random start pose
-    episode_max: int = 160  # longest episode in frames
+    episode_min: int = 30  # shortest episode in frames before a new random start pose
+    episode_max: int = 120  # longest episode in frames
     segment_min: int = 3  # a command is held for between segment_min and segment_max frames
     segment_max: int = 14
-    robot_radius: float = 0.25  # m, clearance the look-ahead keeps from obstacles
+    robot_radius: float = 0.25  # m, the least clearance the look-ahead keeps from obstacles
+    # Each episode keeps a clearance drawn uniformly from [robot_radius, far_clearance], so some
+    # episodes hug the walls and others stay in the open middle of the rooms.
+    far_clearance: float = 0.9
     lookahead: float = 0.3  # s of look-ahead beyond the next step used to refuse a command
     v_max: float = 0.5  # m/s, command limits (the runtime's limits)
     w_max: float = 1.0  # rad/s
@@ -51,6 +54,8 @@ class CollectConfig:
     def __post_init__(self) -> None:
         _check_positive(self, "frames", "dt", "image_size", "episode_min", "episode_max", "segment_min")
         _check_positive(self, "segment_max", "robot_radius", "v_max", "w_max")
+        if self.far_clearance < self.robot_radius:
+            raise ValueError(f"far_clearance {self.far_clearance} < robot_radius {self.robot_radius}")
         if self.episode_max < self.episode_min:
             raise ValueError(f"episode_max {self.episode_max} < episode_min {self.episode_min}")
         if self.segment_max < self.segment_min:
@@ -188,7 +193,9 @@ def _tiny() -> Preset:
     size = 32
     return Preset(
         name="tiny",
-        collect=CollectConfig(frames=60, image_size=size, episode_min=10, episode_max=20, progress=False),
+        collect=CollectConfig(
+            frames=60, image_size=size, episode_min=10, episode_max=20, far_clearance=0.5, progress=False
+        ),
         viewnet=ViewNetConfig(
             image_size=size,
             encoder_channels=(4, 4, 8, 8, 8, 8, 8, 16),

@@ -64,6 +64,7 @@ def save_dataset(path: str | os.PathLike, data: FrameData) -> None:
                 episodes=data.episodes.astype(np.int32),
                 meta=np.array(json.dumps(meta, sort_keys=True)),
             )
+        os.chmod(tmp, 0o644)  # mkstemp makes it private; a dataset is an ordinary file
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
