@@ -34,6 +34,11 @@ def _add_common(p: argparse.ArgumentParser) -> None:
         "--amp", action=argparse.BooleanOptionalAction, default=None, help="bfloat16 autocast on CUDA"
     )
     p.add_argument("--val-every", type=int, help="steps between validation passes and checkpoints")
+    p.add_argument(
+        "--data-on-device",
+        choices=("auto", "yes", "no"),
+        help="keep the whole dataset on the training device (auto: if it takes < 1/4 of free GPU memory)",
+    )
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -69,6 +74,7 @@ def _train_cfg(base: Any, args: argparse.Namespace, steps: int | None = None) ->
         num_workers=args.workers,
         amp=args.amp,
         val_every=args.val_every,
+        data_on_device=args.data_on_device,
     )
 
 

@@ -111,30 +111,57 @@ class Windows:
                 f"no {length}-frame windows in the {'training' if len(self.train_starts) == 0 else 'validation'}"
                 " episodes; record longer episodes or more frames"
             )
-        on_device = cfg.data_on_device == "yes" or dist.device.type == "cpu"
-        if cfg.data_on_device == "auto" and dist.device.type == "cuda":
-            free, _ = torch.cuda.mem_get_info(dist.device)
-            on_device = data.images.nbytes < 0.25 * free
+        if cfg.data_on_device == "auto":
+            on_device = True  # on CPU the "device" is host memory
+            if dist.device.type == "cuda":
+                free, _ = torch.cuda.mem_get_info(dist.device)
+                on_device = data.images.nbytes < 0.25 * free
+        else:
+            on_device = cfg.data_on_device == "yes"
         self.device = dist.device
         self.on_device = on_device
         target = dist.device if on_device else torch.device("cpu")
         self.images = torch.from_numpy(data.images).to(target)  # (T, H, W, 3) uint8
         self.commands = torch.from_numpy(data.commands.astype(np.float32)).to(target)  # (T, 2)
-        if not on_device and dist.device.type == "cuda":
-            self.images = self.images.pin_memory()
-            self.commands = self.commands.pin_memory()
+        self.pin = not on_device and dist.device.type == "cuda"
         self.mean_command = data.commands[self.train_starts].mean(axis=0).astype(np.float32)
+
+    def gather_raw(self, starts: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
+        """Window starts (B,) -> uint8 frames (B, L, H, W, 3) and commands (B, L-1, 2), where the data lives."""
+        idx = torch.as_tensor(starts, dtype=torch.long)[:, None] + torch.arange(self.length)  # (B, L)
+        idx = idx.to(self.images.device)
+        return self.images[idx], self.commands[idx[:, :-1]]
+
+    def to_device(self, frames: torch.Tensor, commands: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """uint8 frames -> float (B, L, 3, H, W) on the training device (async copy from pinned memory)."""
+        frames = frames.to(self.device, non_blocking=True)
+        commands = commands.to(self.device, non_blocking=True)
+        return images_to_float(frames), commands
 
     def gather(self, starts: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
         """Window starts (B,) -> frames (B, L, 3, H, W) float on the device, commands (B, L-1, 2)."""
-        idx = torch.as_tensor(starts, dtype=torch.long)[:, None] + torch.arange(self.length)  # (B, L)
-        idx = idx.to(self.images.device)
-        frames = self.images[idx]  # (B, L, H, W, 3) uint8
-        commands = self.commands[idx[:, :-1]]  # (B, L-1, 2)
-        if not self.on_device:
-            frames = frames.to(self.device, non_blocking=True)
-            commands = commands.to(self.device, non_blocking=True)
-        return images_to_float(frames), commands
+        return self.to_device(*self.gather_raw(starts))
+
+    def loader(
+        self, batches: Iterator[np.ndarray], steps: int, workers: int
+    ) -> Iterator[tuple[torch.Tensor, torch.Tensor]]:
+        """Training batches on the device. Data held on the device is indexed in place; otherwise a
+        DataLoader gathers batches in ``workers`` processes into pinned memory, overlapping the copy."""
+        if self.on_device:
+            for _ in range(steps):
+                yield self.gather(next(batches))
+            return
+        plan = [next(batches) for _ in range(steps)]  # the batch order is fixed up front (deterministic)
+        dl = torch.utils.data.DataLoader(
+            _BatchList(self, plan),
+            batch_size=None,
+            shuffle=False,
+            num_workers=workers,
+            pin_memory=self.pin,
+            persistent_workers=False,
+        )
+        for frames, commands in dl:
+            yield self.to_device(frames, commands)
 
     def steps_per_epoch(self, batch: int, world: int) -> int:
         return max(1, len(self.train_starts) // (batch * world))
@@ -156,6 +183,19 @@ class Windows:
         n = math.ceil(len(self.val_starts) / batch)
         for k in range(n if limit is None else min(n, limit)):
             yield self.val_starts[k * batch : (k + 1) * batch]
+
+
+class _BatchList(torch.utils.data.Dataset):
+    """Pre-planned batches of window starts, gathered on the host (DataLoader workers)."""
+
+    def __init__(self, windows: Windows, plan: list[np.ndarray]) -> None:
+        self.windows, self.plan = windows, plan
+
+    def __len__(self) -> int:
+        return len(self.plan)
+
+    def __getitem__(self, k: int) -> tuple[torch.Tensor, torch.Tensor]:
+        return self.windows.gather_raw(self.plan[k])
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -283,13 +323,15 @@ def _fit(
         model.train()
         return {k: v / count for k, v in sums.items()}
 
-    batches = windows.train_batches(cfg.batch_size, cfg.seed, step, dist)
+    batches = windows.loader(
+        windows.train_batches(cfg.batch_size, cfg.seed, step, dist), cfg.steps - step, cfg.num_workers
+    )
     bar = tqdm(total=cfg.steps, initial=step, desc=f"train {kind}", disable=not dist.main, dynamic_ncols=True)
     model.train()
     t_start, running, n_running = time.perf_counter(), 0.0, 0
     while step < cfg.steps:
         t0 = time.perf_counter()
-        frames, commands = windows.gather(next(batches))
+        frames, commands = next(batches)
         with torch.autocast("cuda", torch.bfloat16, enabled=amp):
             loss, _ = loss_fn(net, frames, commands)
         optim.zero_grad(set_to_none=True)
