@@ -1,0 +1,138 @@
+"""VelocityNet on onnxruntime: checked once at load, then (current, subgoal) images -> (2, N) velocities.
+
+The stages are separate methods (``preprocess``, ``infer``, ``postprocess``) so a latency benchmark can
+time each; ``predict`` runs all three and leaves their durations in ``last_timing_ms``.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from typing import Any
+
+import numpy as np
+import onnxruntime as ort
+
+from runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
+from runtime.preprocess import PREPROCESSING, to_nchw
+
+
+class ModelMismatchError(ValueError):
+    """The ONNX model (or a route used with it) does not match what the runtime expects."""
+
+
+def _dim_ok(dim: Any, expected: int) -> bool:
+    """A symbolic/None dimension accepts anything; a fixed one must equal ``expected``."""
+    return not isinstance(dim, int) or dim == expected
+
+
+class OnnxPolicy:
+    """One onnxruntime session, created once. ``threads`` sets intra-op threads (default 1, a small board)."""
+
+    def __init__(self, path: str | os.PathLike[str], threads: int = 1) -> None:
+        if threads < 1:
+            raise ValueError(f"threads must be >= 1, got {threads}")
+        self.path = os.fspath(path)
+        if not os.path.isfile(self.path):
+            raise FileNotFoundError(f"model file {self.path!r} does not exist")
+        options = ort.SessionOptions()
+        options.intra_op_num_threads = threads
+        options.inter_op_num_threads = 1
+        options.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+        try:
+            self.session = ort.InferenceSession(self.path, options, providers=["CPUExecutionProvider"])
+        except Exception as exc:
+            raise ModelMismatchError(f"onnxruntime cannot load {self.path!r}: {exc}") from exc
+        try:
+            self.meta = ModelMeta.from_props(dict(self.session.get_modelmeta().custom_metadata_map))
+        except ValueError as exc:
+            raise ModelMismatchError(f"{self.path}: {exc}") from exc
+        self._check_signature()
+        #: Outputs with NaN/inf that were replaced by a zero command.
+        self.nonfinite_count = 0
+        #: Durations of the last predict() stages, in milliseconds.
+        self.last_timing_ms: dict[str, float] = {}
+
+    def _check_signature(self) -> None:
+        meta = self.meta
+        if meta.preprocessing != PREPROCESSING:
+            raise ModelMismatchError(
+                f"{self.path}: model expects preprocessing {meta.preprocessing!r}, this runtime does {PREPROCESSING!r}"
+            )
+        inputs = {i.name: i for i in self.session.get_inputs()}
+        if set(inputs) != {INPUT_CURRENT, INPUT_SUBGOAL}:
+            raise ModelMismatchError(
+                f"{self.path}: inputs are {sorted(inputs)}, expected {[INPUT_CURRENT, INPUT_SUBGOAL]}"
+            )
+        expected_in = (1, 3, meta.image_height, meta.image_width)
+        for name, arg in inputs.items():
+            if arg.type != "tensor(float)":
+                raise ModelMismatchError(f"{self.path}: input {name!r} is {arg.type}, expected tensor(float)")
+            shape = list(arg.shape)
+            if len(shape) != 4 or not all(
+                _dim_ok(d, e) for d, e in zip(shape[1:], expected_in[1:], strict=True)
+            ):
+                raise ModelMismatchError(
+                    f"{self.path}: input {name!r} has shape {shape}, expected (B, 3, {meta.image_height}, "
+                    f"{meta.image_width}) as its metadata says"
+                )
+        outputs = {o.name: o for o in self.session.get_outputs()}
+        if OUTPUT_VELOCITIES not in outputs:
+            raise ModelMismatchError(
+                f"{self.path}: outputs are {sorted(outputs)}, expected {OUTPUT_VELOCITIES!r}"
+            )
+        out = outputs[OUTPUT_VELOCITIES]
+        shape = list(out.shape)
+        if len(shape) != 3 or not (_dim_ok(shape[1], 2) and _dim_ok(shape[2], meta.horizon)):
+            raise ModelMismatchError(
+                f"{self.path}: output {OUTPUT_VELOCITIES!r} has shape {shape}, expected (B, 2, {meta.horizon})"
+            )
+
+    @property
+    def image_shape(self) -> tuple[int, int]:
+        """(H, W) the model takes."""
+        return (self.meta.image_height, self.meta.image_width)
+
+    def check_route(self, route: Any) -> None:
+        """Refuse a route whose images are not at the model's resolution."""
+        shape = tuple(route.images.shape[1:3])
+        if shape != self.image_shape:
+            raise ModelMismatchError(
+                f"route images are {shape[0]}x{shape[1]} but the model takes "
+                f"{self.image_shape[0]}x{self.image_shape[1]}; teach the route with the model's camera resolution"
+            )
+
+    # ------------------------------------------------------------------ stages
+    def preprocess(self, current: np.ndarray, subgoal: np.ndarray) -> dict[str, np.ndarray]:
+        """uint8 (H, W, 3) images -> the session's feeds (float32 (1, 3, H, W) each)."""
+        for name, image in ((INPUT_CURRENT, current), (INPUT_SUBGOAL, subgoal)):
+            if image.shape != (*self.image_shape, 3):
+                raise ValueError(
+                    f"{name} image has shape {image.shape}, the model takes {(*self.image_shape, 3)}"
+                )
+        return {INPUT_CURRENT: to_nchw(current), INPUT_SUBGOAL: to_nchw(subgoal)}
+
+    def infer(self, feeds: dict[str, np.ndarray]) -> np.ndarray:
+        """Run the network; returns the raw (2, N) output of the first batch item."""
+        (out,) = self.session.run([OUTPUT_VELOCITIES], feeds)
+        return np.asarray(out)[0]
+
+    def postprocess(self, raw: np.ndarray) -> np.ndarray:
+        """Non-finite -> zero command (counted); finite values clipped to the model's v/w limits."""
+        raw = np.asarray(raw, dtype=np.float32).reshape(2, self.meta.horizon)
+        if not np.all(np.isfinite(raw)):
+            self.nonfinite_count += 1
+            return np.zeros((2, self.meta.horizon), dtype=np.float32)
+        limits = np.array([[self.meta.v_max], [self.meta.w_max]], dtype=np.float32)
+        return np.clip(raw, -limits, limits)
+
+    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+        """(H, W, 3) uint8 current and subgoal images -> (2, N): row 0 v (m/s), row 1 w (rad/s)."""
+        t0 = time.perf_counter()
+        feeds = self.preprocess(current, subgoal)
+        t1 = time.perf_counter()
+        raw = self.infer(feeds)
+        t2 = time.perf_counter()
+        out = self.postprocess(raw)
+        self.last_timing_ms = {"preprocess": (t1 - t0) * 1e3, "inference": (t2 - t1) * 1e3}
+        return out

@@ -1,0 +1,167 @@
+"""The taught visual trajectory: subgoal images with their poses and commands, in a versioned ``.npz``.
+
+Arrays (L = number of subgoals):
+
+- ``images``   (L, H, W, 3) uint8 RGB, at the model's resolution.
+- ``poses``    (L, 3) float64 (x, y, yaw); NaN where the robot did not know its pose.
+- ``commands`` (L, 2) float64 (v, w): the command applied in the control step right after subgoal i was
+  recorded (zeros for the last subgoal).
+- ``meta``     a 0-d unicode array holding a JSON object: ``format_version``, ``camera`` (dict),
+  ``spacing`` (the subgoal spacing rule, see runtime.teach), ``map``, ``dt`` (s), ``created`` (ISO 8601
+  UTC), ``name``.
+
+The file is written to a temporary name in the same folder and ``os.replace``d into place; ``load``
+reads with ``allow_pickle=False`` and validates every array.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+ROUTE_FORMAT_VERSION = 1
+
+
+class RouteError(ValueError):
+    """A route file or object that is malformed; the message says what is wrong."""
+
+
+def _utc_now() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+
+@dataclass
+class Route:
+    """A visual trajectory of L subgoals (see the module docstring for the arrays)."""
+
+    images: np.ndarray
+    poses: np.ndarray
+    commands: np.ndarray
+    name: str = "route"
+    camera: dict[str, Any] = field(default_factory=dict)
+    spacing: dict[str, Any] = field(default_factory=dict)
+    map: str | None = None
+    dt: float = 0.1
+    created: str = field(default_factory=_utc_now)
+    format_version: int = ROUTE_FORMAT_VERSION
+
+    def __post_init__(self) -> None:
+        self.images = np.asarray(self.images)
+        self.poses = np.asarray(self.poses, dtype=np.float64)
+        self.commands = np.asarray(self.commands, dtype=np.float64)
+        self.validate()
+
+    def __len__(self) -> int:
+        return int(self.images.shape[0])
+
+    @property
+    def image_shape(self) -> tuple[int, int]:
+        return (int(self.images.shape[1]), int(self.images.shape[2]))
+
+    def validate(self) -> None:
+        """Raise RouteError naming the first thing that is wrong."""
+        im = self.images
+        if im.dtype != np.uint8 or im.ndim != 4 or im.shape[-1] != 3:
+            raise RouteError(f"route images must be (L, H, W, 3) uint8, got {im.shape} {im.dtype}")
+        n = im.shape[0]
+        if n < 1:
+            raise RouteError("route has no subgoal images")
+        if self.poses.shape != (n, 3):
+            raise RouteError(f"route poses must be ({n}, 3), got {self.poses.shape}")
+        if self.commands.shape != (n, 2):
+            raise RouteError(f"route commands must be ({n}, 2), got {self.commands.shape}")
+        if not np.all(np.isfinite(self.commands)):
+            raise RouteError("route commands contain NaN or inf")
+        if np.any(np.isinf(self.poses)):
+            raise RouteError("route poses contain inf (unknown poses are NaN)")
+        if not (isinstance(self.dt, int | float) and np.isfinite(self.dt) and self.dt > 0):
+            raise RouteError(f"route dt must be a positive number of seconds, got {self.dt!r}")
+        if self.format_version != ROUTE_FORMAT_VERSION:
+            raise RouteError(
+                f"route format version {self.format_version}, this runtime reads version {ROUTE_FORMAT_VERSION}"
+            )
+
+    def meta_dict(self) -> dict[str, Any]:
+        return {
+            "format_version": self.format_version,
+            "name": self.name,
+            "camera": self.camera,
+            "spacing": self.spacing,
+            "map": self.map,
+            "dt": self.dt,
+            "created": self.created,
+        }
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write atomically: a temporary file in the same folder, then os.replace."""
+        self.validate()
+        path = os.fspath(path)
+        folder = os.path.dirname(os.path.abspath(path))
+        os.makedirs(folder, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=".route-", suffix=".npz.tmp", dir=folder)
+        try:
+            with os.fdopen(fd, "wb") as f:
+                np.savez_compressed(
+                    f,
+                    images=self.images,
+                    poses=self.poses,
+                    commands=self.commands,
+                    meta=np.array(json.dumps(self.meta_dict())),
+                )
+                f.flush()
+                os.fsync(f.fileno())
+            os.replace(tmp, path)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Route:
+        """Read and validate a route file; RouteError says what is wrong with it."""
+        path = os.fspath(path)
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                missing = {"images", "poses", "commands", "meta"} - set(data.files)
+                if missing:
+                    raise RouteError(f"{path}: not a route file, missing arrays {sorted(missing)}")
+                images, poses, commands = data["images"], data["poses"], data["commands"]
+                meta_raw = data["meta"]
+        except RouteError:
+            raise
+        except FileNotFoundError:
+            raise
+        except Exception as exc:
+            raise RouteError(f"{path}: cannot read as a route .npz: {exc}") from exc
+        try:
+            meta = json.loads(str(meta_raw.item()))
+        except (ValueError, TypeError) as exc:
+            raise RouteError(f"{path}: route metadata is not JSON: {exc}") from exc
+        if not isinstance(meta, dict):
+            raise RouteError(f"{path}: route metadata must be a JSON object")
+        version = meta.get("format_version")
+        if version != ROUTE_FORMAT_VERSION:
+            raise RouteError(
+                f"{path}: route format version {version!r}, this runtime reads {ROUTE_FORMAT_VERSION}"
+            )
+        try:
+            return cls(
+                images=images,
+                poses=poses,
+                commands=commands,
+                name=str(meta.get("name", "route")),
+                camera=dict(meta.get("camera") or {}),
+                spacing=dict(meta.get("spacing") or {}),
+                map=meta.get("map"),
+                dt=meta.get("dt", 0.1),
+                created=str(meta.get("created", "")),
+                format_version=version,
+            )
+        except RouteError as exc:
+            raise RouteError(f"{path}: {exc}") from None

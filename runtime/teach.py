@@ -1,0 +1,225 @@
+"""`vtr teach`: drive a scripted route (ROUTE.json) and record its visual trajectory (a Route .npz).
+
+The robot is reset to the script's start, then each segment is driven in control steps of ``dt``
+(0.1 s, the repeat's step): a segment of duration D takes round(D / dt) steps. Subgoal spacing, chosen
+by ``TeachConfig.spacing``:
+
+- ``"steps"`` (default, ``every=2``): a subgoal every k-th control step. k = 2 matches how VelocityNet is
+  trained: its N = 2 predicted commands take image I_i to I_{i+2}.
+- ``"distance"``: a subgoal when the robot has moved ``min_distance`` metres or turned ``min_angle``
+  radians since the last one (needs poses from the robot).
+- ``"image"``: a subgoal when the mean abs pixel change from the last subgoal reaches
+  ``min_image_change`` (0..255), which adapts spacing to how fast the view changes.
+
+The start image is always subgoal 0 and the final image is always the last subgoal.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from runtime.preprocess import image_error
+from runtime.protocol import jsonable
+from runtime.robot import Observation, ResettableRobot, RobotError
+from runtime.route import Route
+from runtime.route_script import RouteScript
+
+SPACING_RULES = ("steps", "distance", "image")
+
+
+@dataclass
+class TeachConfig:
+    """How a route is driven and how subgoals are spaced (rules in the module docstring)."""
+
+    #: Control step in seconds (the repeat applies each command for the same time).
+    dt: float = 0.1
+    #: Subgoal spacing rule: "steps", "distance" or "image".
+    spacing: str = "steps"
+    #: "steps": record every k-th control step.
+    every: int = 2
+    #: "distance": metres travelled since the last subgoal.
+    min_distance: float = 0.05
+    #: "distance": radians turned since the last subgoal.
+    min_angle: float = 0.1
+    #: "image": mean abs pixel change (0..255) from the last subgoal.
+    min_image_change: float = 20.0
+    #: Seed for the simulator's actuation noise at reset; None leaves it to the simulator.
+    seed: int | None = 0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.dt) and self.dt > 0):
+            raise ValueError(f"dt must be a positive number of seconds, got {self.dt!r}")
+        if self.spacing not in SPACING_RULES:
+            raise ValueError(f"spacing must be one of {SPACING_RULES}, got {self.spacing!r}")
+        if self.every < 1:
+            raise ValueError(f"every must be >= 1, got {self.every}")
+        if not (self.min_distance > 0 and self.min_angle > 0 and self.min_image_change > 0):
+            raise ValueError(
+                f"min_distance, min_angle and min_image_change must be > 0, got "
+                f"{self.min_distance}, {self.min_angle}, {self.min_image_change}"
+            )
+
+    def rule(self) -> dict[str, Any]:
+        """The spacing rule as stored in the route's metadata."""
+        params = {
+            "steps": {"every": self.every},
+            "distance": {"min_distance": self.min_distance, "min_angle": self.min_angle},
+            "image": {"min_image_change": self.min_image_change},
+        }[self.spacing]
+        return {"rule": self.spacing, "dt": self.dt, **params}
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2 * math.pi) - math.pi
+
+
+def _robot_info(robot: Any) -> dict[str, Any]:
+    """Camera/map description from the robot, when it offers one (SimClient.hello, LocalRobot.sim.info)."""
+    try:
+        if hasattr(robot, "hello"):
+            return dict(robot.hello().get("info") or {})
+        sim = getattr(robot, "sim", None)
+        if sim is not None and hasattr(sim, "info"):
+            return dict(jsonable(sim.info()))
+    except Exception:
+        return {}
+    return {}
+
+
+def teach(robot: ResettableRobot, script: RouteScript, cfg: TeachConfig | None = None) -> Route:
+    """Drive ``script`` on ``robot`` and return the recorded Route (not yet saved)."""
+    cfg = cfg or TeachConfig()
+    info = _robot_info(robot)
+    obs = robot.reset(pose=script.start, seed=cfg.seed)
+    images: list[np.ndarray] = []
+    poses: list[tuple[float, float, float]] = []
+    commands: list[list[float]] = []
+    pending = False  # the last subgoal still waits for the command that follows it
+
+    def record(o: Observation) -> None:
+        nonlocal pending
+        images.append(np.array(o.image, dtype=np.uint8, copy=True))
+        poses.append(o.pose if o.pose is not None else (math.nan, math.nan, math.nan))
+        commands.append([0.0, 0.0])
+        pending = True
+
+    record(obs)
+    since = 0
+    for segment in script.segments:
+        for _ in range(max(1, round(segment.duration / cfg.dt))):
+            if pending:
+                commands[-1] = [segment.v, segment.w]
+                pending = False
+            obs = robot.step(segment.v, segment.w, cfg.dt)
+            since += 1
+            if _due(cfg, since, obs, images[-1], poses[-1]):
+                record(obs)
+                since = 0
+    robot.stop()
+    if since > 0:
+        record(obs)
+    height, width = images[0].shape[:2]
+    camera = (
+        info.get("camera") if isinstance(info.get("camera"), dict) else {"height": height, "width": width}
+    )
+    return Route(
+        images=np.stack(images),
+        poses=np.array(poses, dtype=np.float64),
+        commands=np.array(commands, dtype=np.float64),
+        name=script.name,
+        camera=camera,
+        spacing=cfg.rule(),
+        map=info.get("map") if isinstance(info.get("map"), str) else None,
+        dt=cfg.dt,
+    )
+
+
+def _due(cfg: TeachConfig, since: int, obs: Observation, last_image: np.ndarray, last_pose: tuple) -> bool:
+    if cfg.spacing == "steps":
+        return since >= cfg.every
+    if cfg.spacing == "image":
+        return image_error(obs.image, last_image) >= cfg.min_image_change
+    if obs.pose is None:
+        raise ValueError("spacing='distance' needs poses, but the robot reports none; use 'steps' or 'image'")
+    dist = math.hypot(obs.pose[0] - last_pose[0], obs.pose[1] - last_pose[1])
+    return dist >= cfg.min_distance or abs(_wrap(obs.pose[2] - last_pose[2])) >= cfg.min_angle
+
+
+# ------------------------------------------------------------------------------------------------- CLI
+
+
+@dataclass
+class TeachRunConfig:
+    """Everything `vtr teach` needs."""
+
+    sim: str  # endpoint of the simulator server
+    route: str  # ROUTE.json path
+    out: str  # where the Route .npz goes
+    teach: TeachConfig  # spacing and control step
+    timeout_s: float = 5.0  # per-reply timeout
+    retries: int = 3  # tries per request
+
+    def __post_init__(self) -> None:
+        if "://" not in self.sim:
+            raise ValueError(f"sim must be a ZeroMQ endpoint like tcp://127.0.0.1:5555, got {self.sim!r}")
+        if not self.out:
+            raise ValueError("out must be a file path")
+
+
+def run(cfg: TeachRunConfig) -> Route:
+    from runtime.client import SimClient
+    from runtime.route_script import load_route_script
+
+    script = load_route_script(cfg.route)
+    with SimClient(cfg.sim, cfg.timeout_s, cfg.retries) as client:
+        route = teach(client, script, cfg.teach)
+    route.save(cfg.out)
+    return route
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--sim", required=True, help="simulator endpoint, e.g. tcp://127.0.0.1:5555")
+    parser.add_argument("--route", required=True, help="ROUTE.json: start pose and (v, w, duration) segments")
+    parser.add_argument("--out", required=True, help="where to write the route (.npz)")
+    parser.add_argument("--dt", type=float, default=0.1, help="control step in seconds")
+    parser.add_argument("--spacing", choices=SPACING_RULES, default="steps", help="subgoal spacing rule")
+    parser.add_argument("--every", type=int, default=2, help="'steps': a subgoal every k control steps")
+    parser.add_argument(
+        "--min-distance", type=float, default=0.05, help="'distance': metres between subgoals"
+    )
+    parser.add_argument("--min-angle", type=float, default=0.1, help="'distance': radians between subgoals")
+    parser.add_argument("--min-image-change", type=float, default=20.0, help="'image': pixel change (0..255)")
+    parser.add_argument("--seed", type=int, default=0, help="simulator noise seed at reset")
+    parser.add_argument("--timeout", type=float, default=5.0, help="seconds to wait for each reply")
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    cfg = TeachRunConfig(
+        sim=args.sim,
+        route=args.route,
+        out=args.out,
+        teach=TeachConfig(
+            dt=args.dt,
+            spacing=args.spacing,
+            every=args.every,
+            min_distance=args.min_distance,
+            min_angle=args.min_angle,
+            min_image_change=args.min_image_change,
+            seed=args.seed,
+        ),
+        timeout_s=args.timeout,
+    )
+    try:
+        route = run(cfg)
+    except (OSError, ValueError, RobotError) as exc:  # bad ROUTE.json, unreachable or refusing simulator
+        print(f"vtr teach: {exc}", file=sys.stderr)
+        return 2
+    print(f"vtr teach: {len(route)} subgoals ({cfg.teach.spacing} spacing) -> {os.path.abspath(cfg.out)}")
+    return 0

@@ -1,0 +1,127 @@
+"""`vtr sim`: the simulator from the command line.
+
+vtr sim snapshot --out house.png [--x X --y Y --yaw YAW] [--start NAME]
+vtr sim serve --bind tcp://127.0.0.1:5555 [--noise 0.05]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class SnapshotConfig:
+    """What `vtr sim snapshot` draws."""
+
+    out: str = "house.png"
+    """Output PNG path."""
+    house: str = "house"
+    """Map name or path."""
+    x: float | None = None
+    """Robot x (m); None: the start pose's."""
+    y: float | None = None
+    """Robot y (m); None: the start pose's."""
+    yaw: float | None = None
+    """Robot yaw (rad); None: the start pose's."""
+    start: str | None = None
+    """Name of a start pose in the map to use instead of the first one."""
+    brightness: float = 1.0
+    """Camera brightness multiplier."""
+
+    def __post_init__(self) -> None:
+        if not self.out:
+            raise ValueError("SnapshotConfig.out must be a file path, got an empty string")
+        for name in ("x", "y", "yaw"):
+            value = getattr(self, name)
+            if value is not None and not math.isfinite(value):
+                raise ValueError(f"SnapshotConfig.{name} must be finite, got {value!r}")
+
+
+def run_snapshot(cfg: SnapshotConfig) -> int:
+    from sim2d.config import CameraConfig, Pose, SimConfig
+    from sim2d.simulator import Simulator
+    from sim2d.snapshot import snapshot
+
+    sim = Simulator(SimConfig(house=cfg.house, camera=CameraConfig(brightness=cfg.brightness)))
+    base = sim.house.start_poses[0]
+    if cfg.start is not None:
+        if cfg.start not in sim.house.start_names:
+            print(
+                f"vtr sim snapshot: unknown start {cfg.start!r}; known: {', '.join(sim.house.start_names)}",
+                file=sys.stderr,
+            )
+            return 2
+        base = sim.house.start_poses[sim.house.start_names.index(cfg.start)]
+    pose = Pose(
+        base.x if cfg.x is None else cfg.x,
+        base.y if cfg.y is None else cfg.y,
+        base.yaw if cfg.yaw is None else cfg.yaw,
+    )
+    try:
+        path = snapshot(sim, cfg.out, pose)
+    except ValueError as err:
+        print(f"vtr sim snapshot: {err}", file=sys.stderr)
+        return 2
+    room = sim.house.room_at(pose.x, pose.y)
+    print(f"wrote {path} (robot at x={pose.x:.2f} y={pose.y:.2f} yaw={pose.yaw:.2f} in {room})")
+    return 0
+
+
+def run_serve(bind: str, noise: float, house: str, brightness: float) -> int:
+    from sim2d.config import CameraConfig, SimConfig
+
+    try:
+        from sim2d.server import ServerConfig, serve
+    except ImportError as err:
+        print(
+            f"vtr sim serve: the simulator server (sim2d/server.py) is not available: {err}", file=sys.stderr
+        )
+        return 3
+    sim_cfg = SimConfig(house=house, noise=noise, camera=CameraConfig(brightness=brightness))
+    return int(serve(ServerConfig(bind=bind, sim=sim_cfg)) or 0)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="sim_command", metavar="{snapshot,serve}")
+    sub.required = True
+    snap = sub.add_parser(
+        "snapshot", help="write a top-down picture of the house beside the robot's camera image"
+    )
+    snap.add_argument("--out", default="house.png", help="output PNG (default: house.png)")
+    snap.add_argument("--house", default="house", help="map name in sim2d/maps or a path (default: house)")
+    snap.add_argument("--x", type=float, default=None, help="robot x in metres (default: the start pose)")
+    snap.add_argument("--y", type=float, default=None, help="robot y in metres")
+    snap.add_argument(
+        "--yaw", type=float, default=None, help="robot yaw in radians, counter-clockwise from +x"
+    )
+    snap.add_argument("--start", default=None, help="name of a start pose of the map (e.g. kitchen)")
+    snap.add_argument("--brightness", type=float, default=1.0, help="camera brightness multiplier")
+    serve = sub.add_parser("serve", help="serve the simulator over ZeroMQ (runtime/protocol.py)")
+    serve.add_argument("--bind", default="tcp://127.0.0.1:5555", help="ZeroMQ endpoint to bind")
+    serve.add_argument(
+        "--noise", type=float, default=0.0, help="actuation noise level (SimConfig.noise), 0 = off"
+    )
+    serve.add_argument("--house", default="house", help="map name in sim2d/maps or a path")
+    serve.add_argument("--brightness", type=float, default=1.0, help="camera brightness multiplier")
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    try:
+        if args.sim_command == "snapshot":
+            cfg = SnapshotConfig(
+                out=args.out,
+                house=args.house,
+                x=args.x,
+                y=args.y,
+                yaw=args.yaw,
+                start=args.start,
+                brightness=args.brightness,
+            )
+            return run_snapshot(cfg)
+        return run_serve(args.bind, args.noise, args.house, args.brightness)
+    except ValueError as err:  # bad configuration values or a bad map file
+        print(f"vtr sim {args.sim_command}: {err}", file=sys.stderr)
+        return 2

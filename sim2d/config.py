@@ -1,0 +1,117 @@
+"""Configuration dataclasses and the pose type of the simulator (no heavy imports)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+V_MAX = 0.5  # m/s, the paper's limit on linear.x
+W_MAX = 1.0  # rad/s, the paper's limit on angular.z
+
+
+class Pose(NamedTuple):
+    """Planar pose in the house frame (REP-103): metres, radians, yaw counter-clockwise from +x."""
+
+    x: float
+    y: float
+    yaw: float
+
+
+def _finite_positive(name: str, value: float) -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """Forward-looking pinhole camera rendered by raycasting the 2D house."""
+
+    width: int = 128
+    """Image width in pixels (the paper's network input is 128)."""
+    height: int = 128
+    """Image height in pixels."""
+    fov_deg: float = 90.0
+    """Horizontal field of view in degrees; square pixels, so the vertical fov follows from the aspect ratio."""
+    camera_height: float = 0.3
+    """Height of the optical centre above the floor (m); must stay below every furniture height."""
+    wall_height: float = 2.5
+    """Height of the walls (m); the ceiling is drawn above it."""
+    brightness: float = 1.0
+    """Multiplier on every pixel before clipping to 0..255 (robustness tests: 0.5 darker, 1.5 brighter)."""
+    supersample: int = 1
+    """Render at supersample x the resolution and average down. 1 by default: the floor is already
+    anti-aliased by mip levels chosen per pixel and walls are drawn from coarse textures, so 2 (four
+    times the cost) mostly smooths wall edges and furniture silhouettes."""
+    max_range: float = 20.0
+    """Rays that hit nothing within this distance (m) show the far colour."""
+    shading_distance: float = 6.0
+    """Distance (m) over which surfaces fade towards ambient light (distance shading)."""
+    ambient: float = 0.35
+    """Fraction of the light that remains at infinite distance (0..1)."""
+
+    def __post_init__(self) -> None:
+        for name in ("width", "height", "supersample"):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise ValueError(f"CameraConfig.{name} must be an integer >= 1, got {value!r}")
+        if self.width * self.supersample > 4096 or self.height * self.supersample > 4096:
+            raise ValueError(
+                f"CameraConfig: rendered size {self.width}x{self.height} x{self.supersample} is too large"
+            )
+        if not (isinstance(self.fov_deg, (int, float)) and 1.0 <= self.fov_deg <= 170.0):
+            raise ValueError(f"CameraConfig.fov_deg must be in [1, 170], got {self.fov_deg!r}")
+        for name in ("camera_height", "wall_height", "brightness", "max_range", "shading_distance"):
+            _finite_positive(f"CameraConfig.{name}", getattr(self, name))
+        if self.camera_height >= self.wall_height:
+            raise ValueError(
+                f"CameraConfig.camera_height ({self.camera_height}) must be below wall_height ({self.wall_height})"
+            )
+        if not (isinstance(self.ambient, (int, float)) and 0.0 <= self.ambient <= 1.0):
+            raise ValueError(f"CameraConfig.ambient must be in [0, 1], got {self.ambient!r}")
+
+    @property
+    def focal_px(self) -> float:
+        """Focal length in (output) pixels."""
+        return 0.5 * self.width / math.tan(math.radians(self.fov_deg) / 2.0)
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """The simulator: house, robot, physics and actuation noise."""
+
+    house: str = "house"
+    """Map name in sim2d/maps (without .json) or a path to a house JSON file."""
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    """Camera parameters."""
+    robot_radius: float = 0.17
+    """Radius of the circular differential-drive robot (m)."""
+    physics_dt: float = 0.01
+    """Physics substep (s); a step of `duration` runs ceil(duration / physics_dt) substeps."""
+    noise: float = 0.0
+    """Actuation noise level, 0 = off. Each step() draws, from the generator seeded by reset(seed),
+    v' = v * (1 + noise * e1) + 0.1 * noise * V_MAX * e2 and w' = w * (1 + noise * e3) + 0.1 * noise * W_MAX * e4
+    with e_i ~ N(0, 1), held for the whole step. The additive term only applies to a non-zero command (a
+    stopped motor does not creep). So noise=0.1 means 10% speed error plus 0.005 m/s, 0.01 rad/s jitter."""
+    v_max: float = V_MAX
+    """Clamp on |v| (m/s); commands beyond it are clamped, not rejected."""
+    w_max: float = W_MAX
+    """Clamp on |w| (rad/s)."""
+    max_step_duration: float = 10.0
+    """Longest duration accepted by one step() (s), a guard against a typo running for hours."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.house, str) or not self.house:
+            raise ValueError(f"SimConfig.house must be a non-empty string, got {self.house!r}")
+        if not isinstance(self.camera, CameraConfig):
+            raise ValueError(f"SimConfig.camera must be a CameraConfig, got {type(self.camera).__name__}")
+        for name in ("robot_radius", "physics_dt", "v_max", "w_max", "max_step_duration"):
+            _finite_positive(f"SimConfig.{name}", getattr(self, name))
+        if not 0.05 <= self.robot_radius <= 0.5:
+            raise ValueError(f"SimConfig.robot_radius must be in [0.05, 0.5] m, got {self.robot_radius!r}")
+        if self.physics_dt > 0.05:
+            raise ValueError(f"SimConfig.physics_dt must be <= 0.05 s (collisions), got {self.physics_dt!r}")
+        if not (
+            isinstance(self.noise, (int, float)) and math.isfinite(self.noise) and 0.0 <= self.noise <= 1.0
+        ):
+            raise ValueError(f"SimConfig.noise must be in [0, 1], got {self.noise!r}")

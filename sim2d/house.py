@@ -1,0 +1,484 @@
+"""The house: rooms, walls, furniture and textures loaded from a JSON map (numpy only).
+
+A map file (see sim2d/maps/house.json) holds:
+
+- ``name``, ``wall_thickness`` (m), ``ceiling_color`` [r, g, b], ``door_texture`` (texture of door jambs),
+  ``floor``: ``{"tile": m, "seed": int, "grout": [r, g, b]}`` for the mosaic;
+- ``textures``: ``{name: {"kind": ..., "colors": [[r, g, b], ...], "size": [su, sv], ...}}`` (sim2d.textures);
+- ``rooms``: ``[{"name", "polygon": [[x, y], ...], "walls": {"n": tex, "e": tex, "s": tex, "w": tex}}]``; rooms
+  meet at wall centrelines, so together they cover the interior; a wall face takes the texture of the room
+  it faces, by which side of that room it is on (so the four walls of a room differ);
+- ``walls``: ``[[[x0, y0], [x1, y1]], ...]`` centrelines; each becomes a solid box ``wall_thickness`` wide,
+  extended by half the thickness at both ends so corners close; doorways are gaps between walls;
+- ``furniture``: ``[{"name", "shape": "box"|"polygon"|"circle", "height": m, "texture": name, ...}]`` with
+  ``center``, ``size`` [sx, sy], ``angle_deg`` (box), ``points`` (convex polygon) or ``center``, ``radius``;
+- ``start_poses``: ``[{"name", "x", "y", "yaw"}]``, the first being the default start.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim2d.config import Pose
+from sim2d.textures import make_texture, mosaic_floor
+
+MAPS_DIR = Path(__file__).resolve().parent / "maps"
+FLOOR_TEX = 512  # texels per side of the floor mosaic (power of two)
+CIRCLE_SIDES = 20  # circles are drawn as polygons with this many faces (physics uses the true circle)
+# Start poses are checked against a robot of this radius, the largest one we expect to simulate.
+START_CLEARANCE = 0.25
+
+
+class HouseError(ValueError):
+    """A house file is missing something or holds a bad value; the message names the file and field."""
+
+
+@dataclass(frozen=True)
+class Room:
+    name: str
+    polygon: np.ndarray  # (K, 2) float64, counter-clockwise or clockwise
+
+
+@dataclass(frozen=True)
+class Furniture:
+    name: str
+    shape: str  # "box" | "polygon" | "circle"
+    height: float
+    texture: str
+    vertices: np.ndarray  # (K, 2) convex polygon (box/polygon); the drawn polygon for a circle
+    center: tuple[float, float]
+    radius: float  # circles only, 0.0 otherwise
+
+
+@dataclass(frozen=True)
+class Segments:
+    """Surfaces the camera sees, as line segments in the house frame (all arrays length S)."""
+
+    a: np.ndarray  # (S, 2) start points
+    b: np.ndarray  # (S, 2) end points
+    u0: np.ndarray  # (S,) texture coordinate (m) at the start point
+    texture: np.ndarray  # (S,) int index into House.texture_names
+    height: np.ndarray  # (S,) top of the surface (m); np.inf for walls (the camera's wall height applies)
+    is_wall: np.ndarray  # (S,) bool
+
+
+class House:
+    """A loaded, validated house. Geometry is immutable; the pymunk space is built from it on each reset."""
+
+    def __init__(self, data: dict[str, Any], source: str) -> None:
+        self.source = source
+        v = _Validator(source)
+        self.name: str = v.string(data, "name")
+        self.wall_thickness: float = v.number(data, "wall_thickness", lo=0.02, hi=1.0)
+        self.ceiling_color = v.color(data, "ceiling_color")
+        floor = v.mapping(data, "floor")
+        self.floor_tile = v.number(floor, "tile", lo=0.05, hi=2.0, where="floor")
+        self.floor_seed = v.integer(floor, "seed", where="floor")
+        self.floor_grout = v.color(floor, "grout", where="floor")
+
+        textures = v.mapping(data, "textures")
+        if not textures:
+            raise HouseError(f"{source}: textures: at least one texture is needed")
+        self.texture_names: list[str] = sorted(textures)
+        self.texture_images: list[np.ndarray] = []
+        sizes = []
+        for i, tname in enumerate(self.texture_names):
+            spec = textures[tname]
+            where = f"{source}: textures.{tname}"
+            if not isinstance(spec, dict):
+                raise HouseError(f"{where}: expected an object, got {spec!r}")
+            try:
+                self.texture_images.append(make_texture(spec, where, seed=1000 + i))
+            except ValueError as err:
+                raise HouseError(str(err)) from None
+            size = spec.get("size", [1.0, 1.0])
+            if (
+                not isinstance(size, list)
+                or len(size) != 2
+                or not all(isinstance(s, (int, float)) and 0.05 <= s <= 20 for s in size)
+            ):
+                raise HouseError(f"{where}.size: expected [su, sv] in metres within 0.05..20, got {size!r}")
+            sizes.append(size)
+        self.texture_sizes = np.asarray(sizes, dtype=np.float64)  # (T, 2) metres per repeat (u, v)
+        tex_index = {n: i for i, n in enumerate(self.texture_names)}
+        self.door_texture = v.texture_ref(data, "door_texture", tex_index)
+
+        self.rooms: list[Room] = []
+        self._room_textures: list[dict[str, int]] = []
+        for i, r in enumerate(v.list(data, "rooms", min_len=1)):
+            where = f"rooms[{i}]"
+            name = v.string(r, "name", where=where)
+            if any(room.name == name for room in self.rooms):
+                raise HouseError(f"{source}: {where}.name: duplicate room name {name!r}")
+            poly = v.polygon(r, "polygon", where=where)
+            walls = v.mapping(r, "walls", where=where)
+            faces = {}
+            for side in ("n", "e", "s", "w"):
+                faces[side] = v.texture_ref(walls, side, tex_index, where=f"{where}.walls")
+            self.rooms.append(Room(name, poly))
+            self._room_textures.append(faces)
+
+        t = self.wall_thickness
+        self.wall_boxes: list[np.ndarray] = []  # (4, 2) counter-clockwise corners of each wall box
+        for i, w in enumerate(v.list(data, "walls", min_len=3)):
+            pts = _points(w, f"{source}: walls[{i}]", n=2)
+            a, b = pts[0], pts[1]
+            length = float(np.hypot(*(b - a)))
+            if length < 1e-6:
+                raise HouseError(f"{source}: walls[{i}]: zero-length wall {w!r}")
+            d = (b - a) / length
+            nrm = np.array([-d[1], d[0]])
+            a2, b2 = a - d * t / 2, b + d * t / 2
+            self.wall_boxes.append(
+                np.array([a2 - nrm * t / 2, b2 - nrm * t / 2, b2 + nrm * t / 2, a2 + nrm * t / 2])
+            )
+
+        self.furniture: list[Furniture] = []
+        for i, f in enumerate(v.list(data, "furniture", min_len=0)):
+            self.furniture.append(v.furniture(f, f"furniture[{i}]", tex_index))
+
+        all_pts = np.concatenate([r.polygon for r in self.rooms] + self.wall_boxes)
+        lo, hi = all_pts.min(axis=0), all_pts.max(axis=0)
+        self.bounds: tuple[float, float, float, float] = (
+            float(lo[0]),
+            float(lo[1]),
+            float(hi[0]),
+            float(hi[1]),
+        )
+
+        self.start_poses: list[Pose] = []
+        self.start_names: list[str] = []
+        for i, p in enumerate(v.list(data, "start_poses", min_len=1)):
+            where = f"start_poses[{i}]"
+            pose = Pose(
+                v.number(p, "x", where=where), v.number(p, "y", where=where), v.number(p, "yaw", where=where)
+            )
+            if not self.is_free(pose.x, pose.y, START_CLEARANCE):
+                raise HouseError(
+                    f"{source}: {where}: ({pose.x}, {pose.y}) is not free space for a robot of radius "
+                    f"{START_CLEARANCE} m (inside a wall or furniture, or outside every room)"
+                )
+            self.start_poses.append(pose)
+            self.start_names.append(str(p.get("name", f"start{i}")))
+
+        self.segments = self._build_segments(tex_index)
+        # Floor mosaic: a square power-of-two texture covering the bounds (with a small margin).
+        self.floor_extent = float(max(hi - lo)) + 0.2
+        self.floor_origin = (float(lo[0]) - 0.1, float(lo[1]) - 0.1)
+        self.floor_image = mosaic_floor(
+            self.floor_origin[0],
+            self.floor_origin[1],
+            self.floor_extent,
+            FLOOR_TEX,
+            self.floor_tile,
+            self.floor_seed,
+            self.floor_grout,
+        )
+
+    # ----------------------------------------------------------------------------------------- queries
+    def room_at(self, x: float, y: float) -> str | None:
+        """Name of the room containing (x, y), or None outside every room."""
+        for room in self.rooms:
+            if _inside(room.polygon, x, y):
+                return room.name
+        return None
+
+    def is_free(self, x: float, y: float, radius: float) -> bool:
+        """True if a disc of `radius` at (x, y) lies inside the house and touches no wall or furniture."""
+        if self.room_at(x, y) is None:
+            return False
+        for box in self.wall_boxes:
+            if _inside(box, x, y) or _poly_distance(box, x, y) < radius:
+                return False
+        for f in self.furniture:
+            if f.shape == "circle":
+                if math.hypot(x - f.center[0], y - f.center[1]) < f.radius + radius:
+                    return False
+            elif _inside(f.vertices, x, y) or _poly_distance(f.vertices, x, y) < radius:
+                return False
+        return True
+
+    def clearance(self, x: float, y: float) -> float:
+        """Distance from (x, y) to the nearest wall or furniture surface (0 inside one)."""
+        best = math.inf
+        for box in self.wall_boxes:
+            best = min(best, 0.0 if _inside(box, x, y) else _poly_distance(box, x, y))
+        for f in self.furniture:
+            if f.shape == "circle":
+                best = min(best, max(0.0, math.hypot(x - f.center[0], y - f.center[1]) - f.radius))
+            else:
+                best = min(best, 0.0 if _inside(f.vertices, x, y) else _poly_distance(f.vertices, x, y))
+        return best
+
+    # ----------------------------------------------------------------------------------------- building
+    def _build_segments(self, tex_index: dict[str, int]) -> Segments:
+        a_list, b_list, u0, tex, height, is_wall = [], [], [], [], [], []
+        t = self.wall_thickness
+        for wi, box in enumerate(self.wall_boxes):
+            for k in range(4):
+                p, q = box[k], box[(k + 1) % 4]
+                length = float(np.hypot(*(q - p)))
+                d = (q - p) / length
+                outward = np.array([d[1], -d[0]])  # boxes are counter-clockwise: outward is to the right
+                probe = (p + q) / 2 + outward * 1e-3
+                if self.room_at(*probe) is None:
+                    continue  # faces the outside of the house: never seen
+                if any(_inside(other, *probe) for j, other in enumerate(self.wall_boxes) if j != wi):
+                    continue  # buried in another wall
+                deep = (p + q) / 2 + outward * 0.05
+                if length <= t + 1e-6 and self.room_at(*(deep + d * 0.3)) != self.room_at(*(deep - d * 0.3)):
+                    texture = self.door_texture  # a wall end between two rooms: a door jamb
+                else:
+                    room_i = next(i for i, r in enumerate(self.rooms) if _inside(r.polygon, *probe))
+                    # A face whose outward normal points south is the room's north wall, and so on.
+                    ang = math.atan2(outward[1], outward[0])
+                    side = ("w", "s", "e", "n")[int(((ang + math.pi / 4) % (2 * math.pi)) // (math.pi / 2))]
+                    texture = self._room_textures[room_i][side]
+                a_list.append(p)
+                b_list.append(q)
+                # u follows a world coordinate along the face so that collinear pieces continue the pattern.
+                u0.append(float(np.dot(p, np.abs(d))))
+                tex.append(texture)
+                height.append(np.inf)
+                is_wall.append(True)
+        for f in self.furniture:
+            verts = f.vertices
+            acc = 0.0
+            for k in range(len(verts)):
+                p, q = verts[k], verts[(k + 1) % len(verts)]
+                a_list.append(p)
+                b_list.append(q)
+                u0.append(acc)
+                acc += float(np.hypot(*(q - p)))
+                tex.append(tex_index[f.texture])
+                height.append(f.height)
+                is_wall.append(False)
+        return Segments(
+            a=np.asarray(a_list, dtype=np.float64),
+            b=np.asarray(b_list, dtype=np.float64),
+            u0=np.asarray(u0, dtype=np.float64),
+            texture=np.asarray(tex, dtype=np.int64),
+            height=np.asarray(height, dtype=np.float64),
+            is_wall=np.asarray(is_wall, dtype=bool),
+        )
+
+    def __repr__(self) -> str:
+        return (
+            f"House({self.name!r}, rooms={[r.name for r in self.rooms]}, walls={len(self.wall_boxes)}, "
+            f"furniture={len(self.furniture)}, bounds={self.bounds})"
+        )
+
+
+# --------------------------------------------------------------------------------------------- loading
+def resolve_house_path(name_or_path: str | os.PathLike[str]) -> Path:
+    """A bare name (no separator, no suffix) means sim2d/maps/NAME.json; anything else is a path."""
+    s = os.fspath(name_or_path)
+    if os.sep not in s and "/" not in s and not s.endswith(".json"):
+        path = MAPS_DIR / f"{s}.json"
+        if not path.is_file():
+            known = sorted(p.stem for p in MAPS_DIR.glob("*.json"))
+            raise HouseError(f"unknown house {s!r}; known maps: {', '.join(known) or '(none)'}")
+        return path
+    path = Path(s)
+    if not path.is_file():
+        raise HouseError(f"house file not found: {path}")
+    return path
+
+
+@functools.lru_cache(maxsize=8)
+def _load_cached(path: str, mtime_ns: int) -> House:
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as err:
+        raise HouseError(f"{path}: cannot read: {err}") from None
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as err:
+        raise HouseError(f"{path}: invalid JSON at line {err.lineno} column {err.colno}: {err.msg}") from None
+    if not isinstance(data, dict):
+        raise HouseError(f"{path}: the top level must be a JSON object, got {type(data).__name__}")
+    return House(data, path)
+
+
+def load_house(name_or_path: str | os.PathLike[str] = "house") -> House:
+    """Load and validate a house map (cached per file and modification time; Houses are not mutated)."""
+    path = resolve_house_path(name_or_path)
+    return _load_cached(str(path), path.stat().st_mtime_ns)
+
+
+# --------------------------------------------------------------------------------------------- helpers
+def _points(value: Any, where: str, n: int | None = None) -> np.ndarray:
+    ok = isinstance(value, list) and all(
+        isinstance(p, list)
+        and len(p) == 2
+        and all(isinstance(c, (int, float)) and math.isfinite(c) for c in p)
+        for p in value
+    )
+    if not ok or (n is not None and len(value) != n):
+        count = f"{n} " if n is not None else ""
+        raise HouseError(f"{where}: expected a list of {count}[x, y] points, got {value!r}")
+    return np.asarray(value, dtype=np.float64)
+
+
+def _inside(poly: np.ndarray, x: float, y: float) -> bool:
+    """Even-odd point-in-polygon test."""
+    px, py = poly[:, 0], poly[:, 1]
+    qx, qy = np.roll(px, -1), np.roll(py, -1)
+    crosses = (py > y) != (qy > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xint = px + (y - py) * (qx - px) / (qy - py)
+    return bool(np.count_nonzero(crosses & (x < xint)) % 2)
+
+
+def _poly_distance(poly: np.ndarray, x: float, y: float) -> float:
+    """Distance from (x, y) to the boundary of a polygon."""
+    a = poly
+    b = np.roll(poly, -1, axis=0)
+    ab = b - a
+    ap = np.array([x, y]) - a
+    t = np.clip(np.sum(ap * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), 1e-12), 0.0, 1.0)
+    closest = a + ab * t[:, None]
+    return float(np.min(np.hypot(closest[:, 0] - x, closest[:, 1] - y)))
+
+
+def _signed_area(poly: np.ndarray) -> float:
+    x, y = poly[:, 0], poly[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def _is_convex(poly: np.ndarray) -> bool:
+    d1 = np.roll(poly, -1, axis=0) - poly
+    d2 = np.roll(d1, -1, axis=0)
+    cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+    return bool(np.all(cross > 1e-12) or np.all(cross < -1e-12))
+
+
+class _Validator:
+    """Field readers that raise HouseError naming the file and the field."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def _get(self, obj: Any, key: str, where: str | None) -> Any:
+        path = f"{where}.{key}" if where else key
+        if not isinstance(obj, dict):
+            raise HouseError(f"{self.source}: {where or 'top level'}: expected an object, got {obj!r}")
+        if key not in obj:
+            raise HouseError(f"{self.source}: {path}: missing required field")
+        return obj[key]
+
+    def _fail(self, key: str, where: str | None, expected: str, value: Any) -> HouseError:
+        path = f"{where}.{key}" if where else key
+        return HouseError(f"{self.source}: {path}: expected {expected}, got {value!r}")
+
+    def string(self, obj: Any, key: str, where: str | None = None) -> str:
+        value = self._get(obj, key, where)
+        if not isinstance(value, str) or not value:
+            raise self._fail(key, where, "a non-empty string", value)
+        return value
+
+    def number(
+        self, obj: Any, key: str, lo: float = -math.inf, hi: float = math.inf, where: str | None = None
+    ) -> float:
+        value = self._get(obj, key, where)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise self._fail(key, where, "a finite number", value)
+        if not lo <= value <= hi:
+            raise self._fail(key, where, f"a number in [{lo}, {hi}]", value)
+        return float(value)
+
+    def integer(self, obj: Any, key: str, where: str | None = None) -> int:
+        value = self._get(obj, key, where)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self._fail(key, where, "an integer", value)
+        return value
+
+    def color(self, obj: Any, key: str, where: str | None = None) -> np.ndarray:
+        value = self._get(obj, key, where)
+        if (
+            not isinstance(value, list)
+            or len(value) != 3
+            or not all(isinstance(c, (int, float)) and 0 <= c <= 255 for c in value)
+        ):
+            raise self._fail(key, where, "an [r, g, b] colour with values in 0..255", value)
+        return np.asarray(value, dtype=np.float64)
+
+    def mapping(self, obj: Any, key: str, where: str | None = None) -> dict[str, Any]:
+        value = self._get(obj, key, where)
+        if not isinstance(value, dict):
+            raise self._fail(key, where, "an object", value)
+        return value
+
+    def list(self, obj: Any, key: str, min_len: int, where: str | None = None) -> list[Any]:
+        value = self._get(obj, key, where)
+        if not isinstance(value, list) or len(value) < min_len:
+            raise self._fail(key, where, f"a list of at least {min_len} entries", value)
+        return value
+
+    def texture_ref(self, obj: Any, key: str, tex_index: dict[str, int], where: str | None = None) -> int:
+        name = self.string(obj, key, where)
+        if name not in tex_index:
+            raise self._fail(
+                key, where, f"a texture name defined in 'textures' ({', '.join(tex_index)})", name
+            )
+        return tex_index[name]
+
+    def polygon(self, obj: Any, key: str, where: str | None = None) -> np.ndarray:
+        path = f"{where}.{key}" if where else key
+        poly = _points(self._get(obj, key, where), f"{self.source}: {path}")
+        if len(poly) < 3 or abs(_signed_area(poly)) < 1e-6:
+            raise HouseError(f"{self.source}: {path}: a polygon needs at least 3 points and a non-zero area")
+        return poly
+
+    def furniture(self, f: Any, where: str, tex_index: dict[str, int]) -> Furniture:
+        name = self.string(f, "name", where)
+        shape = self.string(f, "shape", where)
+        height = self.number(f, "height", lo=0.05, hi=5.0, where=where)
+        texture = self.string(f, "texture", where)
+        self.texture_ref(f, "texture", tex_index, where)
+        radius = 0.0
+        if shape == "box":
+            c = _points([self._get(f, "center", where)], f"{self.source}: {where}.center")[0]
+            size = _points([self._get(f, "size", where)], f"{self.source}: {where}.size")[0]
+            if np.any(size <= 0.01):
+                raise self._fail("size", where, "two sizes > 0.01 m", f["size"])
+            ang = math.radians(self.number(f, "angle_deg", where=where)) if "angle_deg" in f else 0.0
+            hx, hy = size / 2
+            local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
+            rot = np.array([[math.cos(ang), -math.sin(ang)], [math.sin(ang), math.cos(ang)]])
+            verts = local @ rot.T + c
+        elif shape == "polygon":
+            verts = self.polygon(f, "points", where)
+            if not _is_convex(verts):
+                raise HouseError(
+                    f"{self.source}: {where}.points: the polygon must be convex (split it into pieces)"
+                )
+            if _signed_area(verts) < 0:
+                verts = verts[::-1].copy()
+            c = verts.mean(axis=0)
+        elif shape == "circle":
+            c = _points([self._get(f, "center", where)], f"{self.source}: {where}.center")[0]
+            radius = self.number(f, "radius", lo=0.02, hi=5.0, where=where)
+            ang = np.arange(CIRCLE_SIDES) * (2 * math.pi / CIRCLE_SIDES)
+            # Vertices on a slightly larger circle so the drawn polygon encloses the physical disc.
+            r_draw = radius / math.cos(math.pi / CIRCLE_SIDES)
+            verts = c + r_draw * np.stack([np.cos(ang), np.sin(ang)], axis=1)
+        else:
+            raise self._fail("shape", where, "'box', 'polygon' or 'circle'", shape)
+        return Furniture(
+            name,
+            shape,
+            height,
+            texture,
+            np.asarray(verts, dtype=np.float64),
+            (float(c[0]), float(c[1])),
+            radius,
+        )

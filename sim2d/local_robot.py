@@ -1,0 +1,45 @@
+"""An in-process simulator as a ``runtime.robot.Robot``: the evaluation's fast path (no sockets)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from runtime.robot import Observation
+from sim2d.server import make_pose
+
+
+def _pose_tuple(pose: Any) -> tuple[float, float, float]:
+    return (float(pose.x), float(pose.y), float(pose.yaw))
+
+
+class LocalRobot:
+    """Adapt a ``sim2d.Simulator`` (reset/step/observe/pose/time/collided) to the Robot protocol.
+
+    The simulator is lockstep, so ``stop`` only records the zero command: no simulated time passes
+    between steps. ``commands`` keeps every (v, w, duration) applied, zero commands included.
+    """
+
+    def __init__(self, simulator: Any) -> None:
+        self.sim = simulator
+        self.commands: list[tuple[float, float, float]] = []
+
+    def _obs(self, image: Any) -> Observation:
+        return Observation(
+            image=image,
+            stamp=float(self.sim.time),
+            pose=_pose_tuple(self.sim.pose),
+            collided=bool(self.sim.collided),
+        )
+
+    def reset(self, pose: tuple[float, float, float] | None = None, seed: int | None = None) -> Observation:
+        return self._obs(self.sim.reset(pose=None if pose is None else make_pose(*pose), seed=seed))
+
+    def observe(self) -> Observation:
+        return self._obs(self.sim.observe())
+
+    def step(self, v: float, w: float, duration: float) -> Observation:
+        self.commands.append((float(v), float(w), float(duration)))
+        return self._obs(self.sim.step(float(v), float(w), float(duration)))
+
+    def stop(self) -> None:
+        self.commands.append((0.0, 0.0, 0.0))

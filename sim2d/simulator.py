@@ -1,0 +1,151 @@
+"""The simulator: a house, a differential-drive robot and its camera (numpy + pymunk only).
+
+A pure core, `sim_step(state, v, w, duration, rng, params) -> state`, advances physics; `Simulator`
+keeps the state and renders. The random generator for actuation noise is created by reset(seed), so the
+same seed and the same commands give the same images, bit for bit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim2d.camera import Camera
+from sim2d.config import Pose, SimConfig
+from sim2d.house import House, load_house
+from sim2d.physics import World, advance, build_world, pose_of
+
+
+@dataclass
+class SimState:
+    """Everything that changes while the simulation runs."""
+
+    world: World
+    time: float
+    collided: bool
+
+
+def noisy_command(v: float, w: float, cfg: SimConfig, rng: np.random.Generator) -> tuple[float, float]:
+    """Actuation noise model (see SimConfig.noise); draws 4 normals per call whatever the command is,
+    so the random stream stays aligned between runs that differ only in their commands."""
+    e = rng.standard_normal(4)
+    if cfg.noise == 0.0:
+        return v, w
+    vn = v * (1.0 + cfg.noise * e[0]) + (0.1 * cfg.noise * cfg.v_max * e[1] if v != 0.0 else 0.0)
+    wn = w * (1.0 + cfg.noise * e[2]) + (0.1 * cfg.noise * cfg.w_max * e[3] if w != 0.0 else 0.0)
+    return vn, wn
+
+
+def clamp_command(v: float, w: float, cfg: SimConfig) -> tuple[float, float]:
+    """Clamp a Twist to the robot's limits; non-finite values are rejected."""
+    if not (math.isfinite(v) and math.isfinite(w)):
+        raise ValueError(f"velocity command must be finite, got v={v!r}, w={w!r}")
+    return min(max(float(v), -cfg.v_max), cfg.v_max), min(max(float(w), -cfg.w_max), cfg.w_max)
+
+
+def sim_step(
+    state: SimState, v: float, w: float, duration: float, rng: np.random.Generator, cfg: SimConfig
+) -> SimState:
+    """Apply the clamped, noisy command for `duration` seconds of simulated time."""
+    v, w = clamp_command(v, w, cfg)
+    v, w = noisy_command(v, w, cfg, rng)
+    touched = advance(state.world, v, w, duration, cfg.physics_dt)
+    return SimState(state.world, state.time + duration, touched)
+
+
+class Simulator:
+    """In-process simulator; see docs/ARCHITECTURE.md for the contract."""
+
+    def __init__(self, cfg: SimConfig | None = None) -> None:
+        self.cfg = cfg if cfg is not None else SimConfig()
+        self.house: House = load_house(self.cfg.house)
+        self.camera = Camera(self.house, self.cfg.camera)
+        self._rng = np.random.default_rng(0)
+        self._state: SimState | None = None
+        self.reset()
+
+    # ------------------------------------------------------------------------------------------ control
+    def reset(self, pose: Pose | None = None, seed: int | None = None) -> np.ndarray:
+        """Rebuild the world with the robot at `pose` (default: the house's first start pose); returns the image.
+
+        `seed` seeds the actuation noise; None means seed 0, so runs are reproducible unless asked otherwise.
+        """
+        if pose is None:
+            pose = self.house.start_poses[0]
+        pose = Pose(float(pose[0]), float(pose[1]), float(pose[2]))
+        if not all(math.isfinite(c) for c in pose):
+            raise ValueError(f"reset pose must be finite, got {pose!r}")
+        if not self.house.is_free(pose.x, pose.y, self.cfg.robot_radius):
+            raise ValueError(
+                f"reset pose ({pose.x:.3f}, {pose.y:.3f}) is not free space for a robot of radius "
+                f"{self.cfg.robot_radius} m"
+            )
+        self._rng = np.random.default_rng(0 if seed is None else seed)
+        world = build_world(self.house, pose, self.cfg.robot_radius)
+        self._state = SimState(world, 0.0, False)
+        return self.observe()
+
+    def step(self, v: float, w: float, duration: float) -> np.ndarray:
+        """Drive with (v, w), clamped to the limits, for `duration` s of simulated time; returns the image."""
+        self.advance(v, w, duration)
+        return self.observe()
+
+    def advance(self, v: float, w: float, duration: float) -> None:
+        """Like step() without rendering (for callers that need many poses and few images)."""
+        if not (isinstance(duration, (int, float)) and math.isfinite(duration)) or not (
+            0.0 <= duration <= self.cfg.max_step_duration
+        ):
+            raise ValueError(
+                f"step duration must be in [0, {self.cfg.max_step_duration}] s, got {duration!r}"
+            )
+        self._state = sim_step(self._require(), v, w, float(duration), self._rng, self.cfg)
+
+    def observe(self) -> np.ndarray:
+        """The camera image at the current pose (no time advance)."""
+        p = self.pose
+        return self.camera.render(p.x, p.y, p.yaw)
+
+    # ------------------------------------------------------------------------------------------ state
+    def _require(self) -> SimState:
+        if self._state is None:
+            raise RuntimeError("Simulator.reset() has not been called")
+        return self._state
+
+    @property
+    def pose(self) -> Pose:
+        return pose_of(self._require().world)
+
+    @property
+    def time(self) -> float:
+        return self._require().time
+
+    @property
+    def collided(self) -> bool:
+        return self._require().collided
+
+    def info(self) -> dict:
+        """Static and current facts for clients (the server's hello)."""
+        c = self.cfg.camera
+        return {
+            "map": self.house.name,
+            "map_source": str(self.house.source),
+            "rooms": [r.name for r in self.house.rooms],
+            "camera": {
+                "width": c.width,
+                "height": c.height,
+                "fov_deg": c.fov_deg,
+                "camera_height": c.camera_height,
+                "wall_height": c.wall_height,
+                "brightness": c.brightness,
+                "supersample": c.supersample,
+                "max_range": c.max_range,
+                "encoding": "rgb8",
+            },
+            "limits": {"v_max": self.cfg.v_max, "w_max": self.cfg.w_max},
+            "robot_radius": self.cfg.robot_radius,
+            "physics_dt": self.cfg.physics_dt,
+            "noise": self.cfg.noise,
+            "time": self.time,
+        }

@@ -1,0 +1,221 @@
+"""The controller state machine and the daemon's loop contract with a scripted robot (Algorithm 1)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from runtime.controller import Action, Controller, ControllerConfig, calibrate_e_m, consecutive_errors
+from runtime.daemon import RepeatConfig, repeat
+from runtime.robot import Observation
+from runtime.route import Route
+
+PAPER = ControllerConfig(e_m_mode="fixed", e_m=17.0, stall_steps=0)
+
+
+def flat(value: int, h: int = 4, w: int = 4) -> np.ndarray:
+    return np.full((h, w, 3), value, dtype=np.uint8)
+
+
+def subgoals(*values: int) -> np.ndarray:
+    return np.stack([flat(v) for v in values])
+
+
+def test_algorithm_1_decisions():
+    c = Controller(subgoals(0, 100, 200), PAPER)
+    assert c.e_m == 17.0
+    d = c.decide(flat(50))
+    assert d.action is Action.COMMAND and d.index == 0 and d.error == 50 and d.then_stop
+    assert c.decide(flat(17)).action is Action.ADVANCE  # error == e_m switches (<=)
+    assert c.index == 1
+    d = c.decide(flat(17))  # the same image is then judged against the next subgoal
+    assert d.action is Action.COMMAND and d.index == 1 and d.error == 83
+    assert c.decide(flat(118)).action is Action.COMMAND  # 18 > 17: keep steering
+    assert c.decide(flat(100)).action is Action.ADVANCE
+    assert c.decide(flat(190)).action is Action.ADVANCE
+    assert c.finished
+    d = c.decide(flat(0))
+    assert d.action is Action.FINISHED and math.isnan(d.error)
+
+
+def test_calibrated_e_m_is_half_the_median_consecutive_error():
+    images = subgoals(0, 10, 30, 60)  # consecutive errors 10, 20, 30
+    np.testing.assert_allclose(consecutive_errors(images), [10, 20, 30])
+    cfg = ControllerConfig()
+    assert calibrate_e_m(images, cfg) == pytest.approx(10.0)
+    assert Controller(images, cfg).e_m == pytest.approx(10.0)
+    assert calibrate_e_m(images, ControllerConfig(calib_quantile=1.0, calib_fraction=1.0)) == pytest.approx(
+        30
+    )
+    assert calibrate_e_m(images, ControllerConfig(e_m_max=4.0)) == 4.0
+    assert calibrate_e_m(subgoals(5), ControllerConfig(e_m=12.0)) == 12.0  # one subgoal: the fixed value
+
+
+def test_stall_guard_jumps_to_a_close_subgoal_ahead():
+    cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, stall_steps=3, lookahead=3, jump_factor=2.0)
+    c = Controller(subgoals(0, 20, 40, 60, 80), cfg)
+    # stuck at 48: no progress towards subgoal 0, but subgoal 2 (error 8 <= 2 * e_m) is close
+    assert [c.decide(flat(48)).action for _ in range(3)] == [Action.COMMAND] * 3
+    d = c.decide(flat(48))
+    assert d.action is Action.JUMP and d.index == 2 and d.note == "stall guard" and c.jumps == 1
+    assert c.decide(flat(48)).action is Action.COMMAND and c.index == 2
+
+
+def test_stall_guard_stops_when_nothing_is_close():
+    cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, stall_steps=2, lookahead=2)
+    c = Controller(subgoals(0, 20, 40, 60), cfg)
+    c.decide(flat(200))
+    c.decide(flat(200))
+    d = c.decide(flat(200))
+    assert d.action is Action.STALLED and "stopped falling" in d.note and c.stalled
+    assert c.decide(flat(0)).action is Action.STALLED  # terminal
+
+
+def test_progress_resets_the_stall_counter():
+    cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, stall_steps=2)
+    c = Controller(subgoals(0, 100), cfg)
+    for value in (90, 80, 70, 60, 50, 40):  # slowly but steadily closer
+        assert c.decide(flat(value)).action is Action.COMMAND
+
+
+def test_localisation_starts_at_the_best_match_above_the_confidence_floor():
+    cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, localise=True, stall_steps=0)
+    c = Controller(subgoals(0, 50, 100, 150), cfg)
+    d = c.decide(flat(98))
+    assert d.action is Action.JUMP and d.index == 2 and c.localised_to == 2
+    assert c.decide(flat(98)).action is Action.ADVANCE
+    far = Controller(subgoals(0, 50, 100, 150), cfg)  # floor 3 * e_m = 15
+    assert far.decide(flat(230)).action is Action.COMMAND and far.index == 0 and far.localised_to is None
+
+
+def test_continuous_mode_does_not_stop_between_steps():
+    c = Controller(subgoals(0, 100), ControllerConfig(e_m_mode="fixed", e_m=5.0, continuous=True))
+    assert c.decide(flat(60)).then_stop is False
+
+
+@pytest.mark.parametrize(
+    "kwargs, fragment",
+    [
+        ({"e_m_mode": "auto"}, "e_m_mode"),
+        ({"e_m": 0.0}, "e_m must"),
+        ({"e_m": float("nan")}, "e_m must"),
+        ({"calib_quantile": 1.5}, "calib_quantile"),
+        ({"e_m_min": 10.0, "e_m_max": 5.0}, "e_m_max"),
+        ({"stall_steps": -1}, "stall_steps"),
+        ({"lookahead": 0}, "lookahead"),
+        ({"localise_max_error": -1.0}, "localise_max_error"),
+    ],
+)
+def test_controller_config_validation(kwargs, fragment):
+    with pytest.raises(ValueError, match=fragment):
+        ControllerConfig(**kwargs)
+
+
+def test_controller_refuses_wrong_images():
+    with pytest.raises(ValueError, match="uint8"):
+        Controller(np.zeros((2, 4, 4, 3), dtype=np.float32))
+    with pytest.raises(ValueError, match="differs"):
+        Controller(subgoals(0, 1)).decide(flat(0, 8, 8))
+
+
+# ---------------------------------------------------------------------------------------- loop contract
+
+
+class ScriptedRobot:
+    """observe() returns frame 0; each step() returns the next scripted frame. Records every call."""
+
+    def __init__(self, frames: list[np.ndarray]) -> None:
+        self.frames = frames
+        self.i = 0
+        self.calls: list[tuple] = []
+
+    def observe(self) -> Observation:
+        self.calls.append(("observe",))
+        return Observation(self.frames[self.i], float(self.i))
+
+    def step(self, v: float, w: float, duration: float) -> Observation:
+        self.calls.append(("step", v, w, duration))
+        self.i += 1
+        return Observation(self.frames[self.i], float(self.i))
+
+    def stop(self) -> None:
+        self.calls.append(("stop",))
+
+
+class SpyPolicy:
+    image_shape = (4, 4)
+    nonfinite_count = 0
+
+    def __init__(self) -> None:
+        self.inputs: list[tuple[int, int]] = []
+
+    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+        self.inputs.append((int(current[0, 0, 0]), int(subgoal[0, 0, 0])))
+        return np.array([[0.3, 0.1], [-0.2, 0.0]], dtype=np.float32)
+
+
+def flat_route(*values: int) -> Route:
+    n = len(values)
+    return Route(images=subgoals(*values), poses=np.full((n, 3), np.nan), commands=np.zeros((n, 2)))
+
+
+def test_loop_contract_command_then_zero_switch_at_e_m_finish_after_l_subgoals():
+    route = flat_route(0, 100, 200)
+    robot = ScriptedRobot([flat(50), flat(17), flat(117), flat(195)])
+    policy = SpyPolicy()
+    records: list[dict] = []
+    summary = repeat(robot, policy, route, RepeatConfig(controller=PAPER), log=records.append)
+    # the first predicted (v, w) for 0.1 s, then zero; one command per image above e_m
+    assert robot.calls == [
+        ("observe",),
+        ("step", pytest.approx(0.3), pytest.approx(-0.2), 0.1),
+        ("stop",),
+        ("step", pytest.approx(0.3), pytest.approx(-0.2), 0.1),
+        ("stop",),
+        ("step", pytest.approx(0.3), pytest.approx(-0.2), 0.1),
+        ("stop",),
+        ("stop",),  # the final zero command when the loop ends
+    ]
+    # (current, subgoal) pairs the network saw: an error of exactly 17 switches, and the same image is
+    # then steered towards the next subgoal
+    assert policy.inputs == [(50, 0), (17, 100), (117, 200)]
+    steps = [r for r in records if "step" in r]
+    assert [(r["from_subgoal"], r["subgoal"], r["advanced"], r["error"]) for r in steps] == [
+        (0, 0, 0, 50),
+        (0, 1, 1, 83),
+        (1, 2, 1, 83),
+    ]
+    assert summary.completed and summary.reason == "finished"
+    assert summary.steps == 3 and summary.subgoals_reached == 3 == summary.subgoals_total
+    assert records[-1]["summary"]["reason"] == "finished"
+
+
+def test_continuous_loop_sends_no_zero_between_steps():
+    route = flat_route(0, 100)
+    robot = ScriptedRobot([flat(60), flat(30), flat(0), flat(100)])
+    cfg = RepeatConfig(
+        controller=ControllerConfig(e_m_mode="fixed", e_m=17.0, stall_steps=0, continuous=True)
+    )
+    summary = repeat(robot, SpyPolicy(), route, cfg)
+    names = [c[0] for c in robot.calls]
+    assert names == ["observe", "step", "step", "step", "stop"] and summary.completed
+
+
+def test_step_limit_stops_a_lost_robot():
+    route = flat_route(0, 100)
+    robot = ScriptedRobot([flat(250)] * 10)
+    summary = repeat(robot, SpyPolicy(), route, RepeatConfig(controller=PAPER, max_steps=4))
+    assert summary.reason == "step_limit" and summary.steps == 4 and not summary.completed
+    assert robot.calls[-1] == ("stop",)
+
+
+def test_stall_in_the_loop_stops_with_a_reason():
+    route = flat_route(0, 100)
+    robot = ScriptedRobot([flat(250)] * 10)
+    cfg = RepeatConfig(controller=ControllerConfig(e_m_mode="fixed", e_m=5.0, stall_steps=3))
+    summary = repeat(robot, SpyPolicy(), route, cfg)
+    assert (
+        summary.reason == "stalled" and "stopped falling" in summary.detail and robot.calls[-1] == ("stop",)
+    )

@@ -1,0 +1,339 @@
+"""The repeat daemon: completes a route, keeps the robot still on bad frames, stops on every failure."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+
+import numpy as np
+import pytest
+from runtime_fakes import FakeSim, FakeSimAt, build_velocitynet_onnx, corridor_route, render
+
+from runtime.client import SimClient
+from runtime.controller import ControllerConfig
+from runtime.daemon import RepeatConfig, repeat
+from runtime.policy import OnnxPolicy
+from runtime.protocol import BadFrameError
+from runtime.robot import Observation
+from sim2d.local_robot import LocalRobot
+from sim2d.server import ServerConfig, ServerThread, start_server_process
+
+LOG_KEYS = {
+    "step",
+    "subgoal",
+    "from_subgoal",
+    "advanced",
+    "jumped_to",
+    "error",
+    "e_m",
+    "v",
+    "w",
+    "stamp",
+    "pose",
+    "latency_ms",
+}
+
+
+@pytest.fixture(scope="module")
+def policy_path(tmp_path_factory):
+    return build_velocitynet_onnx(str(tmp_path_factory.mktemp("model") / "tiny.onnx"))
+
+
+def test_repeat_in_process_completes_the_route_and_logs_every_step(policy_path):
+    sim = FakeSim()
+    records: list[dict] = []
+    summary = repeat(LocalRobot(sim), OnnxPolicy(policy_path), corridor_route(), log=records.append)
+    assert summary.completed and summary.subgoals_reached == 9 == summary.subgoals_total
+    assert summary.e_m == pytest.approx(5.0)  # calibrated: half of the 10-level step between subgoals
+    assert sim.pose.x == pytest.approx(0.4, abs=0.03)  # |error| <= e_m = 5 levels = 0.025 m
+    steps = [r for r in records if "step" in r]
+    assert len(steps) == summary.steps > 0 and set(steps[0]) == LOG_KEYS
+    assert {"preprocess", "inference", "error", "compute", "robot", "total"} <= set(steps[0]["latency_ms"])
+    assert summary.sim_time_s == pytest.approx(0.1 * summary.steps)
+    assert "robot" in summary.mean_latency_ms
+
+
+class FlakyRobot:
+    """Wraps a LocalRobot; chosen calls return a bad frame (raise BadFrameError or a wrong image)."""
+
+    def __init__(self, inner: LocalRobot, bad_calls: set[int], mode: str) -> None:
+        self.inner, self.bad_calls, self.mode = inner, bad_calls, mode
+        self.n = 0
+        self.log: list[str] = []
+
+    def _maybe_bad(self, obs: Observation) -> Observation:
+        self.n += 1
+        if self.n in self.bad_calls:
+            if self.mode == "raise":
+                raise BadFrameError("truncated pixel frame")
+            return Observation(np.zeros((8, 8, 3), np.uint8), obs.stamp)
+        return obs
+
+    def observe(self) -> Observation:
+        self.log.append("observe")
+        return self._maybe_bad(self.inner.observe())
+
+    def step(self, v: float, w: float, duration: float) -> Observation:
+        self.log.append("step")
+        return self._maybe_bad(self.inner.step(v, w, duration))
+
+    def stop(self) -> None:
+        self.log.append("stop")
+        self.inner.stop()
+
+
+class SpyPolicy:
+    """OnnxPolicy that refuses any image it should never have been given."""
+
+    def __init__(self, inner: OnnxPolicy) -> None:
+        self.inner = inner
+        self.image_shape = inner.image_shape
+        self.seen = 0
+
+    @property
+    def nonfinite_count(self) -> int:
+        return self.inner.nonfinite_count
+
+    def predict(self, current, subgoal):
+        assert current.shape == (16, 16, 3) and current.dtype == np.uint8
+        self.seen += 1
+        return self.inner.predict(current, subgoal)
+
+
+@pytest.mark.parametrize("mode", ["raise", "wrong_shape"])
+def test_bad_frames_are_counted_never_fed_to_the_network_and_the_robot_keeps_still(policy_path, mode):
+    sim = FakeSim()
+    robot = FlakyRobot(LocalRobot(sim), bad_calls={1, 3, 4}, mode=mode)
+    policy = SpyPolicy(OnnxPolicy(policy_path))
+    summary = repeat(robot, policy, corridor_route(), RepeatConfig(bad_frame_backoff_s=0.0))
+    assert summary.completed and summary.bad_frames == 3
+    # each bad frame is followed by a zero command before the robot is polled again
+    frame_calls = 0
+    for i, call in enumerate(robot.log):
+        if call != "stop":
+            frame_calls += 1
+            if frame_calls in robot.bad_calls:
+                assert robot.log[i + 1] == "stop", robot.log[: i + 2]
+    assert policy.seen == summary.steps
+
+
+def test_no_valid_frame_within_the_timeout_stops_the_run(policy_path):
+    robot = FlakyRobot(LocalRobot(FakeSim()), bad_calls=set(range(2, 10_000)), mode="raise")
+    summary = repeat(
+        robot,
+        OnnxPolicy(policy_path),
+        corridor_route(),
+        RepeatConfig(frame_timeout_s=0.2, bad_frame_backoff_s=0.01),
+    )
+    assert summary.reason == "no_valid_frame" and not summary.completed and summary.steps == 0
+    assert "last rejected: truncated pixel frame" in summary.detail
+    assert robot.log[-1] == "stop"
+
+
+def test_an_exception_commands_zero_velocity_and_propagates(policy_path):
+    class Broken:
+        image_shape = (16, 16)
+        nonfinite_count = 0
+
+        def predict(self, current, subgoal):
+            raise RuntimeError("onnxruntime exploded")
+
+    robot = LocalRobot(FakeSim())
+    with pytest.raises(RuntimeError, match="exploded"):
+        repeat(robot, Broken(), corridor_route())
+    assert robot.commands[-1] == (0.0, 0.0, 0.0)
+
+
+def test_stop_event_interrupts_with_a_zero_command(policy_path):
+    robot = LocalRobot(FakeSim())
+    event = threading.Event()
+
+    def log(record):
+        if record.get("step") == 2:
+            event.set()
+
+    summary = repeat(robot, OnnxPolicy(policy_path), corridor_route(), log=log, stop_event=event)
+    assert summary.reason == "interrupted" and summary.steps == 3 and robot.commands[-1] == (0.0, 0.0, 0.0)
+
+
+class KillingRobot:
+    """A SimClient whose server is killed after ``kill_after`` steps and restarted where the robot stood."""
+
+    def __init__(self, client: SimClient, handle, cfg: ServerConfig, kill_after: int, restart: bool) -> None:
+        self.client, self.handle, self.cfg = client, handle, cfg
+        self.kill_after, self.restart = kill_after, restart
+        self.steps = 0
+        self.restarter: threading.Thread | None = None
+
+    @property
+    def bad_frames(self) -> int:
+        return self.client.bad_frames
+
+    def observe(self):
+        return self.client.observe()
+
+    def stop(self):
+        self.client.stop()
+
+    def step(self, v, w, duration):
+        obs = self.client.step(v, w, duration)
+        self.steps += 1
+        if self.steps == self.kill_after:
+            self.handle.kill()  # SIGKILL: the server dies mid-route without a word
+            if self.restart:
+                factory = FakeSimAt(obs.pose[0], obs.stamp)  # a bridge restart: the robot has not moved
+                self.restarter = threading.Thread(target=self._restart, args=(factory,), daemon=True)
+                self.restarter.start()
+        return obs
+
+    def _restart(self, factory) -> None:
+        time.sleep(0.3)
+        self.handle = start_server_process(self.cfg, factory)
+
+
+def _free_endpoint() -> str:
+    with ServerThread(FakeSim()) as probe:
+        return probe.endpoint
+
+
+def test_server_killed_mid_route_and_restarted_the_repeat_recovers(policy_path):
+    cfg = ServerConfig(bind=_free_endpoint(), poll_ms=20)
+    handle = start_server_process(cfg, FakeSim)
+    client = SimClient(cfg.bind, timeout_s=0.25, retries=60)  # restart takes longer than one timeout
+    robot = KillingRobot(client, handle, cfg, kill_after=4, restart=True)
+    try:
+        summary = repeat(robot, OnnxPolicy(policy_path), corridor_route())
+    finally:
+        client.close()
+        if robot.restarter is not None:
+            robot.restarter.join(30)
+        robot.handle.terminate()
+    assert summary.completed and summary.subgoals_reached == 9
+    assert client.timeouts >= 1 and client.session_changes == 1
+
+
+def test_server_killed_for_good_the_repeat_stops_cleanly(policy_path):
+    cfg = ServerConfig(bind=_free_endpoint(), poll_ms=20)
+    handle = start_server_process(cfg, FakeSim)
+    client = SimClient(cfg.bind, timeout_s=0.2, retries=2)
+    robot = KillingRobot(client, handle, cfg, kill_after=3, restart=False)
+    try:
+        summary = repeat(robot, OnnxPolicy(policy_path), corridor_route())
+    finally:
+        client.close()
+        handle.terminate()
+    assert summary.reason == "robot_error" and "no reply" in summary.detail and not summary.completed
+    assert summary.steps == 2  # step 3 reached the server, then its zero command found nobody
+
+
+def test_teach_then_repeat_over_zeromq_through_the_cli(policy_path, tmp_path, capsys):
+    from runtime.cli import main
+    from runtime.route import Route
+
+    script = tmp_path / "corridor.json"
+    script.write_text(
+        json.dumps(
+            {"start": {"x": 0.0, "y": 0.0, "yaw": 0.0}, "segments": [{"v": 0.25, "w": 0.0, "duration": 1.0}]}
+        )
+    )
+    sim = FakeSim(x=0.7)
+    with ServerThread(sim) as server:
+        out = tmp_path / "route.npz"
+        assert main(["teach", "--sim", server.endpoint, "--route", str(script), "--out", str(out)]) == 0
+        route = Route.load(out)
+        assert len(route) == 6 and route.spacing == {"rule": "steps", "dt": 0.1, "every": 2}
+        np.testing.assert_allclose(route.poses[:, 0], [0.0, 0.05, 0.1, 0.15, 0.2, 0.25], atol=1e-9)
+        assert route.commands.tolist() == [[0.25, 0.0]] * 5 + [[0.0, 0.0]]
+        assert route.camera["width"] == 16 and route.map == "corridor" and route.name == "corridor"
+        np.testing.assert_array_equal(route.images[2], render(0.1))
+        capsys.readouterr()  # the sim stands at the route's end now; repeat resets it to the start
+        log = tmp_path / "run.jsonl"
+        argv = [
+            "repeat",
+            "--sim",
+            server.endpoint,
+            "--model",
+            policy_path,
+            "--route",
+            str(out),
+            "--log",
+            str(log),
+            "--json",
+        ]
+        assert main(argv) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["completed"] and summary["subgoals_reached"] == 6
+    lines = [json.loads(line) for line in log.read_text().splitlines()]
+    assert len(lines) == summary["steps"] + 1 and "summary" in lines[-1]
+    assert lines[0]["pose"] == [0.0, 0.0, 0.0] and lines[0]["stamp"] == 0.0
+    assert set(lines[0]) == LOG_KEYS and {"receive", "decode"} <= set(lines[0]["latency_ms"])
+
+
+def test_teach_spacing_rules(tmp_path):
+    from runtime.route_script import parse_route_script
+    from runtime.teach import TeachConfig, teach
+
+    script = parse_route_script(
+        {"start": {"x": 0, "y": 0, "yaw": 0}, "segments": [{"v": 0.5, "w": 0, "duration": 1.0}]}
+    )
+    by_distance = teach(LocalRobot(FakeSim()), script, TeachConfig(spacing="distance", min_distance=0.19))
+    np.testing.assert_allclose(by_distance.poses[:, 0], [0.0, 0.2, 0.4, 0.5], atol=1e-9)
+    by_image = teach(LocalRobot(FakeSim()), script, TeachConfig(spacing="image", min_image_change=29.0))
+    np.testing.assert_allclose(by_image.poses[:, 0], [0.0, 0.15, 0.3, 0.45, 0.5], atol=1e-9)
+    with pytest.raises(ValueError, match="spacing"):
+        TeachConfig(spacing="random")
+
+
+def test_repeat_config_validation():
+    with pytest.raises(ValueError, match="max_steps"):
+        RepeatConfig(max_steps=0)
+    with pytest.raises(ValueError, match="dt"):
+        RepeatConfig(dt=-0.1)
+    with pytest.raises(ValueError, match="frame_timeout_s"):
+        RepeatConfig(frame_timeout_s=0)
+
+
+def test_localise_option_starts_mid_route(policy_path):
+    sim = FakeSim(x=0.2)
+    cfg = RepeatConfig(controller=ControllerConfig(localise=True))
+    records: list[dict] = []
+    summary = repeat(LocalRobot(sim), OnnxPolicy(policy_path), corridor_route(), cfg, log=records.append)
+    assert summary.completed and summary.localised_to == 4
+    assert records[0]["from_subgoal"] == 0 and records[0]["jumped_to"] == [4]
+
+
+def test_camera_at_the_wrong_resolution_never_reaches_the_network(policy_path):
+    policy = SpyPolicy(OnnxPolicy(policy_path))
+    with (
+        ServerThread(FakeSim(h=8, w=8)) as server,
+        SimClient(server.endpoint, 2.0, expect_shape=(16, 16)) as client,
+    ):
+        cfg = RepeatConfig(frame_timeout_s=0.3, bad_frame_backoff_s=0.02)
+        summary = repeat(client, policy, corridor_route(), cfg)
+        assert server.server.last_cmd == "stop"
+    assert summary.reason == "no_valid_frame" and "image is 8x8, expected 16x16" in summary.detail
+    assert policy.seen == 0 and summary.bad_frames >= 2 and client.bad_frames == summary.bad_frames
+
+
+def test_cli_reports_bad_inputs_without_a_traceback(policy_path, tmp_path, capsys):
+    from runtime.cli import main
+
+    route = tmp_path / "route.npz"
+    corridor_route(h=8, w=8).save(route)
+    argv = ["repeat", "--sim", "tcp://127.0.0.1:1", "--model", policy_path, "--route", str(route)]
+    assert main(argv) == 2
+    assert "route images are 8x8 but the model takes 16x16" in capsys.readouterr().err
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"start": {"x": 0, "y": 0, "yaw": 0}, "segments": [{"v": 3, "w": 0, "duration": 1}]}')
+    assert (
+        main(["teach", "--sim", "tcp://127.0.0.1:1", "--route", str(bad), "--out", str(tmp_path / "o.npz")])
+        == 2
+    )
+    assert "v_max" in capsys.readouterr().err
+    good = tmp_path / "good.json"
+    good.write_text('{"start": {"x": 0, "y": 0, "yaw": 0}, "segments": [{"v": 0.1, "w": 0, "duration": 1}]}')
+    argv = ["teach", "--sim", "tcp://127.0.0.1:1", "--route", str(good), "--out", str(tmp_path / "o.npz")]
+    assert main([*argv, "--timeout", "0.05"]) == 2
+    assert "no reply from tcp://127.0.0.1:1" in capsys.readouterr().err
+    assert not (tmp_path / "o.npz").exists()

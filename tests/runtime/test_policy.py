@@ -1,0 +1,84 @@
+"""OnnxPolicy: checks at load, stage timing, non-finite outputs never reach the robot."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from runtime_fakes import H, W, build_velocitynet_onnx, corridor_route, render
+
+from runtime.policy import ModelMismatchError, OnnxPolicy
+
+
+@pytest.fixture(scope="module")
+def model_path(tmp_path_factory):
+    return build_velocitynet_onnx(str(tmp_path_factory.mktemp("m") / "tiny.onnx"))
+
+
+def test_predict_shape_direction_and_stage_timing(model_path):
+    policy = OnnxPolicy(model_path)
+    assert policy.meta.horizon == 2 and policy.image_shape == (H, W)
+    ahead = policy.predict(render(0.0), render(0.1))
+    behind = policy.predict(render(0.1), render(0.0))
+    assert ahead.shape == (2, 2) and ahead.dtype == np.float32
+    assert ahead[0, 0] > 0.1 and behind[0, 0] < -0.1 and ahead[1, 0] == 0.0
+    assert np.all(np.abs(ahead) <= 0.5)
+    assert set(policy.last_timing_ms) == {"preprocess", "inference"}
+    feeds = policy.preprocess(render(0.0), render(0.1))
+    assert feeds["current"].shape == (1, 3, H, W) and feeds["current"].dtype == np.float32
+    np.testing.assert_allclose(policy.postprocess(policy.infer(feeds)), ahead)
+
+
+def test_nonfinite_output_becomes_zero_command_and_is_counted(tmp_path):
+    policy = OnnxPolicy(build_velocitynet_onnx(str(tmp_path / "nan.onnx"), output_scale=float("nan")))
+    out = policy.predict(render(0.0), render(0.1))
+    assert np.array_equal(out, np.zeros((2, 2), dtype=np.float32))
+    assert policy.nonfinite_count == 1
+
+
+def test_out_of_range_outputs_are_clipped_to_model_limits(tmp_path):
+    policy = OnnxPolicy(build_velocitynet_onnx(str(tmp_path / "big.onnx"), output_scale=10.0))
+    out = policy.predict(render(0.0), render(0.5))
+    assert out[0, 0] == pytest.approx(0.5)
+
+
+def test_wrong_image_shape_is_refused(model_path):
+    policy = OnnxPolicy(model_path)
+    with pytest.raises(ValueError, match="model takes"):
+        policy.predict(render(0.0, 8, 8), render(0.0, 8, 8))
+
+
+@pytest.mark.parametrize(
+    "kwargs, fragment",
+    [
+        ({"input_names": ("image", "goal")}, "inputs are"),
+        ({"output_name": "twist"}, "outputs are"),
+        ({"drop_meta": ("vtr.horizon",)}, "lacks 'vtr.horizon'"),
+        ({"meta_overrides": {"vtr.preprocessing": "bgr_minus_mean"}}, "preprocessing"),
+        ({"meta_overrides": {"vtr.image_height": "32"}}, "expected (B, 3, 32"),
+        ({"meta_overrides": {"vtr.horizon": "3"}}, "expected (B, 2, 3)"),
+        ({"meta_overrides": {"vtr.format_version": "9"}}, "format version 9"),
+    ],
+)
+def test_mismatched_models_are_refused(tmp_path, kwargs, fragment):
+    path = build_velocitynet_onnx(str(tmp_path / "bad.onnx"), **kwargs)
+    with pytest.raises(ModelMismatchError) as info:
+        OnnxPolicy(path)
+    assert fragment in str(info.value)
+
+
+def test_not_an_onnx_file_and_missing_file(tmp_path):
+    junk = tmp_path / "junk.onnx"
+    junk.write_bytes(b"not a model")
+    with pytest.raises(ModelMismatchError, match="cannot load"):
+        OnnxPolicy(junk)
+    with pytest.raises(FileNotFoundError):
+        OnnxPolicy(tmp_path / "missing.onnx")
+    with pytest.raises(ValueError, match="threads"):
+        OnnxPolicy(junk, threads=0)
+
+
+def test_route_at_another_resolution_is_refused(model_path):
+    policy = OnnxPolicy(model_path)
+    policy.check_route(corridor_route())
+    with pytest.raises(ModelMismatchError, match="route images are 8x8"):
+        policy.check_route(corridor_route(h=8, w=8))

@@ -1,0 +1,125 @@
+"""Route files (atomic, versioned, validated) and ROUTE.json scripts."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+from runtime_fakes import corridor_route
+
+from runtime.route import Route, RouteError
+from runtime.route_script import RouteScriptError, load_route_script, parse_route_script
+
+
+def test_route_round_trip(tmp_path):
+    route = corridor_route()
+    route.poses[3] = np.nan  # an unknown pose survives
+    route.camera = {"width": 16, "height": 16}
+    route.spacing = {"rule": "steps", "every": 2}
+    path = tmp_path / "r.npz"
+    route.save(path)
+    loaded = Route.load(path)
+    np.testing.assert_array_equal(loaded.images, route.images)
+    np.testing.assert_array_equal(loaded.poses, route.poses)
+    np.testing.assert_array_equal(loaded.commands, route.commands)
+    assert loaded.meta_dict() == route.meta_dict()
+    assert os.listdir(tmp_path) == ["r.npz"]  # no temporary file left behind
+
+
+def test_failed_save_leaves_the_old_file_intact(tmp_path, monkeypatch):
+    path = tmp_path / "r.npz"
+    corridor_route().save(path)
+    before = path.read_bytes()
+
+    def boom(*args, **kwargs):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(np, "savez_compressed", boom)
+    with pytest.raises(OSError, match="disk full"):
+        corridor_route(length_m=0.2).save(path)
+    assert path.read_bytes() == before and os.listdir(tmp_path) == ["r.npz"]
+
+
+@pytest.mark.parametrize(
+    "change, fragment",
+    [
+        (lambda r: setattr(r, "images", r.images.astype(np.float32)), "uint8"),
+        (lambda r: setattr(r, "poses", r.poses[:-1]), "poses must be"),
+        (lambda r: setattr(r, "commands", np.full_like(r.commands, np.nan)), "NaN or inf"),
+        (lambda r: setattr(r, "dt", 0.0), "dt"),
+        (lambda r: setattr(r, "format_version", 7), "format version 7"),
+    ],
+)
+def test_route_validation(change, fragment):
+    route = corridor_route()
+    change(route)
+    with pytest.raises(RouteError, match=fragment):
+        route.validate()
+
+
+def test_load_refuses_bad_files(tmp_path):
+    junk = tmp_path / "junk.npz"
+    junk.write_bytes(b"nope")
+    with pytest.raises(RouteError, match="cannot read"):
+        Route.load(junk)
+    partial = tmp_path / "partial.npz"
+    np.savez(partial, images=np.zeros((1, 2, 2, 3), np.uint8))
+    with pytest.raises(RouteError, match="missing arrays"):
+        Route.load(partial)
+    route = corridor_route()
+    future = tmp_path / "future.npz"
+    meta = dict(route.meta_dict(), format_version=99)
+    np.savez(
+        future,
+        images=route.images,
+        poses=route.poses,
+        commands=route.commands,
+        meta=np.array(json.dumps(meta)),
+    )
+    with pytest.raises(RouteError, match="format version 99"):
+        Route.load(future)
+    pickled = tmp_path / "pickled.npz"
+    np.savez(
+        pickled, images=route.images, poses=route.poses, commands=route.commands, meta=np.array([{"a": 1}])
+    )
+    with pytest.raises(RouteError):
+        Route.load(pickled)
+
+
+def test_route_script_parsing(tmp_path):
+    script = parse_route_script(
+        {"start": {"x": 1, "y": 2, "yaw": 0.5}, "segments": [{"v": 0.2, "w": 0.0, "duration": 1.5}]}
+    )
+    assert script.start == (1.0, 2.0, 0.5) and script.duration == 1.5 and script.segments[0].v == 0.2
+    path = tmp_path / "translation.json"
+    path.write_text(
+        json.dumps({"start": {"x": 0, "y": 0, "yaw": 0}, "segments": [{"v": 0, "w": 1, "duration": 1}]})
+    )
+    assert load_route_script(path).name == "translation"
+
+
+@pytest.mark.parametrize(
+    "data, fragment",
+    [
+        ([], "JSON object"),
+        ({"segments": []}, "'start'"),
+        ({"start": {"x": 0, "y": 0}, "segments": [{"v": 0, "w": 0, "duration": 1}]}, "missing 'yaw'"),
+        ({"start": {"x": 0, "y": 0, "yaw": 0}, "segments": []}, "non-empty"),
+        ({"start": {"x": 0, "y": 0, "yaw": 0}, "segments": [{"v": 0.9, "w": 0, "duration": 1}]}, "v_max"),
+        ({"start": {"x": 0, "y": 0, "yaw": 0}, "segments": [{"v": 0, "w": 2, "duration": 1}]}, "w_max"),
+        ({"start": {"x": 0, "y": 0, "yaw": 0}, "segments": [{"v": 0, "w": 0, "duration": 0}]}, "duration"),
+        ({"start": {"x": "a", "y": 0, "yaw": 0}, "segments": [{"v": 0, "w": 0, "duration": 1}]}, "start.x"),
+    ],
+)
+def test_route_script_errors(data, fragment):
+    with pytest.raises(RouteScriptError, match=fragment):
+        parse_route_script(data)
+
+
+def test_route_script_bad_json(tmp_path):
+    path = tmp_path / "r.json"
+    path.write_text("{")
+    with pytest.raises(RouteScriptError, match="not valid JSON"):
+        load_route_script(path)
