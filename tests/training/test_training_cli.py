@@ -146,8 +146,9 @@ def test_torchrun_two_cpu_processes(data: Path, tmp_path: Path) -> None:
     assert steps == [1, 2]  # rank 0 alone writes the log
 
 
-def test_train_all_runs_every_stage_and_exports(data: Path, tmp_path: Path) -> None:
-    out, models = tmp_path / "run", tmp_path / "models"
+def test_train_all_collects_trains_and_exports(tmp_path: Path) -> None:
+    pytest.importorskip("pymunk")
+    out, models, data = tmp_path / "run", tmp_path / "models", tmp_path / "data" / "house.npz"
     args = [
         "train",
         "all",
@@ -161,8 +162,38 @@ def test_train_all_runs_every_stage_and_exports(data: Path, tmp_path: Path) -> N
         str(models),
     ]
     assert cli.main(args) == 0
+    assert data.exists()  # there was no dataset: `all` recorded one first
     for name in ("velocitynet.onnx", "velocitynet-int8.onnx", "viewnet.pt"):
         assert (models / name).exists(), name
     summary = json.loads((out / "summary.json").read_text())
     assert summary["export"]["fp32"]["max_abs_err_random"] <= 1e-4
     assert summary["viewnet"]["model"] == "viewnet" and summary["velocitynet"]["model"] == "velocitynet"
+    assert {"collect_s", "viewnet_s", "velocitynet_s", "export_s", "total_s"} <= set(summary["timings"])
+    # A second run finds every stage done and only re-exports.
+    assert cli.main(args) == 0
+
+
+@pytest.mark.slow
+def test_default_preset_beats_both_baselines(tmp_path: Path) -> None:
+    """Real (short) training on a real collected dataset: minutes on a 2-core CPU."""
+    pytest.importorskip("pymunk")
+    data, out = tmp_path / "house.npz", tmp_path / "run"
+    assert cli.main(["collect", "--out", str(data), "--frames", "1500", "--no-progress"]) == 0
+    base = ["--preset", "default", "--data", str(data)]
+    assert cli.main(["train", "viewnet", *base, "--out", str(out / "vn"), "--steps", "800"]) == 0
+    vel = [
+        "train",
+        "velocitynet",
+        *base,
+        "--viewnet",
+        str(out / "vn"),
+        "--out",
+        str(out / "vel"),
+        "--steps",
+        "400",
+    ]
+    assert cli.main(vel) == 0
+    vn = json.loads((out / "vn" / "report.json").read_text())
+    vr = json.loads((out / "vel" / "report.json").read_text())
+    assert vn["viewnet_l1"] < 0.9 * vn["copy_baseline_l1"]
+    assert vr["mse_first_command"] < 0.9 * vr["mean_baseline_mse"]
