@@ -328,41 +328,47 @@ def _fit(
     )
     bar = tqdm(total=cfg.steps, initial=step, desc=f"train {kind}", disable=not dist.main, dynamic_ncols=True)
     model.train()
-    t_start, running, n_running = time.perf_counter(), 0.0, 0
-    while step < cfg.steps:
-        t0 = time.perf_counter()
-        frames, commands = next(batches)
-        with torch.autocast("cuda", torch.bfloat16, enabled=amp):
-            loss, _ = loss_fn(net, frames, commands)
-        optim.zero_grad(set_to_none=True)
-        loss.backward()
-        optim.step()
-        step += 1
-        value = float(loss.detach())
-        if not math.isfinite(value):
-            raise FloatingPointError(f"{kind} loss became {value} at step {step}")
-        running, n_running = running + value, n_running + 1
-        bar.update(1)
-        bar.set_postfix(loss=f"{value:.4f}")
-        if step % cfg.log_every == 0 or step == cfg.steps:
-            log(
-                {
-                    "step": step,
-                    "split": "train",
-                    "loss": running / n_running,
-                    "lr": cfg.lr,
-                    "step_time_s": time.perf_counter() - t0,
-                    "elapsed_s": time.perf_counter() - t_start,
-                }
-            )
-            running, n_running = 0.0, 0
-        if step % cfg.val_every == 0 or step == cfg.steps:
-            if dist.main:
-                metrics = validate(cfg.val_batches)
-                log({"step": step, "split": "val", **metrics})
-                bar.write(f"{kind} step {step}: val loss {metrics['loss']:.5f}")
-            save(step)
-            _barrier(dist)
+    t_start, running, n_running, busy = time.perf_counter(), 0.0, 0, 0.0
+    try:
+        while step < cfg.steps:
+            t0 = time.perf_counter()
+            frames, commands = next(batches)
+            with torch.autocast("cuda", torch.bfloat16, enabled=amp):
+                loss, _ = loss_fn(net, frames, commands)
+            optim.zero_grad(set_to_none=True)
+            loss.backward()
+            optim.step()
+            step += 1
+            value = float(loss.detach())
+            if not math.isfinite(value):
+                raise FloatingPointError(f"{kind} loss became {value} at step {step}")
+            running, n_running, busy = running + value, n_running + 1, busy + time.perf_counter() - t0
+            bar.update(1)
+            bar.set_postfix(loss=f"{value:.4f}")
+            if step % cfg.log_every == 0 or step == cfg.steps:
+                log(
+                    {
+                        "step": step,
+                        "split": "train",
+                        "loss": running / n_running,
+                        "lr": cfg.lr,
+                        "step_time_s": busy / n_running,  # mean over the interval, validation excluded
+                        "elapsed_s": time.perf_counter() - t_start,
+                    }
+                )
+                running, n_running, busy = 0.0, 0, 0.0
+            if step % cfg.val_every == 0 or step == cfg.steps:
+                if dist.main:
+                    metrics = validate(cfg.val_batches)
+                    log({"step": step, "split": "val", **metrics})
+                    bar.write(f"{kind} step {step}: val loss {metrics['loss']:.5f}")
+                save(step)
+                _barrier(dist)
+    except KeyboardInterrupt:
+        if step > 0:
+            save(step)  # Ctrl-C keeps the progress: --resume continues from this step
+            bar.write(f"{kind}: interrupted at step {step}; checkpoint saved, continue with --resume")
+        raise
     bar.close()
     model.eval()
     return model

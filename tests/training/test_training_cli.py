@@ -197,3 +197,30 @@ def test_default_preset_beats_both_baselines(tmp_path: Path) -> None:
     vr = json.loads((out / "vel" / "report.json").read_text())
     assert vn["viewnet_l1"] < 0.9 * vn["copy_baseline_l1"]
     assert vr["mse_first_command"] < 0.9 * vr["mean_baseline_mse"]
+
+
+def test_interrupt_saves_a_checkpoint_that_resume_continues(
+    data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import training.train as train_mod
+    from training.config import get_preset, override
+
+    preset = get_preset("tiny")
+    cfg = override(preset.train_viewnet, steps=5, val_every=100)
+    real_loss, calls = train_mod.viewnet_loss, []
+
+    def flaky(*args: object) -> torch.Tensor:
+        calls.append(1)
+        if len(calls) == 4:
+            raise KeyboardInterrupt
+        return real_loss(*args)
+
+    monkeypatch.setattr(train_mod, "viewnet_loss", flaky)
+    out = tmp_path / "vn"
+    with pytest.raises(KeyboardInterrupt):
+        train_mod.train_viewnet(data, out, preset.viewnet, cfg)
+    assert torch.load(out / "checkpoint.pt", weights_only=False)["step"] == 3
+    monkeypatch.setattr(train_mod, "viewnet_loss", real_loss)
+    train_mod.train_viewnet(data, out, preset.viewnet, cfg, resume=True)
+    assert torch.load(out / "checkpoint.pt", weights_only=False)["step"] == 5
+    assert (out / "model.pt").exists()
