@@ -1,7 +1,8 @@
 """The simulator: a house, a differential-drive robot and its camera (numpy + pymunk only).
 
-A pure core, `sim_step(state, v, w, duration, rng, params) -> state`, advances physics; `Simulator`
-keeps the state and renders. The random generator for actuation noise is created by reset(seed), so the
+A functional core, `sim_step(state, v, w, duration, rng, cfg) -> state`, advances physics (the pymunk
+world inside the state is updated in place: pymunk spaces cannot be copied cheaply); `Simulator` keeps
+the state and renders. The random generator for actuation noise is created by reset(seed), so the
 same seed and the same commands give the same images, bit for bit.
 """
 

@@ -87,7 +87,7 @@ def test_driving_into_a_wall_stops_at_the_wall(sim):
         sim.step(0.5, 0.0, 0.1)
     p = sim.pose
     assert sim.collided
-    assert 4.45 - r - 0.01 < p.y <= 4.45 - r + 1e-3
+    assert 4.45 - r - 0.01 < p.y <= 4.45 - r + 2e-3  # pymunk leaves about 1 mm of overlap
     assert sim.house.clearance(p.x, p.y) >= r - 0.01
     sim.step(-0.2, 0.0, 0.5)
     assert not sim.collided and sim.pose.y < p.y - 0.05

@@ -1,0 +1,131 @@
+"""`vtr export`: a VelocityNet checkpoint -> ONNX (fp32, optionally int8), with its metadata and checks.
+
+    vtr export --checkpoint runs/default/velocitynet/model.pt --out models/velocitynet.onnx \
+        [--int8 --data data/house.npz] [--viewnet runs/default/viewnet/model.pt --viewnet-out models/viewnet.onnx]
+
+The int8 model goes next to the fp32 one as ``<name>-int8.onnx``; it needs --data for calibration frames.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+
+@dataclass
+class ExportConfig:
+    """What `vtr export` writes."""
+
+    checkpoint: str  # VelocityNet model.pt / checkpoint.pt (or its folder)
+    out: str = "models/velocitynet.onnx"  # the fp32 ONNX file
+    data: str | None = None  # dataset for real-frame parity and int8 calibration
+    int8: bool = False  # also write <out stem>-int8.onnx
+    opset: int = 17  # ONNX opset (>= 16 so ViewNet's GridSample exports too)
+    calibration_pairs: int = 128  # (current, subgoal) pairs used to calibrate int8
+    viewnet: str | None = None  # optional ViewNet checkpoint to export as well
+    viewnet_out: str | None = None  # where the ViewNet ONNX goes (default: next to out)
+
+    def __post_init__(self) -> None:
+        if self.opset < 13:
+            raise ValueError(f"ExportConfig.opset must be >= 13, got {self.opset}")
+        if self.int8 and not self.data:
+            raise ValueError(
+                "ExportConfig.int8 needs data (calibration frames from the dataset); pass --data"
+            )
+        if self.calibration_pairs < 1:
+            raise ValueError(f"ExportConfig.calibration_pairs must be >= 1, got {self.calibration_pairs}")
+
+
+def int8_path(out: str | Path) -> Path:
+    out = Path(out)
+    return out.with_name(out.stem + "-int8" + out.suffix)
+
+
+def run(cfg: ExportConfig) -> dict[str, Any]:
+    import numpy as np
+    import torch
+
+    from export.onnx_export import export_onnx, velocitynet_meta
+    from export.quantize import calibration_pairs, compare, quantize_int8
+    from training.dataset import load_dataset
+    from training.train import load_model
+
+    kind, model, ckpt = load_model(cfg.checkpoint)
+    if kind != "velocitynet":
+        raise ValueError(
+            f"{cfg.checkpoint} holds a {kind}; `vtr export` exports VelocityNet (use --viewnet for ViewNet)"
+        )
+    dt = float(ckpt.get("data_meta", {}).get("dt", 0.1))
+    meta = velocitynet_meta(model.cfg, dt=dt)
+    real = None
+    data = None
+    if cfg.data:
+        data = load_dataset(cfg.data, image_size=model.cfg.image_size)
+        real = calibration_pairs(data.images, data.episodes, count=cfg.calibration_pairs, seed=1)
+    parity_inputs = [real[0][:16], real[1][:16]] if real is not None else None
+    result: dict[str, Any] = {
+        "fp32": export_onnx(model, cfg.out, meta, opset=cfg.opset, real_inputs=parity_inputs)
+    }
+    result["fp32"]["path"] = str(cfg.out)
+    if cfg.int8 and data is not None and real is not None:
+        q_path = int8_path(cfg.out)
+        quantize_int8(cfg.out, q_path, *real)
+        held = calibration_pairs(data.images, data.episodes, count=64, seed=2)  # not the calibration pairs
+        result["int8"] = {"path": str(q_path), **compare(cfg.out, q_path, *held)}
+    if cfg.viewnet:
+        vkind, viewnet, _ = load_model(cfg.viewnet)
+        if vkind != "viewnet":
+            raise ValueError(f"{cfg.viewnet} holds a {vkind}, not a ViewNet")
+        v_out = cfg.viewnet_out or str(Path(cfg.out).with_name("viewnet.onnx"))
+        size = viewnet.cfg.image_size
+        sample = (torch.rand(1, 3, size, size), torch.zeros(1, 2))
+        real_v = None
+        if real is not None:
+            real_v = [real[0][:8], np.tile(np.array([[0.2, 0.3]], np.float32), (min(8, len(real[0])), 1))]
+        result["viewnet"] = export_onnx(
+            viewnet,
+            v_out,
+            meta,
+            opset=max(cfg.opset, 16),
+            sample_inputs=sample,
+            real_inputs=real_v,
+            input_names=("image", "velocity"),
+            output_names=("predicted",),
+            atol=1e-3,
+        )
+        result["viewnet"]["path"] = v_out
+    return result
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--checkpoint", required=True, help="VelocityNet model.pt (or its run folder)")
+    parser.add_argument("--out", default="models/velocitynet.onnx", help="fp32 ONNX output")
+    parser.add_argument("--data", help="dataset: real-frame parity check and int8 calibration")
+    parser.add_argument("--int8", action="store_true", help="also write <out>-int8.onnx (needs --data)")
+    parser.add_argument("--opset", type=int, default=17, help="ONNX opset (default 17)")
+    parser.add_argument("--viewnet", help="also export this ViewNet checkpoint (GridSample, opset >= 16)")
+    parser.add_argument("--viewnet-out", help="ViewNet ONNX output (default: viewnet.onnx next to --out)")
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    from training.dataset import DatasetError
+
+    try:
+        cfg = ExportConfig(
+            checkpoint=args.checkpoint,
+            out=args.out,
+            data=args.data,
+            int8=args.int8,
+            opset=args.opset,
+            viewnet=args.viewnet,
+            viewnet_out=args.viewnet_out,
+        )
+        result = run(cfg)
+    except (ValueError, FileNotFoundError, DatasetError) as err:
+        print(f"vtr export: {err}")
+        return 1
+    print(json.dumps(result, indent=2))
+    return 0

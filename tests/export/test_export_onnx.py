@@ -1,0 +1,197 @@
+"""export_onnx: checker, metadata, parity with torch, cv2.dnn agrees with onnxruntime, int8, the CLI."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import onnx
+import onnxruntime as ort
+import pytest
+import torch
+
+from export.cli import ExportConfig, int8_path
+from export.cli import run as export_run
+from export.onnx_export import ParityError, check_parity, export_onnx, velocitynet_meta
+from export.quantize import calibration_pairs, compare, quantize_int8
+from runtime import cli
+from runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
+from training.config import VelocityNetConfig, ViewNetConfig, to_dict
+from training.dataset import save_dataset, synthetic_dataset
+from training.models import VelocityNet, ViewNet
+from training.train import atomic_save
+
+SIZE = 32
+
+
+def _velocitynet(seed: int = 0) -> VelocityNet:
+    """A VelocityNet with non-trivial BatchNorm statistics, so folding them is exercised."""
+    torch.manual_seed(seed)
+    net = VelocityNet(VelocityNetConfig(image_size=SIZE, channels=(8, 8, 16, 16, 16, 16, 16)))
+    for m in net.modules():
+        if isinstance(m, torch.nn.BatchNorm2d):
+            m.running_mean.uniform_(-0.2, 0.2)
+            m.running_var.uniform_(0.5, 2.0)
+            m.weight.data.uniform_(0.5, 1.5)
+    return net.eval()
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, VelocityNet, dict]:
+    net = _velocitynet()
+    path = tmp_path_factory.mktemp("onnx") / "velocitynet.onnx"
+    real = [np.random.default_rng(5).random((4, 3, SIZE, SIZE), dtype=np.float32) for _ in range(2)]
+    result = export_onnx(net, path, velocitynet_meta(net.cfg), opset=17, real_inputs=real)
+    return path, net, result
+
+
+def test_export_passes_the_full_checker_and_keeps_the_opset(exported: tuple[Path, VelocityNet, dict]) -> None:
+    path, _, result = exported
+    proto = onnx.load(path)
+    onnx.checker.check_model(proto, full_check=True)
+    assert {o.domain: o.version for o in proto.opset_import}.get("", None) == 17
+    assert [i.name for i in proto.graph.input] == [INPUT_CURRENT, INPUT_SUBGOAL]
+    assert [o.name for o in proto.graph.output] == [OUTPUT_VELOCITIES]
+    assert "BatchNormalization" not in {n.op_type for n in proto.graph.node}  # folded into the convs
+    assert result["max_abs_err_random"] <= 1e-5 and result["max_abs_err_real"] <= 1e-5
+
+
+def test_metadata_round_trips_through_model_meta(exported: tuple[Path, VelocityNet, dict]) -> None:
+    path, net, _ = exported
+    props = {p.key: p.value for p in onnx.load(path).metadata_props}
+    meta = ModelMeta.from_props(props)
+    assert meta == velocitynet_meta(net.cfg)
+    assert (meta.image_height, meta.horizon, meta.v_max, meta.w_max) == (SIZE, 2, 0.5, 1.0)
+    sess_meta = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"]).get_modelmeta()
+    assert sess_meta.custom_metadata_map == props
+
+
+def test_onnxruntime_matches_torch_on_a_dynamic_batch(exported: tuple[Path, VelocityNet, dict]) -> None:
+    path, net, _ = exported
+    rng = np.random.default_rng(9)
+    cur, sub = (rng.random((3, 3, SIZE, SIZE), dtype=np.float32) for _ in range(2))
+    got = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"]).run(
+        None, {INPUT_CURRENT: cur, INPUT_SUBGOAL: sub}
+    )[0]
+    want = net(torch.from_numpy(cur), torch.from_numpy(sub)).detach().numpy()
+    assert got.shape == (3, 2, 2)
+    np.testing.assert_allclose(got, want, atol=1e-5)
+
+
+def test_cv2_dnn_gives_the_same_outputs_as_onnxruntime(exported: tuple[Path, VelocityNet, dict]) -> None:
+    cv2 = pytest.importorskip("cv2")
+    path, _, _ = exported
+    rng = np.random.default_rng(3)
+    sess = ort.InferenceSession(str(path), providers=["CPUExecutionProvider"])
+    net = cv2.dnn.readNetFromONNX(str(path))
+    for _ in range(3):
+        cur, sub = (rng.random((1, 3, SIZE, SIZE), dtype=np.float32) for _ in range(2))
+        want = sess.run(None, {INPUT_CURRENT: cur, INPUT_SUBGOAL: sub})[0]
+        net.setInput(cur, INPUT_CURRENT)
+        net.setInput(sub, INPUT_SUBGOAL)
+        got = np.asarray(net.forward()).reshape(want.shape)
+        np.testing.assert_allclose(got, want, atol=1e-5)
+
+
+def test_parity_check_raises_past_the_tolerance(exported: tuple[Path, VelocityNet, dict]) -> None:
+    path, _, _ = exported
+    other = _velocitynet(seed=1)
+    x = [np.random.default_rng(0).random((2, 3, SIZE, SIZE), dtype=np.float32) for _ in range(2)]
+    with pytest.raises(ParityError, match="tolerance"):
+        check_parity(other, str(path), [INPUT_CURRENT, INPUT_SUBGOAL], x, atol=1e-5)
+
+
+def test_runtime_policy_loads_the_export(exported: tuple[Path, VelocityNet, dict]) -> None:
+    policy_mod = pytest.importorskip("runtime.policy")
+    path, net, _ = exported
+    policy = policy_mod.OnnxPolicy(path)
+    rng = np.random.default_rng(1)
+    cur, sub = (rng.integers(0, 256, (SIZE, SIZE, 3), dtype=np.uint8) for _ in range(2))
+    from runtime.preprocess import to_nchw
+
+    want = net(torch.from_numpy(to_nchw(cur)), torch.from_numpy(to_nchw(sub))).detach().numpy()[0]
+    np.testing.assert_allclose(policy.predict(cur, sub), want, atol=1e-5)
+
+
+def test_viewnet_exports_with_gridsample(tmp_path: Path) -> None:
+    torch.manual_seed(0)
+    net = ViewNet(
+        ViewNetConfig(image_size=SIZE, encoder_channels=(4,) * 8, decoder_channels=(4, 4), flow_resolution=16)
+    )
+    torch.nn.init.normal_(net.flow.weight, std=0.05)
+    meta = ModelMeta(image_height=SIZE, image_width=SIZE)
+    sample = (torch.rand(1, 3, SIZE, SIZE), torch.zeros(1, 2))
+    real = [
+        np.random.default_rng(0).random((2, 3, SIZE, SIZE), dtype=np.float32),
+        np.full((2, 2), 0.3, np.float32),
+    ]
+    path = tmp_path / "viewnet.onnx"
+    result = export_onnx(
+        net,
+        path,
+        meta,
+        opset=17,
+        sample_inputs=sample,
+        real_inputs=real,
+        input_names=("image", "velocity"),
+        output_names=("predicted",),
+        atol=1e-4,
+    )
+    assert "GridSample" in {n.op_type for n in onnx.load(path).graph.node}
+    assert result["max_abs_err_real"] <= 1e-4
+
+
+def test_int8_model_loads_and_stays_close(exported: tuple[Path, VelocityNet, dict], tmp_path: Path) -> None:
+    path, _, _ = exported
+    data = synthetic_dataset(frames=60, size=SIZE, episodes=3, seed=2)
+    cur, sub = calibration_pairs(data.images, data.episodes, count=16, seed=0)
+    q_path = tmp_path / "q.onnx"
+    quantize_int8(path, q_path, cur, sub)
+    proto = onnx.load(q_path)
+    ops = {n.op_type for n in proto.graph.node}
+    assert {"QuantizeLinear", "DequantizeLinear"} <= ops
+    assert ModelMeta.from_props({p.key: p.value for p in proto.metadata_props}).horizon == 2
+    held = calibration_pairs(data.images, data.episodes, count=16, seed=1)
+    stats = compare(path, q_path, *held, repeats=3)
+    assert stats["max_abs_err_v"] < 0.05 and stats["max_abs_err_w"] < 0.1
+    assert stats["speedup"] > 0
+
+
+def test_export_cli_writes_fp32_int8_and_viewnet(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    net = _velocitynet()
+    ckpt = tmp_path / "velocitynet.pt"
+    atomic_save(
+        {"kind": "velocitynet", "model_config": to_dict(net.cfg), "state_dict": net.state_dict()}, ckpt
+    )
+    vcfg = ViewNetConfig(
+        image_size=SIZE, encoder_channels=(4,) * 8, decoder_channels=(4, 4), flow_resolution=16
+    )
+    vckpt = tmp_path / "viewnet.pt"
+    atomic_save(
+        {"kind": "viewnet", "model_config": to_dict(vcfg), "state_dict": ViewNet(vcfg).state_dict()}, vckpt
+    )
+    data = tmp_path / "d.npz"
+    save_dataset(data, synthetic_dataset(frames=60, size=SIZE, episodes=3))
+    out = tmp_path / "m" / "velocitynet.onnx"
+    args = [
+        "export",
+        "--checkpoint",
+        str(ckpt),
+        "--out",
+        str(out),
+        "--int8",
+        "--data",
+        str(data),
+        "--viewnet",
+        str(vckpt),
+    ]
+    assert cli.main(args) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert out.exists() and int8_path(out).exists() and (out.parent / "viewnet.onnx").exists()
+    assert report["fp32"]["max_abs_err_real"] <= 1e-4
+    assert "speedup" in report["int8"]
+    # int8 without calibration frames, or a ViewNet given as the policy, are clear errors
+    assert cli.main(["export", "--checkpoint", str(ckpt), "--out", str(out), "--int8"]) == 1
+    with pytest.raises(ValueError, match="holds a viewnet"):
+        export_run(ExportConfig(checkpoint=str(vckpt), out=str(out)))
