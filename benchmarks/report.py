@@ -79,17 +79,23 @@ def eval_section(ev: dict[str, Any]) -> list[str]:
 
     cfg = ev["config"]
     cmd = f"vtr eval --model {cfg['model']} --noise {cfg['noise']}"
+    if cfg.get("routes"):
+        cmd += " --routes " + " ".join(cfg["routes"])
+    if cfg.get("e_m") is not None:
+        cmd += f" --e-m {cfg['e_m']}"
+    if cfg.get("oracle"):
+        cmd += " --oracle"
     if cfg.get("viewnet"):
-        cmd += f" --viewnet {cfg['viewnet']}"
+        cmd += f" --viewnet {cfg['viewnet']} --mpc-samples {cfg['mpc_samples']}"
     if cfg.get("ablation_model"):
         cmd += f" --ablation-model {cfg['ablation_model']}"
     body = markdown_report(ev).splitlines()
     return ["### Closed-loop tracking", "", f"`{cmd} --json ... --plots ...`", "", *body[1:]]
 
 
-def build(latency: dict[str, Any] | None, evaluation: dict[str, Any] | None) -> str:
+def build(latency: dict[str, Any] | None, evaluations: list[dict[str, Any]]) -> str:
     lines = ["## Results", ""]
-    if evaluation is not None:
+    for evaluation in evaluations:
         lines += eval_section(evaluation) + [""]
     if latency is not None:
         lines += latency_section(latency) + [""]
@@ -99,14 +105,16 @@ def build(latency: dict[str, Any] | None, evaluation: dict[str, Any] | None) -> 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--latency", type=Path, default=None, help="JSON of vtr bench latency")
-    parser.add_argument("--eval", type=Path, default=None, help="JSON of vtr eval")
+    parser.add_argument(
+        "--eval", type=Path, nargs="*", default=[], help="JSON files of vtr eval (one section each)"
+    )
     parser.add_argument("--out", type=Path, default=None, help="write here (default: stdout)")
     args = parser.parse_args(argv)
-    if args.latency is None and args.eval is None:
+    if args.latency is None and not args.eval:
         parser.error("give --latency and/or --eval")
     lat = json.loads(args.latency.read_text()) if args.latency else None
-    ev = json.loads(args.eval.read_text()) if args.eval else None
-    text = build(lat, ev)
+    evs = [json.loads(p.read_text()) for p in args.eval]
+    text = build(lat, evs)
     if args.out is None:
         print(text)
     else:
