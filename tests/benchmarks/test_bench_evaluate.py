@@ -71,12 +71,15 @@ def test_eval_quick_writes_every_output(small_model: Path, short_route: Path, tm
     assert "| short | velocitynet |" in md and "Bar (issue 5)" in md
     pngs = sorted(p.name for p in (tmp_path / "plots").glob("*.png"))
     assert pngs == ["short_error.png", "short_path.png"]
+    from benchmarks import report
+
+    section = report.build(None, [on_disk])
+    assert "### Closed-loop tracking" in section and f"--routes {short_route}" in section
 
 
 def test_open_loop_drifts_under_noise_and_not_without(short_route: Path) -> None:
-    from runtime.route_script import load_route_script
-
     from benchmarks import evaluate
+    from runtime.route_script import load_route_script
 
     route, script = evaluate.teach(short_route, (32, 32), 0.1)
     clean = evaluate.repeat_open_loop(

@@ -65,6 +65,10 @@ def test_latency_smoke_run(tiny_model: Path, tmp_path: Path) -> None:
     on_disk = json.loads((tmp_path / "lat.json").read_text())
     assert on_disk["gflop"] == pytest.approx(result["gflop"])
     assert "targets (issue 5)" in latency.format_report(result)
+    from benchmarks import report
+
+    md = report.build(on_disk, [])
+    assert "| whole_step |" in md and "| 1 | ort_fp32 |" in md and "peak RSS" in md
 
 
 def test_config_rejects_bad_values(tiny_model: Path) -> None:
