@@ -114,3 +114,17 @@ def test_pose_oracle_closes_the_loop(small_model: Path, short_route: Path) -> No
     assert run["completed"] and run["outcome"] == "finished"
     assert run["position_error_m"]["mean"] < 0.02
     assert sorted(run["switch_poses"]["index"]) == list(range(run["subgoals"]))
+
+
+def test_vtr_eval_quick_cli(small_model: Path, short_route: Path, tmp_path: Path) -> None:
+    from runtime.cli import main
+
+    out = tmp_path / "e.json"
+    assert (
+        main(
+            ["eval", "--model", str(small_model), "--quick", "--routes", str(short_route), "--json", str(out)]
+        )
+        == 0
+    )
+    assert json.loads(out.read_text())["routes"][0]["name"] == "short"
+    assert main(["eval", "--model", str(small_model), "--noise", "2"]) == 2

@@ -78,3 +78,15 @@ def test_config_rejects_bad_values(tiny_model: Path) -> None:
         latency.LatencyConfig(model=tiny_model, backends=("nope",))
     with pytest.raises(ValueError, match="not found"):
         latency.LatencyConfig(model=tiny_model.with_name("missing.onnx"))
+
+
+def test_vtr_bench_latency_cli(tiny_model: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from runtime.cli import main
+
+    argv = ["bench", "latency", "--model", str(tiny_model), "--steps", "3", "--warmup", "1", "--thread-counts", "1",
+            "--backends", "ort_fp32", "--matmul-size", "32", "--no-zmq", "--no-memory", "--sim-steps", "0",
+            "--json", str(tmp_path / "l.json")]  # fmt: skip
+    assert main(argv) == 0
+    assert "whole_step" in capsys.readouterr().out
+    assert json.loads((tmp_path / "l.json").read_text())["stages"]["stages"]["whole_step"]["n"] == 3
+    assert main(["bench", "latency", "--model", str(tmp_path / "missing.onnx")]) == 2
