@@ -21,7 +21,10 @@ Beyond the paper, each switchable in :class:`ControllerConfig`:
 - **Stall guard** (``stall_steps`` > 0): if the error to the current subgoal has not dropped by
   ``stall_min_improvement`` below its best value for ``stall_steps`` consecutive commands, look at the
   next ``lookahead`` subgoals; JUMP to the best-matching one if its error is at most ``jump_factor * e_m``
-  and lower than the current error, else STALLED (terminal: the daemon stops the robot and says why).
+  and lower than the current error; else, if the current error itself is at most ``jump_factor * e_m``,
+  ADVANCE (the robot sits on a plateau next to the subgoal: a trained policy has a small dead zone near
+  its goal, and the error is steep in yaw, so 1 degree short can sit just above e_m); else STALLED
+  (terminal: the daemon stops the robot and says why).
 - **Start-anywhere localisation** (``localise=True``): on the first image, JUMP to the best-matching
   subgoal over the whole route if its error is at most ``localise_max_error`` (default ``3 * e_m``), else
   start at subgoal 0 as the paper does.
@@ -78,7 +81,7 @@ class ControllerConfig:
     #: Upper bound on a calibrated e_m.
     e_m_max: float = 64.0
     #: Commands without progress before the stall guard acts; 0 disables it (the paper has none).
-    stall_steps: int = 20
+    stall_steps: int = 10
     #: Progress means the error fell this much (0..255 scale) below its best at the current subgoal.
     stall_min_improvement: float = 0.25
     #: How many subgoals ahead the stall guard looks.
@@ -150,6 +153,7 @@ class Controller:
         self.index = 0
         self.stalled = False
         self.jumps = 0
+        self.plateaus = 0  # subgoals accepted by the stall guard at error <= jump_factor * e_m
         self.localised_to: int | None = None
         self._localise_pending = self.cfg.localise
         self._best = math.inf
@@ -217,12 +221,19 @@ class Controller:
     def _unstall(self, image: np.ndarray, error: float) -> Decision:
         ahead = range(self.index + 1, min(self.index + 1 + self.cfg.lookahead, len(self)))
         candidates = [(image_error(image, self.subgoals[j]), j) for j in ahead]
+        bound = self.cfg.jump_factor * self.e_m
         if candidates:
             best_error, best = min(candidates)
-            if best_error <= self.cfg.jump_factor * self.e_m and best_error < error:
+            if best_error <= bound and best_error < error:
                 self.jumps += 1
                 self._set_index(best)
                 return Decision(Action.JUMP, best, best_error, note="stall guard")
+        if error <= bound:
+            # The policy has brought the robot as close as it can (its output has a small dead zone near
+            # the goal): accept the subgoal rather than give up a route the robot is still on.
+            self.plateaus += 1
+            self._set_index(self.index + 1)
+            return Decision(Action.ADVANCE, self.index, error, note="accepted on plateau")
         self.stalled = True
         return Decision(
             Action.STALLED,

@@ -73,6 +73,21 @@ def test_stall_guard_stops_when_nothing_is_close():
     assert c.decide(flat(0)).action is Action.STALLED  # terminal
 
 
+def test_stall_guard_accepts_a_plateau_next_to_the_subgoal():
+    cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, stall_steps=2, lookahead=2, jump_factor=2.0)
+    c = Controller(subgoals(0, 60, 120), cfg)
+    # stuck at error 8: above e_m, within 2 * e_m, and nothing ahead is closer
+    assert [c.decide(flat(8)).action for _ in range(2)] == [Action.COMMAND] * 2
+    d = c.decide(flat(8))
+    assert d.action is Action.ADVANCE and d.note == "accepted on plateau" and c.index == 1
+    assert c.plateaus == 1 and not c.stalled
+    # a plateau just outside 2 * e_m is still a stall
+    c = Controller(subgoals(0, 60, 120), cfg)
+    for _ in range(2):
+        c.decide(flat(11))
+    assert c.decide(flat(11)).action is Action.STALLED
+
+
 def test_progress_resets_the_stall_counter():
     cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, stall_steps=2)
     c = Controller(subgoals(0, 100), cfg)
