@@ -220,7 +220,7 @@ def _default() -> Preset:
         ),
         velocitynet=VelocityNetConfig(channels=(16, 24, 32, 48, 64, 96, 128)),
         train_viewnet=TrainConfig(batch_size=16, steps=4000, val_every=500, num_threads=2),
-        train_velocitynet=TrainConfig(batch_size=16, steps=2000, val_every=500, num_threads=2),
+        train_velocitynet=TrainConfig(batch_size=16, steps=4000, val_every=500, num_threads=2),
     )
 
 
