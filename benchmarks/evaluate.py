@@ -384,6 +384,7 @@ class ViewNetMPC:
         self, checkpoint: Path, horizon: int, samples: int, iterations: int, threads: int, seed: int
     ):
         import torch
+
         from training.train import load_model
 
         torch.set_num_threads(threads)
