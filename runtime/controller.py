@@ -16,8 +16,10 @@ Beyond the paper, each switchable in :class:`ControllerConfig`:
   I_{k+1}| the image change between consecutive taught subgoals, ``e_m = clip(calib_fraction *
   quantile(d, calib_quantile), e_m_min, e_m_max)``. Rationale: a robot standing on subgoal k sees an error
   of about d_k to subgoal k+1; e_m must sit below it or subgoals are skipped without moving, and well
-  above zero or the robot can never get close enough. Half the median spacing (the defaults) asks the
-  robot to close at least half of each gap. ``e_m_mode="fixed"`` uses ``e_m`` (the paper's 17).
+  above zero or the robot can never get close enough. Three quarters of the median spacing (the
+  default) asks the robot to close at least a quarter of each gap. Measured with the shipped model on 5
+  routes at noise 0.05: half the spacing stalled on 2 of them (1 degree of yaw already costs an error of
+  about 10 on our textured walls), three quarters completed all 5 with position errors within 2 mm of it. ``e_m_mode="fixed"`` uses ``e_m`` (the paper's 17).
 - **Stall guard** (``stall_steps`` > 0): if the error to the current subgoal has not dropped by
   ``stall_min_improvement`` below its best value for ``stall_steps`` consecutive commands, look at the
   next ``lookahead`` subgoals; JUMP to the best-matching one if its error is at most ``jump_factor * e_m``
@@ -75,7 +77,7 @@ class ControllerConfig:
     #: Quantile of the consecutive-subgoal errors used by calibration (0.5 = median).
     calib_quantile: float = 0.5
     #: Fraction of that quantile taken as e_m.
-    calib_fraction: float = 0.5
+    calib_fraction: float = 0.75
     #: Lower bound on a calibrated e_m (below it sensor noise alone would stall the robot).
     e_m_min: float = 1.0
     #: Upper bound on a calibrated e_m.

@@ -40,12 +40,12 @@ def test_algorithm_1_decisions():
     assert d.action is Action.FINISHED and math.isnan(d.error)
 
 
-def test_calibrated_e_m_is_half_the_median_consecutive_error():
+def test_calibrated_e_m_is_three_quarters_of_the_median_consecutive_error():
     images = subgoals(0, 10, 30, 60)  # consecutive errors 10, 20, 30
     np.testing.assert_allclose(consecutive_errors(images), [10, 20, 30])
     cfg = ControllerConfig()
-    assert calibrate_e_m(images, cfg) == pytest.approx(10.0)
-    assert Controller(images, cfg).e_m == pytest.approx(10.0)
+    assert calibrate_e_m(images, cfg) == pytest.approx(15.0)
+    assert Controller(images, cfg).e_m == pytest.approx(15.0)
     assert calibrate_e_m(images, ControllerConfig(calib_quantile=1.0, calib_fraction=1.0)) == pytest.approx(
         30
     )
