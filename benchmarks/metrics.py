@@ -166,20 +166,25 @@ def route_metrics(
         commands: (K, 2) commands (v, w) the controller sent, in order.
         subgoals_reached: how many subgoals the controller passed.
         per_step: the repeated path is densified to this many poses per control step (see densify_path)
-            for the paper's errors and the cross-track error; the step-sampled errors are reported too.
+            for the path errors and the cross-track error.
+
+    The paper's errors (``position_error_m``, ``yaw_error_deg``) take the repeated poses as sampled at
+    each velocity command, as its figures do ("real-time robot coordinates upon receiving generated
+    velocity commands"); ``path_*`` take the continuous path, which also credits the robot for passing
+    through a taught pose between two commands.
     """
     taught = np.asarray(taught_poses, dtype=np.float64)
     repeated = np.asarray(repeated_poses, dtype=np.float64)
     if taught.ndim != 2 or taught.shape[1] != 3 or repeated.ndim != 2 or repeated.shape[1] != 3:
         raise ValueError(f"poses must be (n, 3) arrays, got {taught.shape} and {repeated.shape}")
     dense = densify_path(repeated, per_step)
-    per_subgoal_m = nearest_point_errors(taught[:, :2], dense[:, :2])
-    per_subgoal_deg = nearest_yaw_errors(taught[:, 2], dense[:, 2])
+    per_subgoal_m = nearest_point_errors(taught[:, :2], repeated[:, :2])
+    per_subgoal_deg = nearest_yaw_errors(taught[:, 2], repeated[:, 2])
     return {
         "position_error_m": error_stats(per_subgoal_m),
         "yaw_error_deg": error_stats(per_subgoal_deg),
-        "step_sampled_position_error_m": error_stats(nearest_point_errors(taught[:, :2], repeated[:, :2])),
-        "step_sampled_yaw_error_deg": error_stats(nearest_yaw_errors(taught[:, 2], repeated[:, 2])),
+        "path_position_error_m": error_stats(nearest_point_errors(taught[:, :2], dense[:, :2])),
+        "path_yaw_error_deg": error_stats(nearest_yaw_errors(taught[:, 2], dense[:, 2])),
         "path_samples_per_step": per_step,
         "per_subgoal_position_error_m": per_subgoal_m.tolist(),
         "per_subgoal_yaw_error_deg": per_subgoal_deg.tolist(),

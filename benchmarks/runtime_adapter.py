@@ -157,11 +157,10 @@ def zmq_round_trip(steps: int, warmup: int, image_size: tuple[int, int] = (128, 
     Each is the client's full exchange (encode, send, server work, receive, validate); the server's share
     (rendering the camera) is measured in-process alongside, so the transport's cost is the difference.
     """
-    from runtime.client import SimClient
-    from sim2d.server import ServerConfig, start_server_process
-
     from benchmarks.latency import time_interleaved
+    from runtime.client import SimClient
     from sim2d import CameraConfig, SimConfig, Simulator
+    from sim2d.server import ServerConfig, start_server_process
 
     h, w = image_size
     sim_cfg = SimConfig(camera=CameraConfig(width=w, height=h), noise=0.0)

@@ -90,10 +90,14 @@ class SimConfig:
     """Physics substep (s); a step of `duration` runs ceil(duration / physics_dt) equal substeps. At 0.5 m/s
     a substep moves 1 cm, far less than the robot radius and the wall thickness, so nothing tunnels."""
     noise: float = 0.0
-    """Actuation noise level, 0 = off. Each step() draws, from the generator seeded by reset(seed),
-    v' = v * (1 + noise * e1) + 0.1 * noise * V_MAX * e2 and w' = w * (1 + noise * e3) + 0.1 * noise * W_MAX * e4
-    with e_i ~ N(0, 1), held for the whole step. The additive term only applies to a non-zero command (a
-    stopped motor does not creep). So noise=0.1 means 10% speed error plus 0.005 m/s, 0.01 rad/s jitter."""
+    """Actuation noise level, 0 = off. Two parts, both seeded by reset(seed):
+    systematic (drawn once per reset, like a miscalibrated robot): v <- v * (1 + noise * b1),
+    w <- w * (1 + noise * b2) + 0.5 * noise * b3 * v (a curving drift, rad per metre driven);
+    then per step: v' = v * (1 + noise * e1) + 0.1 * noise * V_MAX * e2 and
+    w' = w * (1 + noise * e3) + 0.1 * noise * W_MAX * e4, held for the whole step,
+    with b_i, e_i ~ N(0, 1). The additive jitter only applies to a non-zero command (a stopped motor does
+    not creep). So noise=0.05 means a 5% speed-scale error, a 0.025 rad/m curvature drift, 5% per-step
+    speed error, and 0.0025 m/s, 0.005 rad/s jitter (1 sigma each)."""
     v_max: float = V_MAX
     """Clamp on |v| (m/s); commands beyond it are clamped, not rejected."""
     w_max: float = W_MAX
