@@ -88,6 +88,7 @@ class RepeatSummary:
     nonfinite_outputs: int
     jumps: int
     localised_to: int | None
+    plateaus: int = 0  # subgoals the stall guard accepted next to, at error <= jump_factor * e_m
     detail: str = ""
     mean_latency_ms: dict[str, float] = field(default_factory=dict)
 
@@ -273,6 +274,7 @@ def repeat(
         nonfinite_outputs=int(getattr(policy, "nonfinite_count", 0)),
         jumps=controller.jumps,
         localised_to=controller.localised_to,
+        plateaus=controller.plateaus,
         detail=detail,
         mean_latency_ms={k: round(x / steps, 4) for k, x in totals.items()} if steps else {},
     )

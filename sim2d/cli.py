@@ -70,7 +70,7 @@ def run_snapshot(cfg: SnapshotConfig) -> int:
     return 0
 
 
-def run_serve(bind: str, noise: float, house: str, brightness: float) -> int:
+def run_serve(bind: str, noise: float, house: str, brightness: float, mode: str = "lockstep") -> int:
     from sim2d.config import CameraConfig, SimConfig
 
     try:
@@ -81,7 +81,7 @@ def run_serve(bind: str, noise: float, house: str, brightness: float) -> int:
         )
         return 3
     sim_cfg = SimConfig(house=house, noise=noise, camera=CameraConfig(brightness=brightness))
-    return int(serve(ServerConfig(bind=bind, sim=sim_cfg)) or 0)
+    return int(serve(ServerConfig(bind=bind, sim=sim_cfg, mode=mode)) or 0)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -106,6 +106,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     serve.add_argument("--house", default="house", help="map name in sim2d/maps or a path")
     serve.add_argument("--brightness", type=float, default=1.0, help="camera brightness multiplier")
+    serve.add_argument(
+        "--mode",
+        choices=("lockstep", "realtime"),
+        default="lockstep",
+        help="lockstep: time advances only in step requests (deterministic); realtime: follows the wall clock",
+    )
 
 
 def run_cli(args: argparse.Namespace) -> int:
@@ -121,7 +127,7 @@ def run_cli(args: argparse.Namespace) -> int:
                 brightness=args.brightness,
             )
             return run_snapshot(cfg)
-        return run_serve(args.bind, args.noise, args.house, args.brightness)
+        return run_serve(args.bind, args.noise, args.house, args.brightness, args.mode)
     except ValueError as err:  # bad configuration values or a bad map file
         print(f"vtr sim {args.sim_command}: {err}", file=sys.stderr)
         return 2

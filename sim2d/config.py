@@ -40,9 +40,9 @@ class CameraConfig:
     brightness: float = 1.0
     """Multiplier on every pixel before clipping to 0..255 (robustness tests: 0.5 darker, 1.5 brighter)."""
     supersample: int = 1
-    """Render at supersample x the resolution and average down. 1 by default: the floor is already
-    anti-aliased by mip levels chosen per pixel and walls are drawn from coarse textures, so 2 (four
-    times the cost) mostly smooths wall edges and furniture silhouettes."""
+    """Render at supersample x the resolution and average down. 1 by default: textures are already
+    anti-aliased by mip levels (per row on the floor, per column on surfaces), so 2 (four times the cost)
+    only smooths silhouette edges, not worth halving the simulator's throughput for training data."""
     max_range: float = 20.0
     """Rays that hit nothing within this distance (m) show the far colour."""
     shading_distance: float = 6.0
@@ -86,13 +86,18 @@ class SimConfig:
     """Camera parameters."""
     robot_radius: float = 0.17
     """Radius of the circular differential-drive robot (m)."""
-    physics_dt: float = 0.01
-    """Physics substep (s); a step of `duration` runs ceil(duration / physics_dt) substeps."""
+    physics_dt: float = 0.02
+    """Physics substep (s); a step of `duration` runs ceil(duration / physics_dt) equal substeps. At 0.5 m/s
+    a substep moves 1 cm, far less than the robot radius and the wall thickness, so nothing tunnels."""
     noise: float = 0.0
-    """Actuation noise level, 0 = off. Each step() draws, from the generator seeded by reset(seed),
-    v' = v * (1 + noise * e1) + 0.1 * noise * V_MAX * e2 and w' = w * (1 + noise * e3) + 0.1 * noise * W_MAX * e4
-    with e_i ~ N(0, 1), held for the whole step. The additive term only applies to a non-zero command (a
-    stopped motor does not creep). So noise=0.1 means 10% speed error plus 0.005 m/s, 0.01 rad/s jitter."""
+    """Actuation noise level, 0 = off. Two parts, both seeded by reset(seed):
+    systematic (drawn once per reset, like a miscalibrated robot): v <- v * (1 + noise * b1),
+    w <- w * (1 + noise * b2) + 0.5 * noise * b3 * v (a curving drift, rad per metre driven);
+    then per step: v' = v * (1 + noise * e1) + 0.1 * noise * V_MAX * e2 and
+    w' = w * (1 + noise * e3) + 0.1 * noise * W_MAX * e4, held for the whole step,
+    with b_i, e_i ~ N(0, 1). The additive jitter only applies to a non-zero command (a stopped motor does
+    not creep). So noise=0.05 means a 5% speed-scale error, a 0.025 rad/m curvature drift, 5% per-step
+    speed error, and 0.0025 m/s, 0.005 rad/s jitter (1 sigma each)."""
     v_max: float = V_MAX
     """Clamp on |v| (m/s); commands beyond it are clamped, not rejected."""
     w_max: float = W_MAX

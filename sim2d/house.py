@@ -32,7 +32,7 @@ from sim2d.textures import make_texture, mosaic_floor
 
 MAPS_DIR = Path(__file__).resolve().parent / "maps"
 FLOOR_TEX = 512  # texels per side of the floor mosaic (power of two)
-CIRCLE_SIDES = 20  # circles are drawn as polygons with this many faces (physics uses the true circle)
+CIRCLE_SIDES = 16  # circles are drawn as polygons with this many faces (physics uses the true circle)
 # Start poses are checked against a robot of this radius, the largest one we expect to simulate.
 START_CLEARANCE = 0.25
 
@@ -145,6 +145,7 @@ class House:
         for i, f in enumerate(v.list(data, "furniture", min_len=0)):
             self.furniture.append(v.furniture(f, f"furniture[{i}]", tex_index))
 
+        self._build_obstacles()
         all_pts = np.concatenate([r.polygon for r in self.rooms] + self.wall_boxes)
         lo, hi = all_pts.min(axis=0), all_pts.max(axis=0)
         self.bounds: tuple[float, float, float, float] = (
@@ -193,30 +194,41 @@ class House:
 
     def is_free(self, x: float, y: float, radius: float) -> bool:
         """True if a disc of `radius` at (x, y) lies inside the house and touches no wall or furniture."""
-        if self.room_at(x, y) is None:
-            return False
-        for box in self.wall_boxes:
-            if _inside(box, x, y) or _poly_distance(box, x, y) < radius:
-                return False
-        for f in self.furniture:
-            if f.shape == "circle":
-                if math.hypot(x - f.center[0], y - f.center[1]) < f.radius + radius:
-                    return False
-            elif _inside(f.vertices, x, y) or _poly_distance(f.vertices, x, y) < radius:
-                return False
-        return True
+        return self.room_at(x, y) is not None and self.clearance(x, y) >= radius
 
     def clearance(self, x: float, y: float) -> float:
         """Distance from (x, y) to the nearest wall or furniture surface (0 inside one)."""
-        best = math.inf
-        for box in self.wall_boxes:
-            best = min(best, 0.0 if _inside(box, x, y) else _poly_distance(box, x, y))
-        for f in self.furniture:
-            if f.shape == "circle":
-                best = min(best, max(0.0, math.hypot(x - f.center[0], y - f.center[1]) - f.radius))
-            else:
-                best = min(best, 0.0 if _inside(f.vertices, x, y) else _poly_distance(f.vertices, x, y))
+        a, ab, inv_len2, poly_id, n_poly = self._edges
+        ap = np.array([x, y]) - a  # (E, 2)
+        t = np.clip(np.einsum("ij,ij->i", ap, ab) * inv_len2, 0.0, 1.0)
+        d = ap - ab * t[:, None]
+        best = float(np.sqrt(np.min(d[:, 0] ** 2 + d[:, 1] ** 2)))
+        # Even-odd rule per polygon: count edges crossed by a ray from (x, y) towards +x.
+        b_y = a[:, 1] + ab[:, 1]
+        straddle = (a[:, 1] > y) != (b_y > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x_cross = a[:, 0] + (y - a[:, 1]) * ab[:, 0] / ab[:, 1]
+        crossings = np.bincount(poly_id, weights=straddle & (x < x_cross), minlength=n_poly)
+        if np.any(crossings % 2 == 1):
+            return 0.0
+        centers, radii = self._circles
+        if len(radii):
+            best = min(best, float(np.max([0.0, np.min(np.hypot(*(centers - (x, y)).T) - radii)])))
         return best
+
+    def _build_obstacles(self) -> None:
+        """Edges of every obstacle polygon (walls, polygonal furniture) and the circles, as arrays."""
+        polys = list(self.wall_boxes) + [f.vertices for f in self.furniture if f.shape != "circle"]
+        a = np.concatenate(polys)
+        b = np.concatenate([np.roll(p, -1, axis=0) for p in polys])
+        ab = b - a
+        poly_id = np.concatenate([np.full(len(p), i) for i, p in enumerate(polys)])
+        self._edges = (a, ab, 1.0 / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), poly_id, len(polys))
+        circles = [f for f in self.furniture if f.shape == "circle"]
+        self._circles = (
+            np.array([f.center for f in circles], dtype=np.float64).reshape(-1, 2),
+            np.array([f.radius for f in circles], dtype=np.float64),
+        )
 
     # ----------------------------------------------------------------------------------------- building
     def _build_segments(self, tex_index: dict[str, int]) -> Segments:
@@ -336,17 +348,6 @@ def _inside(poly: np.ndarray, x: float, y: float) -> bool:
     with np.errstate(divide="ignore", invalid="ignore"):
         xint = px + (y - py) * (qx - px) / (qy - py)
     return bool(np.count_nonzero(crosses & (x < xint)) % 2)
-
-
-def _poly_distance(poly: np.ndarray, x: float, y: float) -> float:
-    """Distance from (x, y) to the boundary of a polygon."""
-    a = poly
-    b = np.roll(poly, -1, axis=0)
-    ab = b - a
-    ap = np.array([x, y]) - a
-    t = np.clip(np.sum(ap * ab, axis=1) / np.maximum(np.sum(ab * ab, axis=1), 1e-12), 0.0, 1.0)
-    closest = a + ab * t[:, None]
-    return float(np.min(np.hypot(closest[:, 0] - x, closest[:, 1] - y)))
 
 
 def _signed_area(poly: np.ndarray) -> float:

@@ -1,7 +1,8 @@
 """The simulator: a house, a differential-drive robot and its camera (numpy + pymunk only).
 
-A pure core, `sim_step(state, v, w, duration, rng, params) -> state`, advances physics; `Simulator`
-keeps the state and renders. The random generator for actuation noise is created by reset(seed), so the
+A functional core, `sim_step(state, v, w, duration, rng, cfg) -> state`, advances physics (the pymunk
+world inside the state is updated in place: pymunk spaces cannot be copied cheaply); `Simulator` keeps
+the state and renders. The random generator for actuation noise is created by reset(seed), so the
 same seed and the same commands give the same images, bit for bit.
 """
 
@@ -25,14 +26,39 @@ class SimState:
     world: World
     time: float
     collided: bool
+    bias: tuple[float, float, float] = (1.0, 1.0, 0.0)  # (v scale, w scale, curvature rad/m), see draw_bias
 
 
-def noisy_command(v: float, w: float, cfg: SimConfig, rng: np.random.Generator) -> tuple[float, float]:
-    """Actuation noise model (see SimConfig.noise); draws 4 normals per call whatever the command is,
-    so the random stream stays aligned between runs that differ only in their commands."""
+#: Curvature drift per unit of noise (rad per metre driven): unequal wheel radii make a robot told to
+#: drive straight curve; at noise 0.05 about 0.025 rad/m, so 2 m of open-loop driving end ~5 cm aside.
+CURVATURE_PER_NOISE = 0.5
+
+
+def draw_bias(cfg: SimConfig, seed: int) -> tuple[float, float, float]:
+    """The systematic part of the actuation noise, drawn once per reset(seed): a real robot's odometry
+    error is mostly a calibration error (wheel radius, track width) that does not average out, which is
+    what makes open-loop replay drift and what the camera has to correct."""
+    if cfg.noise == 0.0:
+        return (1.0, 1.0, 0.0)
+    b = np.random.default_rng([seed, 1]).standard_normal(3)
+    return (1.0 + cfg.noise * b[0], 1.0 + cfg.noise * b[1], CURVATURE_PER_NOISE * cfg.noise * b[2])
+
+
+def noisy_command(
+    v: float,
+    w: float,
+    cfg: SimConfig,
+    rng: np.random.Generator,
+    bias: tuple[float, float, float] = (1.0, 1.0, 0.0),
+) -> tuple[float, float]:
+    """Actuation noise model (see SimConfig.noise): the episode's systematic `bias`, then per-step
+    jitter. Draws 4 normals per call whatever the command is, so the random stream stays aligned
+    between runs that differ only in their commands."""
     e = rng.standard_normal(4)
     if cfg.noise == 0.0:
         return v, w
+    v_scale, w_scale, curvature = bias
+    v, w = v * v_scale, w * w_scale + curvature * v
     vn = v * (1.0 + cfg.noise * e[0]) + (0.1 * cfg.noise * cfg.v_max * e[1] if v != 0.0 else 0.0)
     wn = w * (1.0 + cfg.noise * e[2]) + (0.1 * cfg.noise * cfg.w_max * e[3] if w != 0.0 else 0.0)
     return vn, wn
@@ -50,9 +76,9 @@ def sim_step(
 ) -> SimState:
     """Apply the clamped, noisy command for `duration` seconds of simulated time."""
     v, w = clamp_command(v, w, cfg)
-    v, w = noisy_command(v, w, cfg, rng)
+    v, w = noisy_command(v, w, cfg, rng, state.bias)
     touched = advance(state.world, v, w, duration, cfg.physics_dt)
-    return SimState(state.world, state.time + duration, touched)
+    return SimState(state.world, state.time + duration, touched, state.bias)
 
 
 class Simulator:
@@ -82,9 +108,10 @@ class Simulator:
                 f"reset pose ({pose.x:.3f}, {pose.y:.3f}) is not free space for a robot of radius "
                 f"{self.cfg.robot_radius} m"
             )
-        self._rng = np.random.default_rng(0 if seed is None else seed)
+        seed = 0 if seed is None else seed
+        self._rng = np.random.default_rng(seed)
         world = build_world(self.house, pose, self.cfg.robot_radius)
-        self._state = SimState(world, 0.0, False)
+        self._state = SimState(world, 0.0, False, draw_bias(self.cfg, seed))
         return self.observe()
 
     def step(self, v: float, w: float, duration: float) -> np.ndarray:

@@ -47,7 +47,7 @@ def top_down(sim: Simulator, px_per_m: float = 60.0) -> np.ndarray:
     shift = {"shift": 4, "lineType": cv2.LINE_AA}
     pose = sim.pose
     rc = sim.camera.raycast(pose.x, pose.y, pose.yaw)
-    depth = np.minimum(rc["wall_depth"], rc["furn_depth"])
+    depth = rc["depth"].min(axis=0)
     hits = np.stack([pose.x + depth * rc["dx"], pose.y + depth * rc["dy"]], axis=1)
     view = np.concatenate([[[pose.x, pose.y]], hits])
     overlay = img.copy()

@@ -25,7 +25,11 @@ def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resume", action="store_true", help="continue from the checkpoint in --out")
     p.add_argument("--steps", type=int, help="override the preset's number of optimiser steps")
     p.add_argument("--batch-size", type=int, help="override the preset's batch size (per process)")
-    p.add_argument("--lr", type=float, help="override the learning rate (paper: 1e-4)")
+    p.add_argument("--lr", type=float, help="override the learning rate (paper: 1e-4; default preset: 1e-3)")
+    p.add_argument("--w1", type=float, help="override the MPC loss image weight (paper: 0.8)")
+    p.add_argument(
+        "--w2", type=float, help="override the MPC loss velocity weight (paper: 0.3; 0 for the ablation)"
+    )
     p.add_argument("--seed", type=int, help="override the seed")
     p.add_argument("--device", help="auto | cpu | cuda | cuda:K (default: auto)")
     p.add_argument("--threads", type=int, help="torch CPU threads (0: torch's default)")
@@ -166,6 +170,7 @@ def run_cli(args: argparse.Namespace) -> int:
     from training.train import train_velocitynet, train_viewnet
 
     preset = get_preset(args.preset)
+    preset.loss = override(preset.loss, w1=args.w1, w2=args.w2)
     try:
         if args.stage == "viewnet":
             train_viewnet(

@@ -40,12 +40,12 @@ def test_algorithm_1_decisions():
     assert d.action is Action.FINISHED and math.isnan(d.error)
 
 
-def test_calibrated_e_m_is_half_the_median_consecutive_error():
+def test_calibrated_e_m_is_three_quarters_of_the_median_consecutive_error():
     images = subgoals(0, 10, 30, 60)  # consecutive errors 10, 20, 30
     np.testing.assert_allclose(consecutive_errors(images), [10, 20, 30])
     cfg = ControllerConfig()
-    assert calibrate_e_m(images, cfg) == pytest.approx(10.0)
-    assert Controller(images, cfg).e_m == pytest.approx(10.0)
+    assert calibrate_e_m(images, cfg) == pytest.approx(15.0)
+    assert Controller(images, cfg).e_m == pytest.approx(15.0)
     assert calibrate_e_m(images, ControllerConfig(calib_quantile=1.0, calib_fraction=1.0)) == pytest.approx(
         30
     )
@@ -71,6 +71,21 @@ def test_stall_guard_stops_when_nothing_is_close():
     d = c.decide(flat(200))
     assert d.action is Action.STALLED and "stopped falling" in d.note and c.stalled
     assert c.decide(flat(0)).action is Action.STALLED  # terminal
+
+
+def test_stall_guard_accepts_a_plateau_next_to_the_subgoal():
+    cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, stall_steps=2, lookahead=2, jump_factor=2.0)
+    c = Controller(subgoals(0, 60, 120), cfg)
+    # stuck at error 8: above e_m, within 2 * e_m, and nothing ahead is closer
+    assert [c.decide(flat(8)).action for _ in range(2)] == [Action.COMMAND] * 2
+    d = c.decide(flat(8))
+    assert d.action is Action.ADVANCE and d.note == "accepted on plateau" and c.index == 1
+    assert c.plateaus == 1 and not c.stalled
+    # a plateau just outside 2 * e_m is still a stall
+    c = Controller(subgoals(0, 60, 120), cfg)
+    for _ in range(2):
+        c.decide(flat(11))
+    assert c.decide(flat(11)).action is Action.STALLED
 
 
 def test_progress_resets_the_stall_counter():

@@ -45,8 +45,8 @@ def test_repeat_in_process_completes_the_route_and_logs_every_step(policy_path):
     records: list[dict] = []
     summary = repeat(LocalRobot(sim), OnnxPolicy(policy_path), corridor_route(), log=records.append)
     assert summary.completed and summary.subgoals_reached == 9 == summary.subgoals_total
-    assert summary.e_m == pytest.approx(5.0)  # calibrated: half of the 10-level step between subgoals
-    assert sim.pose.x == pytest.approx(0.4, abs=0.03)  # |error| <= e_m = 5 levels = 0.025 m
+    assert summary.e_m == pytest.approx(7.5)  # calibrated: 3/4 of the 10-level step between subgoals
+    assert sim.pose.x == pytest.approx(0.4, abs=0.04)  # |error| <= e_m = 7.5 levels = 0.0375 m
     steps = [r for r in records if "step" in r]
     assert len(steps) == summary.steps > 0 and set(steps[0]) == LOG_KEYS
     assert {"preprocess", "inference", "error", "compute", "robot", "total"} <= set(steps[0]["latency_ms"])

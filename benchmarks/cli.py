@@ -1,0 +1,28 @@
+"""`vtr bench`: `latency` (per control step, per backend) and `sim` (simulator throughput)."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+
+# subcommand -> (module, summary); modules load only when their subcommand runs
+SUBCOMMANDS = {
+    "latency": (
+        "benchmarks.latency",
+        "CPU latency of one control step, stage by stage and backend by backend",
+    ),
+    "sim": ("benchmarks.sim_throughput", "simulator steps per second (in-process and over ZeroMQ)"),
+}
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("subcommand", choices=sorted(SUBCOMMANDS), help="which benchmark to run")
+    parser.add_argument("rest", nargs=argparse.REMAINDER, help="options of the benchmark (see its --help)")
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    module_name, summary = SUBCOMMANDS[args.subcommand]
+    module = importlib.import_module(module_name)
+    sub = argparse.ArgumentParser(prog=f"vtr bench {args.subcommand}", description=summary)
+    module.add_arguments(sub)
+    return int(module.run_cli(sub.parse_args(args.rest)) or 0)

@@ -1,0 +1,92 @@
+"""Latency harness smoke run on a tiny ONNX (few iterations; no timing assertions)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import onnxruntime as ort
+import pytest
+
+from benchmarks import latency
+from benchmarks.onnx_tools import OnnxTorchModule, count_flops, make_standin_velocitynet
+from runtime.model_meta import ModelMeta
+
+TINY = ModelMeta(image_height=32, image_width=32, horizon=2)
+
+
+@pytest.fixture(scope="module")
+def tiny_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return make_standin_velocitynet(tmp_path_factory.mktemp("m") / "tiny.onnx", meta=TINY, widths=(4, 8))
+
+
+def test_flop_count_matches_hand_count(tiny_model: Path) -> None:
+    # conv0: 6->4, 3x3, stride 2 on 32x32 -> 16x16x4 outputs * 54 MACs; conv1: 4->8 -> 8x8x8 * 36;
+    # head: 1x1 conv 8 -> 4 on 1x1 -> 4 * 8
+    macs = 16 * 16 * 4 * 54 + 8 * 8 * 8 * 36 + 4 * 8
+    out = count_flops(tiny_model)
+    assert out["macs_by_op"] == {"Conv": macs}
+    assert out["gflop"] == pytest.approx(2 * macs / 1e9)
+
+
+def test_torch_rebuild_matches_onnxruntime(tiny_model: Path) -> None:
+    torch = pytest.importorskip("torch")
+    rng = np.random.default_rng(1)
+    x = rng.random((1, 3, 32, 32), dtype=np.float32)
+    y = rng.random((1, 3, 32, 32), dtype=np.float32)
+    ref = ort.InferenceSession(str(tiny_model)).run(None, {"current": x, "subgoal": y})[0]
+    got = OnnxTorchModule(tiny_model)(current=torch.from_numpy(x), subgoal=torch.from_numpy(y))[0].numpy()
+    assert ref.shape == (1, 2, 2)
+    np.testing.assert_allclose(got, ref, atol=1e-5)
+
+
+def test_latency_smoke_run(tiny_model: Path, tmp_path: Path) -> None:
+    cfg = latency.LatencyConfig(
+        model=tiny_model,
+        thread_counts=(1,),
+        steps=3,
+        warmup=1,
+        matmul_size=32,
+        zmq=False,
+        sim_steps=0,
+        json_path=tmp_path / "lat.json",
+    )
+    result = latency.run(cfg)
+    stages = result["stages"]["stages"]
+    for name in ("frame_decode", "preprocess", "inference", "image_error", "whole_step"):
+        assert stages[name]["n"] == 3 and stages[name]["p99_ms"] >= stages[name]["p50_ms"] > 0
+    b = result["backends"]["threads"]["1"]["backends"]
+    assert b["ort_fp32"]["gflop_per_step"] == pytest.approx(result["gflop"])
+    assert "skipped" in b["ort_int8"]  # no int8 twin beside the tiny model
+    assert result["memory"]["heavy_modules_loaded"] == []
+    assert result["memory"]["peak_rss_mb"] > 0
+    assert result["ratios"]["step_overhead"] is not None
+    on_disk = json.loads((tmp_path / "lat.json").read_text())
+    assert on_disk["gflop"] == pytest.approx(result["gflop"])
+    assert "targets (issue 5)" in latency.format_report(result)
+    from benchmarks import report
+
+    md = report.build(on_disk, [])
+    assert "| whole_step |" in md and "| 1 | ort_fp32 |" in md and "peak RSS" in md
+
+
+def test_config_rejects_bad_values(tiny_model: Path) -> None:
+    with pytest.raises(ValueError, match="threads"):
+        latency.LatencyConfig(model=tiny_model, threads=0)
+    with pytest.raises(ValueError, match="nope"):
+        latency.LatencyConfig(model=tiny_model, backends=("nope",))
+    with pytest.raises(ValueError, match="not found"):
+        latency.LatencyConfig(model=tiny_model.with_name("missing.onnx"))
+
+
+def test_vtr_bench_latency_cli(tiny_model: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from runtime.cli import main
+
+    argv = ["bench", "latency", "--model", str(tiny_model), "--steps", "3", "--warmup", "1", "--thread-counts", "1",
+            "--backends", "ort_fp32", "--matmul-size", "32", "--no-zmq", "--no-memory", "--sim-steps", "0",
+            "--json", str(tmp_path / "l.json")]  # fmt: skip
+    assert main(argv) == 0
+    assert "whole_step" in capsys.readouterr().out
+    assert json.loads((tmp_path / "l.json").read_text())["stages"]["stages"]["whole_step"]["n"] == 3
+    assert main(["bench", "latency", "--model", str(tmp_path / "missing.onnx")]) == 2
