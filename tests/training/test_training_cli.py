@@ -180,7 +180,7 @@ def test_default_preset_beats_both_baselines(tmp_path: Path) -> None:
     data, out = tmp_path / "house.npz", tmp_path / "run"
     assert cli.main(["collect", "--out", str(data), "--frames", "1500", "--no-progress"]) == 0
     base = ["--preset", "default", "--data", str(data)]
-    assert cli.main(["train", "viewnet", *base, "--out", str(out / "vn"), "--steps", "800"]) == 0
+    assert cli.main(["train", "viewnet", *base, "--out", str(out / "vn"), "--steps", "1500"]) == 0
     vel = [
         "train",
         "velocitynet",
@@ -190,13 +190,13 @@ def test_default_preset_beats_both_baselines(tmp_path: Path) -> None:
         "--out",
         str(out / "vel"),
         "--steps",
-        "400",
+        "800",
     ]
     assert cli.main(vel) == 0
     vn = json.loads((out / "vn" / "report.json").read_text())
     vr = json.loads((out / "vel" / "report.json").read_text())
     assert vn["viewnet_l1"] < 0.9 * vn["copy_baseline_l1"]
-    assert vr["mse_first_command"] < 0.9 * vr["mean_baseline_mse"]
+    assert vr["mse_first_command"] < 0.8 * vr["mean_baseline_mse"]
 
 
 def test_interrupt_saves_a_checkpoint_that_resume_continues(
