@@ -68,7 +68,7 @@ class EvalConfig:
     )
     e_m: float | None = None  # fixed switch threshold (the paper's 17); None = the runtime's calibrated e_m
     dt: float = 0.1  # s each command is applied for (the paper's control step)
-    max_steps_factor: float = 6.0  # give up after factor * subgoals + 50 control steps
+    max_steps_factor: float = 8.0  # give up after factor * subgoals + 50 control steps
     seed: int = 0  # actuation noise seed
     threads: int = 1  # onnxruntime / torch threads per worker
     workers: int = 2  # processes over routes

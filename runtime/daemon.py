@@ -35,7 +35,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import IO, Any
 
 import numpy as np
@@ -299,7 +299,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--threads", type=int, default=1, help="onnxruntime intra-op threads")
     parser.add_argument("--max-steps", type=int, default=2000, help="stop after this many control steps")
-    parser.add_argument("--stall-steps", type=int, default=20, help="stall guard patience; 0 disables it")
+    parser.add_argument(
+        "--stall-steps", type=int, default=None, help="stall guard patience; 0 disables it (default: 10)"
+    )
+    parser.add_argument(
+        "--settle",
+        type=int,
+        default=None,
+        help="extra commands at a subgoal while the error still falls under e_m (default: 2; paper: 0)",
+    )
+    parser.add_argument(
+        "--paper",
+        action="store_true",
+        help="the paper's Algorithm 1 exactly: e_m 17, no settling, no stall guard",
+    )
     parser.add_argument("--localise", action="store_true", help="start at the best-matching subgoal")
     parser.add_argument("--continuous", action="store_true", help="no zero command between control steps")
     parser.add_argument(
@@ -372,10 +385,13 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Repe
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    controller = ControllerConfig(
-        e_m_mode="fixed" if args.e_m is not None else "calibrated",
-        e_m=args.e_m if args.e_m is not None else 17.0,
-        stall_steps=args.stall_steps,
+    base = ControllerConfig.paper() if args.paper else ControllerConfig()
+    controller = replace(
+        base,
+        e_m_mode="fixed" if args.e_m is not None else base.e_m_mode,
+        e_m=args.e_m if args.e_m is not None else base.e_m,
+        stall_steps=args.stall_steps if args.stall_steps is not None else base.stall_steps,
+        settle_steps=args.settle if args.settle is not None else base.settle_steps,
         localise=args.localise,
         continuous=args.continuous,
     )

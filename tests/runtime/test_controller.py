@@ -12,7 +12,7 @@ from runtime.daemon import RepeatConfig, repeat
 from runtime.robot import Observation
 from runtime.route import Route
 
-PAPER = ControllerConfig(e_m_mode="fixed", e_m=17.0, stall_steps=0)
+PAPER = ControllerConfig.paper()
 
 
 def flat(value: int, h: int = 4, w: int = 4) -> np.ndarray:
@@ -88,6 +88,27 @@ def test_stall_guard_accepts_a_plateau_next_to_the_subgoal():
     assert c.decide(flat(11)).action is Action.STALLED
 
 
+def test_settling_keeps_steering_while_the_error_falls_under_e_m():
+    cfg = ControllerConfig(e_m_mode="fixed", e_m=10.0, stall_steps=0, settle_steps=2)
+    c = Controller(subgoals(0, 100), cfg)
+    assert c.decide(flat(30)).action is Action.COMMAND
+    d = c.decide(flat(8))  # under e_m and falling: one more command
+    assert d.action is Action.COMMAND and d.note == "settling" and c.index == 0
+    d = c.decide(flat(8))  # no longer falling: switch
+    assert d.action is Action.ADVANCE and c.index == 1
+    # at most settle_steps extra commands even while the error keeps falling
+    c = Controller(subgoals(0, 100), cfg)
+    actions = [c.decide(flat(v)).action for v in (9, 6, 3, 1)]
+    assert actions == [Action.COMMAND, Action.COMMAND, Action.ADVANCE, Action.COMMAND]
+    assert c.index == 1
+
+
+def test_paper_config_is_algorithm_1():
+    cfg = ControllerConfig.paper()
+    assert (cfg.e_m_mode, cfg.e_m, cfg.stall_steps, cfg.settle_steps) == ("fixed", 17.0, 0, 0)
+    assert not cfg.localise and not cfg.continuous
+
+
 def test_progress_resets_the_stall_counter():
     cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, stall_steps=2)
     c = Controller(subgoals(0, 100), cfg)
@@ -96,7 +117,7 @@ def test_progress_resets_the_stall_counter():
 
 
 def test_localisation_starts_at_the_best_match_above_the_confidence_floor():
-    cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, localise=True, stall_steps=0)
+    cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, localise=True, stall_steps=0, settle_steps=0)
     c = Controller(subgoals(0, 50, 100, 150), cfg)
     d = c.decide(flat(98))
     assert d.action is Action.JUMP and d.index == 2 and c.localised_to == 2
@@ -211,7 +232,9 @@ def test_continuous_loop_sends_no_zero_between_steps():
     route = flat_route(0, 100)
     robot = ScriptedRobot([flat(60), flat(30), flat(0), flat(100)])
     cfg = RepeatConfig(
-        controller=ControllerConfig(e_m_mode="fixed", e_m=17.0, stall_steps=0, continuous=True)
+        controller=ControllerConfig(
+            e_m_mode="fixed", e_m=17.0, stall_steps=0, settle_steps=0, continuous=True
+        )
     )
     summary = repeat(robot, SpyPolicy(), route, cfg)
     names = [c[0] for c in robot.calls]

@@ -94,7 +94,18 @@ def test_signal_commands_zero_velocity_and_exits_with_a_summary(files, sig):
     log = files["folder"] / f"run-{sig.name}.jsonl"
     with ServerThread(sim) as server:
         args = ["repeat", "--sim", server.endpoint, "--model", files["model"], "--route", files["route"]]
-        args += ["--log", str(log), "--json", "--continuous", "--stall-steps", "0", "--max-steps", "1000000"]
+        args += [
+            "--log",
+            str(log),
+            "--json",
+            "--continuous",
+            "--stall-steps",
+            "0",
+            "--settle",
+            "0",
+            "--max-steps",
+            "1000000",
+        ]
         proc = _run_vtr(args)
         try:
             deadline = time.monotonic() + 60
