@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import sys
 import time
 from dataclasses import dataclass
@@ -22,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks import metrics
+from runtime.atomic import atomic_path
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 MODEL_NAME = Path("models") / "velocitynet.onnx"
@@ -293,11 +293,9 @@ def write_png(result: dict[str, Any], path: Path) -> Path:
     ax.set_title(f"{result['route']}: taught vs repeated (mean error {mean * 1000:.1f} mm)")
     ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=2, frameon=False)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.stem + ".tmp.png")
-    fig.savefig(tmp, dpi=110, bbox_inches="tight")
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, bbox_inches="tight")
     plt.close(fig)
-    os.replace(tmp, path)
     return path
 
 

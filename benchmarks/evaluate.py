@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks import metrics
+from runtime.atomic import atomic_path, write_text_atomic
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 ROUTES_DIR = REPO_ROOT / "sim2d" / "routes"
@@ -783,11 +784,10 @@ def frame_route(ax: Any, taught: np.ndarray, margin: float = 1.0) -> None:
 def _save(fig: Any, path: Path) -> Path:
     import matplotlib.pyplot as plt
 
-    tmp = path.with_name(path.stem + ".tmp.png")
     fig.tight_layout()
-    fig.savefig(tmp, dpi=110, bbox_inches="tight")
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110, bbox_inches="tight")
     plt.close(fig)
-    os.replace(tmp, path)
     return path
 
 
@@ -836,11 +836,7 @@ def run(cfg: EvalConfig) -> dict[str, Any]:
 
         write_json(Path(cfg.json_path), result)
     if cfg.markdown_path is not None:
-        md = Path(cfg.markdown_path)
-        md.parent.mkdir(parents=True, exist_ok=True)
-        tmp = md.with_name(md.name + ".tmp")
-        tmp.write_text(markdown_report(result))
-        os.replace(tmp, md)
+        write_text_atomic(cfg.markdown_path, markdown_report(result))
     return result
 
 

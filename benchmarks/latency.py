@@ -27,6 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from runtime.atomic import write_text_atomic
+
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
 #: Targets from issue 5, as ratios (name -> (description, comparison, threshold)).
@@ -566,11 +568,7 @@ def run(cfg: LatencyConfig) -> dict[str, Any]:
 
 
 def write_json(path: Path, data: Any) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2, default=_json_default) + "\n")
-    os.replace(tmp, path)
+    write_text_atomic(path, json.dumps(data, indent=2, default=_json_default) + "\n")
 
 
 def _json_default(obj: Any) -> Any:

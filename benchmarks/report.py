@@ -7,12 +7,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 from typing import Any
 
 from benchmarks.latency import TARGETS
+from runtime.atomic import write_text_atomic
 
 
 def latency_section(lat: dict[str, Any]) -> list[str]:
@@ -118,9 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.out is None:
         print(text)
     else:
-        tmp = args.out.with_name(args.out.name + ".tmp")
-        tmp.write_text(text)
-        os.replace(tmp, args.out)
+        write_text_atomic(args.out, text)
     return 0
 
 

@@ -16,7 +16,8 @@ import statistics
 import sys
 import time
 from dataclasses import asdict, dataclass
-from pathlib import Path
+
+from runtime.atomic import write_text_atomic
 
 
 @dataclass(frozen=True)
@@ -142,11 +143,7 @@ def run(cfg: SimBenchConfig) -> dict:
         "target_steps_per_s": 1500,
     }
     if cfg.json_path:
-        path = Path(cfg.json_path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        tmp.write_text(json.dumps(result, indent=2) + "\n")
-        os.replace(tmp, path)
+        write_text_atomic(cfg.json_path, json.dumps(result, indent=2) + "\n")
     return result
 
 

@@ -19,11 +19,12 @@ from __future__ import annotations
 import datetime as _dt
 import json
 import os
-import tempfile
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+from runtime.atomic import atomic_path
 
 ROUTE_FORMAT_VERSION = 1
 
@@ -101,26 +102,16 @@ class Route:
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write atomically: a temporary file in the same folder, then os.replace."""
         self.validate()
-        path = os.fspath(path)
-        folder = os.path.dirname(os.path.abspath(path))
-        os.makedirs(folder, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".route-", suffix=".npz.tmp", dir=folder)
-        try:
-            with os.fdopen(fd, "wb") as f:
-                np.savez_compressed(
-                    f,
-                    images=self.images,
-                    poses=self.poses,
-                    commands=self.commands,
-                    meta=np.array(json.dumps(self.meta_dict())),
-                )
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-            raise
+        with atomic_path(path) as tmp, open(tmp, "wb") as f:
+            np.savez_compressed(
+                f,
+                images=self.images,
+                poses=self.poses,
+                commands=self.commands,
+                meta=np.array(json.dumps(self.meta_dict())),
+            )
+            f.flush()
+            os.fsync(f.fileno())
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> Route:

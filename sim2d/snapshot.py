@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from runtime.atomic import write_bytes_atomic
 from sim2d.config import Pose
 from sim2d.simulator import Simulator
 
@@ -118,10 +119,7 @@ def write_png(path: str | os.PathLike[str], rgb: np.ndarray) -> Path:
     ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]))
     if not ok:
         raise OSError(f"could not encode PNG for {path}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_bytes(buf.tobytes())
-    os.replace(tmp, path)
+    write_bytes_atomic(path, buf.tobytes())
     return path
 
 

@@ -18,6 +18,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from runtime.atomic import atomic_path, write_text_atomic
+
 
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--preset", default="default", help="tiny | default | paper (default: default)")
@@ -148,18 +150,15 @@ def run_all(cfg: AllConfig, preset: Any) -> dict[str, Any]:
             checkpoint=str(pdir / MODEL), out=str(models / "velocitynet.onnx"), data=cfg.data, int8=cfg.int8
         )
     )
-    tmp = models / "viewnet.pt.tmp"
-    shutil.copyfile(vdir / MODEL, tmp)
-    os.replace(tmp, models / "viewnet.pt")
+    with atomic_path(models / "viewnet.pt") as tmp:
+        shutil.copyfile(vdir / MODEL, tmp)
     timings["export_s"] = time.perf_counter() - t
     timings["total_s"] = time.perf_counter() - t0
     summary = {"preset": cfg.preset, "timings": timings, "export": export_report}
     for name in ("viewnet", "velocitynet"):
         path = out / name / "report.json"
         summary[name] = json.loads(path.read_text()) if path.exists() else None
-    tmp = out / "summary.json.tmp"
-    tmp.write_text(json.dumps(summary, indent=2))
-    os.replace(tmp, out / "summary.json")
+    write_text_atomic(out / "summary.json", json.dumps(summary, indent=2))
     print(json.dumps({"timings": timings}, indent=2))
     return summary
 

@@ -15,13 +15,14 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from runtime.atomic import atomic_path
 
 FORMAT_VERSION = 1
 _KEYS = ("images", "commands", "poses", "episodes", "meta")
@@ -50,26 +51,16 @@ class FrameData:
 def save_dataset(path: str | os.PathLike, data: FrameData) -> None:
     """Write atomically: a temporary file in the same folder, then os.replace."""
     validate(data, source=str(path))
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     meta = dict(data.meta, format_version=FORMAT_VERSION)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez_compressed(
-                f,
-                images=data.images,
-                commands=data.commands.astype(np.float32),
-                poses=data.poses.astype(np.float32),
-                episodes=data.episodes.astype(np.int32),
-                meta=np.array(json.dumps(meta, sort_keys=True)),
-            )
-        os.chmod(tmp, 0o644)  # mkstemp makes it private; a dataset is an ordinary file
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez_compressed(
+            f,
+            images=data.images,
+            commands=data.commands.astype(np.float32),
+            poses=data.poses.astype(np.float32),
+            episodes=data.episodes.astype(np.int32),
+            meta=np.array(json.dumps(meta, sort_keys=True)),
+        )
 
 
 def load_dataset(path: str | os.PathLike, image_size: int | None = None) -> FrameData:

@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -25,6 +24,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from runtime.atomic import atomic_path, write_text_atomic
 from runtime.preprocess import PREPROCESSING
 from training.config import MPCLossConfig, TrainConfig, VelocityNetConfig, ViewNetConfig, from_dict, to_dict
 from training.dataset import DatasetError, FrameData, load_dataset, split_episodes, window_starts
@@ -203,16 +203,8 @@ class _BatchList(torch.utils.data.Dataset):
 
 
 def atomic_save(obj: Any, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    os.close(fd)
-    try:
+    with atomic_path(path) as tmp:
         torch.save(obj, tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 def load_model(
@@ -393,10 +385,7 @@ def _finish(
 def _write_report(out: Path, report: dict[str, Any]) -> None:
     from training.report import format_report
 
-    fd, tmp = tempfile.mkstemp(prefix=REPORT + ".", suffix=".tmp", dir=out)
-    with os.fdopen(fd, "w") as f:
-        json.dump(report, f, indent=2)
-    os.replace(tmp, out / REPORT)
+    write_text_atomic(out / REPORT, json.dumps(report, indent=2))
     print(format_report(report))
 
 
