@@ -22,6 +22,7 @@ import numpy as np
 
 from benchmarks import metrics
 from runtime.atomic import atomic_path
+from sim2d.routes import ROUTES_DIR
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 MODEL_NAME = Path("models") / "velocitynet.onnx"
@@ -69,7 +70,7 @@ def _route_path(route: str) -> Path:
     path = Path(route)
     if path.suffix == ".json":
         return path
-    return REPO_ROOT / "sim2d" / "routes" / f"{route}.json"
+    return ROUTES_DIR / f"{route}.json"
 
 
 class _Say:

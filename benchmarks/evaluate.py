@@ -31,9 +31,7 @@ import numpy as np
 
 from benchmarks import metrics
 from runtime.atomic import atomic_path, write_text_atomic
-
-REPO_ROOT = Path(__file__).resolve().parent.parent
-ROUTES_DIR = REPO_ROOT / "sim2d" / "routes"
+from sim2d.routes import ROUTES_DIR
 
 #: The paper's three scenarios (route file stems) and its Tables 1 and 2.
 PAPER_ROUTES = ("translation", "rotation", "translation_rotation")

@@ -37,10 +37,18 @@ class RouteScript:
     def duration(self) -> float:
         return sum(s.duration for s in self.segments)
 
+    def commands(self, dt: float) -> list[tuple[float, float, float]]:
+        """The script as (v, w, duration) steps no longer than dt: each segment split into equal steps."""
+        out = []
+        for s in self.segments:
+            n = max(1, math.ceil(s.duration / dt - 1e-9))
+            out.extend([(s.v, s.w, s.duration / n)] * n)
+        return out
+
 
 def _num(obj: dict[str, Any], key: str, where: str) -> float:
     if key not in obj:
-        raise RouteScriptError(f"{where}: missing {key!r}")
+        raise RouteScriptError(f"{where}.{key}: missing {key!r}")
     value = obj[key]
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
         raise RouteScriptError(f"{where}.{key} must be a finite number, got {value!r}")
@@ -67,9 +75,9 @@ def parse_route_script(
             raise RouteScriptError(f"{where} must be an object {{'v', 'w', 'duration'}}")
         v, w, d = _num(seg, "v", where), _num(seg, "w", where), _num(seg, "duration", where)
         if abs(v) > v_max:
-            raise RouteScriptError(f"{where}.v={v} exceeds v_max={v_max} m/s")
+            raise RouteScriptError(f"{where}.v={v} exceeds the limits: |v| <= v_max={v_max} m/s")
         if abs(w) > w_max:
-            raise RouteScriptError(f"{where}.w={w} exceeds w_max={w_max} rad/s")
+            raise RouteScriptError(f"{where}.w={w} exceeds the limits: |w| <= w_max={w_max} rad/s")
         if d <= 0:
             raise RouteScriptError(f"{where}.duration must be > 0 s, got {d}")
         segments.append(Segment(v, w, d))
