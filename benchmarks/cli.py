@@ -8,10 +8,10 @@ import importlib
 # subcommand -> (module, summary); modules load only when their subcommand runs
 SUBCOMMANDS = {
     "latency": (
-        "benchmarks.latency",
+        "vtr.benchmarks.latency",
         "CPU latency of one control step, stage by stage and backend by backend",
     ),
-    "sim": ("benchmarks.sim_throughput", "simulator steps per second (in-process and over ZeroMQ)"),
+    "sim": ("vtr.benchmarks.sim_throughput", "simulator steps per second (in-process and over ZeroMQ)"),
 }
 
 

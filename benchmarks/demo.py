@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks import metrics
-from runtime.atomic import atomic_path
-from sim2d.routes import ROUTES_DIR
+from vtr.benchmarks import metrics
+from vtr.runtime.atomic import atomic_path
+from vtr.sim2d.routes import ROUTES_DIR
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 MODEL_NAME = Path("models") / "velocitynet.onnx"
@@ -85,12 +85,12 @@ class _Say:
 
 def run(cfg: DemoConfig) -> dict[str, Any]:
     """Run the demo; returns every number it printed."""
-    from runtime.client import SimClient
-    from runtime.daemon import RepeatConfig, repeat
-    from runtime.policy import OnnxPolicy
-    from runtime.route_script import load_route_script
-    from runtime.teach import TeachConfig, teach
-    from sim2d.server import ServerConfig, start_server_process
+    from vtr.runtime.client import SimClient
+    from vtr.runtime.daemon import RepeatConfig, repeat
+    from vtr.runtime.policy import OnnxPolicy
+    from vtr.runtime.route_script import load_route_script
+    from vtr.runtime.teach import TeachConfig, teach
+    from vtr.sim2d.server import ServerConfig, start_server_process
 
     say = _Say()
     model = find_model(cfg.model)
@@ -99,7 +99,7 @@ def run(cfg: DemoConfig) -> dict[str, Any]:
     script = load_route_script(_route_path(cfg.route))
     say(f"model {model} ({w}x{h} images, horizon {policy.meta.horizon}); route '{script.name}'")
 
-    from sim2d import CameraConfig, SimConfig
+    from vtr.sim2d import CameraConfig, SimConfig
 
     sim_cfg = SimConfig(camera=CameraConfig(width=w, height=h), noise=cfg.noise)
     server = start_server_process(ServerConfig(bind="tcp://127.0.0.1:*", sim=sim_cfg))
@@ -175,7 +175,7 @@ class _PoseKeeper:
 
     @staticmethod
     def _strip(obs: Any) -> Any:
-        from runtime.robot import Observation
+        from vtr.runtime.robot import Observation
 
         return Observation(image=obs.image, stamp=obs.stamp, pose=None, collided=obs.collided)
 
@@ -205,7 +205,7 @@ def _open_loop(
 
 def format_table(result: dict[str, Any]) -> str:
     """The paper's Table 1 column for this route beside ours (and open loop)."""
-    from benchmarks.evaluate import PAPER
+    from vtr.benchmarks.evaluate import PAPER
 
     vn = result["velocitynet"]
     ol = result.get("open_loop")
@@ -274,7 +274,7 @@ def write_png(result: dict[str, Any], path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from benchmarks.evaluate import draw_house, frame_route
+    from vtr.benchmarks.evaluate import draw_house, frame_route
 
     taught = np.asarray(result["taught_poses"])
     rep = np.asarray(result["repeated_poses"])

@@ -29,9 +29,9 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks import metrics
-from runtime.atomic import atomic_path, write_text_atomic
-from sim2d.routes import ROUTES_DIR
+from vtr.benchmarks import metrics
+from vtr.runtime.atomic import atomic_path, write_text_atomic
+from vtr.sim2d.routes import ROUTES_DIR
 
 #: The paper's three scenarios (route file stems) and its Tables 1 and 2.
 PAPER_ROUTES = ("translation", "rotation", "translation_rotation")
@@ -132,8 +132,8 @@ def route_files(names: tuple[str, ...]) -> list[Path]:
 
 
 def make_robot(noise: float, image_size: tuple[int, int]) -> Any:
-    from sim2d import CameraConfig, SimConfig, Simulator
-    from sim2d.local_robot import LocalRobot
+    from vtr.sim2d import CameraConfig, SimConfig, Simulator
+    from vtr.sim2d.local_robot import LocalRobot
 
     h, w = image_size
     return LocalRobot(Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=noise)))
@@ -141,9 +141,9 @@ def make_robot(noise: float, image_size: tuple[int, int]) -> Any:
 
 def teach(script_path: Path, image_size: tuple[int, int], dt: float) -> tuple[Any, Any]:
     """Drive the scripted route noise-free with `runtime.teach`; returns (Route, RouteScript)."""
-    from runtime.route_script import load_route_script
-    from runtime.teach import TeachConfig
-    from runtime.teach import teach as teach_route
+    from vtr.runtime.route_script import load_route_script
+    from vtr.runtime.teach import TeachConfig
+    from vtr.runtime.teach import teach as teach_route
 
     script = load_route_script(script_path)
     robot = make_robot(0.0, image_size)
@@ -182,7 +182,7 @@ class RecordingRobot:
         self.last_pose: tuple[float, float, float] | None = None
 
     def _strip(self, obs: Any) -> Any:
-        from runtime.robot import Observation
+        from vtr.runtime.robot import Observation
 
         self.last_pose = obs.pose
         return Observation(image=obs.image, stamp=obs.stamp, pose=None, collided=obs.collided)
@@ -268,8 +268,8 @@ def repeat_closed_loop(
     seed: int,
 ) -> RunLog:
     """The runtime's repeat daemon (Algorithm 1 + controller) on images only; poses kept for scoring."""
-    from runtime.controller import ControllerConfig
-    from runtime.daemon import RepeatConfig, repeat
+    from vtr.runtime.controller import ControllerConfig
+    from vtr.runtime.daemon import RepeatConfig, repeat
 
     log = RunLog()
     first = robot.reset(pose=start, seed=seed)
@@ -365,7 +365,7 @@ def score(route: Any, log: RunLog, open_loop: bool = False) -> dict[str, Any]:
 
 
 def onnx_predict(path: Path, threads: int) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-    from runtime.policy import OnnxPolicy
+    from vtr.runtime.policy import OnnxPolicy
 
     policy = OnnxPolicy(path, threads=threads)
     return policy.predict
@@ -384,7 +384,7 @@ class ViewNetMPC:
     ):
         import torch
 
-        from training.train import load_model
+        from vtr.training.train import load_model
 
         torch.set_num_threads(threads)
         kind, self.net, _ = load_model(checkpoint)
@@ -397,7 +397,7 @@ class ViewNetMPC:
         self._mean = np.zeros((horizon, 2))
 
     def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
-        from runtime.preprocess import to_nchw
+        from vtr.runtime.preprocess import to_nchw
 
         torch = self.torch
         limits = np.array([self.v_max, self.w_max])
@@ -448,7 +448,7 @@ def _offset_start(
 def evaluate_route(script_path: Path, cfg: EvalConfig) -> dict[str, Any]:
     """Teach one route, then run every scenario and method on it (a process-pool task)."""
     os.environ.setdefault("OMP_NUM_THREADS", str(cfg.threads))
-    from runtime.policy import OnnxPolicy
+    from vtr.runtime.policy import OnnxPolicy
 
     t_start = time.perf_counter()
     fp32 = OnnxPolicy(cfg.model, threads=cfg.threads)
@@ -696,7 +696,7 @@ def draw_house(ax: Any) -> bool:
     plan is still a plot.
     """
     try:
-        from sim2d import load_house
+        from vtr.sim2d import load_house
 
         house = load_house()
         seg = house.segments
@@ -830,7 +830,7 @@ def run(cfg: EvalConfig) -> dict[str, Any]:
     if cfg.plots_dir is not None:
         result["plots"] = [str(p) for p in write_plots(result, Path(cfg.plots_dir))]
     if cfg.json_path is not None:
-        from benchmarks.latency import write_json
+        from vtr.benchmarks.latency import write_json
 
         write_json(Path(cfg.json_path), result)
     if cfg.markdown_path is not None:

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from runtime.atomic import write_text_atomic
+from vtr.runtime.atomic import write_text_atomic
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
@@ -134,7 +134,7 @@ def time_interleaved(
 def sample_frames(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
     """Two nearby camera frames: from the simulator when it is installed, else smooth synthetic images."""
     try:
-        from sim2d import CameraConfig, Pose, SimConfig, Simulator
+        from vtr.sim2d import CameraConfig, Pose, SimConfig, Simulator
 
         sim = Simulator(SimConfig(camera=CameraConfig(width=width, height=height), noise=0.0))
         sim.reset(seed=0)
@@ -245,7 +245,7 @@ def _backend_runner(
     name: str, cfg: LatencyConfig, threads: int, x: np.ndarray, y: np.ndarray
 ) -> Callable[[], Any]:
     """A zero-argument callable running one inference of the model on the given backend."""
-    from runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
+    from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
 
     if name in ("ort_fp32", "ort_int8"):
         path = cfg.model if name == "ort_fp32" else cfg.int8_model
@@ -286,14 +286,14 @@ def _backend_runner(
 def _torch_module(cfg: LatencyConfig) -> Callable[[Any, Any], Any]:
     """VelocityNet as a torch eager callable: from a checkpoint if given, else rebuilt from the ONNX weights."""
     if cfg.checkpoint is not None:
-        from training.train import load_model
+        from vtr.training.train import load_model
 
         kind, net, _ = load_model(cfg.checkpoint)
         if kind != "velocitynet":
             raise ValueError(f"{cfg.checkpoint} holds a {kind}, not a velocitynet")
         return lambda a, b: net(a, b)
-    from benchmarks.onnx_tools import OnnxTorchModule
-    from runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
+    from vtr.benchmarks.onnx_tools import OnnxTorchModule
+    from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
 
     graph = OnnxTorchModule(cfg.model)
     return lambda a, b: graph(**{INPUT_CURRENT: a, INPUT_SUBGOAL: b})
@@ -339,8 +339,8 @@ def bench_backends(cfg: LatencyConfig, x: np.ndarray, y: np.ndarray, gflop: floa
 
 def bench_stages(cfg: LatencyConfig, current: np.ndarray, subgoal: np.ndarray) -> dict[str, Any]:
     """The runtime's own stages at cfg.threads, and the whole step built from the same pieces."""
-    from benchmarks import runtime_adapter as ra
-    from runtime.preprocess import image_error, to_nchw
+    from vtr.benchmarks import runtime_adapter as ra
+    from vtr.runtime.preprocess import image_error, to_nchw
 
     codec = ra.frame_codec()
     step = ra.control_step(cfg.model, cfg.threads, subgoal, codec)
@@ -364,7 +364,7 @@ def bench_stages(cfg: LatencyConfig, current: np.ndarray, subgoal: np.ndarray) -
 
 
 def bench_zmq(cfg: LatencyConfig) -> dict[str, Any]:
-    from benchmarks import runtime_adapter as ra
+    from vtr.benchmarks import runtime_adapter as ra
 
     try:
         return ra.zmq_round_trip(cfg.steps, cfg.warmup, _model_io(cfg.model)[:2])
@@ -375,8 +375,8 @@ def bench_zmq(cfg: LatencyConfig) -> dict[str, Any]:
 def bench_sim(cfg: LatencyConfig, image_size: tuple[int, int]) -> dict[str, Any]:
     """`vtr bench sim` (the simulator's own benchmark) at the model's camera size."""
     try:
-        from benchmarks.sim_throughput import SimBenchConfig
-        from benchmarks.sim_throughput import run as run_sim
+        from vtr.benchmarks.sim_throughput import SimBenchConfig
+        from vtr.benchmarks.sim_throughput import run as run_sim
 
         h, w = image_size
         return run_sim(SimBenchConfig(steps=cfg.sim_steps, warmup=min(50, cfg.sim_steps), width=w, height=h))
@@ -403,7 +403,7 @@ def hwm_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-from benchmarks import runtime_adapter as ra
+from vtr.benchmarks import runtime_adapter as ra
 import numpy as np
 model, steps, h, w = sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5])
 before = hwm_mb()
@@ -540,11 +540,11 @@ def run(cfg: LatencyConfig) -> dict[str, Any]:
     """Run every measurement and return one JSON-ready dict (also written to cfg.json_path)."""
     import platform
 
-    from benchmarks.onnx_tools import count_flops
+    from vtr.benchmarks.onnx_tools import count_flops
 
     h, w, _ = _model_io(cfg.model)
     current, subgoal = sample_frames(h, w)
-    from runtime.preprocess import to_nchw
+    from vtr.runtime.preprocess import to_nchw
 
     x, y = to_nchw(current), to_nchw(subgoal)
     flops = count_flops(cfg.model)
@@ -613,7 +613,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def config_from_args(args: argparse.Namespace) -> LatencyConfig:
     counts = tuple(0 if t.strip() == "all" else int(t) for t in args.thread_counts.split(",") if t.strip())
     if args.standin:
-        from benchmarks.onnx_tools import make_standin_velocitynet
+        from vtr.benchmarks.onnx_tools import make_standin_velocitynet
 
         args.model.parent.mkdir(parents=True, exist_ok=True)
         make_standin_velocitynet(args.model)

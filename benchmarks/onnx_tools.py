@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
+from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
 
 #: Ops whose multiply-accumulates are counted; everything else (activations, adds) is noise next to them.
 COUNTED_OPS = ("Conv", "ConvTranspose", "Gemm", "MatMul", "QLinearConv", "ConvInteger", "MatMulInteger")

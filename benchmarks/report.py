@@ -11,8 +11,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from benchmarks.latency import TARGETS
-from runtime.atomic import write_text_atomic
+from vtr.benchmarks.latency import TARGETS
+from vtr.runtime.atomic import write_text_atomic
 
 
 def latency_section(lat: dict[str, Any]) -> list[str]:
@@ -75,7 +75,7 @@ def latency_section(lat: dict[str, Any]) -> list[str]:
 
 
 def eval_section(ev: dict[str, Any]) -> list[str]:
-    from benchmarks.evaluate import markdown_report
+    from vtr.benchmarks.evaluate import markdown_report
 
     cfg = ev["config"]
     cmd = f"vtr eval --model {cfg['model']} --noise {cfg['noise']}"

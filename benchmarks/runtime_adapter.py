@@ -28,7 +28,7 @@ class FrameCodec:
 
 def frame_codec() -> FrameCodec:
     """The runtime's wire codec (runtime.protocol)."""
-    from runtime import protocol
+    from vtr.runtime import protocol
 
     session = "bench"
 
@@ -44,7 +44,7 @@ def frame_codec() -> FrameCodec:
     def enc_cmd(v: float, w: float) -> list[bytes]:
         return protocol.encode_request("step", 2, stamp=time.time(), v=v, w=w, duration=0.1)
 
-    return FrameCodec("runtime.protocol (encode_image_reply / decode_reply / encode_request)", enc_obs, dec_obs,
+    return FrameCodec("vtr.runtime.protocol (encode_image_reply / decode_reply / encode_request)", enc_obs, dec_obs,
                       enc_cmd)  # fmt: skip
 
 
@@ -58,8 +58,8 @@ class ControlStep:
     """
 
     def __init__(self, model: str | Path, threads: int, subgoal: np.ndarray, codec: FrameCodec) -> None:
-        from runtime.controller import Controller, ControllerConfig
-        from runtime.policy import OnnxPolicy
+        from vtr.runtime.controller import Controller, ControllerConfig
+        from vtr.runtime.policy import OnnxPolicy
 
         self.policy = OnnxPolicy(model, threads=threads)
         self._subgoals = np.ascontiguousarray(subgoal[None])
@@ -69,7 +69,7 @@ class ControlStep:
         self.name = "runtime: protocol decode + Controller.decide + OnnxPolicy.predict + encode_request"
 
     def infer(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        from runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
+        from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
 
         return self.policy.infer({INPUT_CURRENT: x, INPUT_SUBGOAL: y})
 
@@ -92,10 +92,10 @@ def zmq_round_trip(steps: int, warmup: int, image_size: tuple[int, int] = (128, 
     Each is the client's full exchange (encode, send, server work, receive, validate); the server's share
     (rendering the camera) is measured in-process alongside, so the transport's cost is the difference.
     """
-    from benchmarks.latency import time_interleaved
-    from runtime.client import SimClient
-    from sim2d import CameraConfig, SimConfig, Simulator
-    from sim2d.server import ServerConfig, start_server_process
+    from vtr.benchmarks.latency import time_interleaved
+    from vtr.runtime.client import SimClient
+    from vtr.sim2d import CameraConfig, SimConfig, Simulator
+    from vtr.sim2d.server import ServerConfig, start_server_process
 
     h, w = image_size
     sim_cfg = SimConfig(camera=CameraConfig(width=w, height=h), noise=0.0)

@@ -17,7 +17,7 @@ import sys
 import time
 from dataclasses import asdict, dataclass
 
-from runtime.atomic import write_text_atomic
+from vtr.runtime.atomic import write_text_atomic
 
 
 @dataclass(frozen=True)
@@ -58,7 +58,7 @@ def _limit_threads() -> None:
 
 def _route_commands(duration: float) -> list[tuple[object, list[tuple[float, float, float]]]]:
     """Every shipped route as (start pose, [(v, w, duration), ...]): a drive through all rooms without collisions."""
-    from sim2d.routes import list_routes, load_route
+    from vtr.sim2d.routes import list_routes, load_route
 
     out = []
     for name in list_routes():
@@ -76,8 +76,8 @@ def run(cfg: SimBenchConfig) -> dict:
     """
     import numpy as np
 
-    from sim2d.config import CameraConfig, SimConfig
-    from sim2d.simulator import Simulator
+    from vtr.sim2d.config import CameraConfig, SimConfig
+    from vtr.sim2d.simulator import Simulator
 
     sim = Simulator(
         SimConfig(

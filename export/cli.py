@@ -48,10 +48,10 @@ def run(cfg: ExportConfig) -> dict[str, Any]:
     import numpy as np
     import torch
 
-    from export.onnx_export import export_onnx, velocitynet_meta
-    from export.quantize import calibration_pairs, compare, quantize_int8
-    from training.dataset import load_dataset
-    from training.train import load_model
+    from vtr.export.onnx_export import export_onnx, velocitynet_meta
+    from vtr.export.quantize import calibration_pairs, compare, quantize_int8
+    from vtr.training.dataset import load_dataset
+    from vtr.training.train import load_model
 
     kind, model, ckpt = load_model(cfg.checkpoint)
     if kind != "velocitynet":
@@ -111,7 +111,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    from training.dataset import DatasetError
+    from vtr.training.dataset import DatasetError
 
     try:
         cfg = ExportConfig(

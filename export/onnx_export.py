@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
+from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
 
 DEFAULT_OPSET = 17  # >= 16 for ViewNet's GridSample; onnxruntime and cv2.dnn both read it
 #: Max |onnxruntime - torch| allowed on VelocityNet's output (m/s, rad/s): float32 reordering noise is

@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
-from runtime.preprocess import to_nchw
+from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
+from vtr.runtime.preprocess import to_nchw
 
 
 def calibration_pairs(

@@ -4,4 +4,4 @@ Imports only numpy, onnxruntime, pyzmq and the standard library, so that `pip in
 (no extras) is all a robot board needs.
 """
 
-__version__ = "0.1.0"
+from vtr import __version__ as __version__  # one source: vtr/__init__.py

@@ -14,18 +14,22 @@ import sys
 # name -> (module, one-line summary, extra that provides its heavy dependencies)
 COMMANDS: dict[str, tuple[str, str, str | None]] = {
     "demo": (
-        "benchmarks.demo",
+        "vtr.benchmarks.demo",
         "start the simulator, teach a route, repeat it with the shipped model",
         "sim",
     ),
-    "sim": ("sim2d.cli", "simulator: serve over ZeroMQ, snapshot the house", "sim"),
-    "teach": ("runtime.teach", "drive a scripted route and record its visual trajectory", None),
-    "repeat": ("runtime.daemon", "follow a taught route from camera images alone (the robot daemon)", None),
-    "collect": ("training.collect", "drive the simulated robot and record a training dataset", "sim"),
-    "train": ("training.cli", "train ViewNet, then VelocityNet with the offline MPC loss", "train"),
-    "export": ("export.cli", "export a VelocityNet checkpoint to ONNX (fp32, int8)", "train"),
-    "bench": ("benchmarks.cli", "latency per control step, simulator throughput", None),
-    "eval": ("benchmarks.evaluate", "closed-loop tracking against the paper's tables", "sim"),
+    "sim": ("vtr.sim2d.cli", "simulator: serve over ZeroMQ, snapshot the house", "sim"),
+    "teach": ("vtr.runtime.teach", "drive a scripted route and record its visual trajectory", None),
+    "repeat": (
+        "vtr.runtime.daemon",
+        "follow a taught route from camera images alone (the robot daemon)",
+        None,
+    ),
+    "collect": ("vtr.training.collect", "drive the simulated robot and record a training dataset", "sim"),
+    "train": ("vtr.training.cli", "train ViewNet, then VelocityNet with the offline MPC loss", "train"),
+    "export": ("vtr.export.cli", "export a VelocityNet checkpoint to ONNX (fp32, int8)", "train"),
+    "bench": ("vtr.benchmarks.cli", "latency per control step, simulator throughput", None),
+    "eval": ("vtr.benchmarks.evaluate", "closed-loop tracking against the paper's tables", "sim"),
 }
 
 _EXTRA_OF_MODULE = {
@@ -67,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
         print(_top_help())
         return 0
     if argv[0] == "--version":
-        from runtime import __version__
+        from vtr.runtime import __version__
 
         print(__version__)
         return 0

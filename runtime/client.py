@@ -19,9 +19,9 @@ from typing import Any
 
 import zmq
 
-from runtime import protocol
-from runtime.protocol import BadFrameError, Reply
-from runtime.robot import Observation, RobotError
+from vtr.runtime import protocol
+from vtr.runtime.protocol import BadFrameError, Reply
+from vtr.runtime.robot import Observation, RobotError
 
 
 class SimClient:

@@ -50,7 +50,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from runtime.preprocess import image_error
+from vtr.runtime.preprocess import image_error
 
 
 class Action(str, enum.Enum):

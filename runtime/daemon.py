@@ -40,9 +40,9 @@ from typing import IO, Any
 
 import numpy as np
 
-from runtime.controller import Action, Controller, ControllerConfig
-from runtime.protocol import BadFrameError
-from runtime.robot import Observation, Robot, RobotError
+from vtr.runtime.controller import Action, Controller, ControllerConfig
+from vtr.runtime.protocol import BadFrameError
+from vtr.runtime.robot import Observation, Robot, RobotError
 
 
 @dataclass
@@ -363,9 +363,9 @@ class RepeatRunConfig:
 
 
 def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> RepeatSummary:
-    from runtime.client import SimClient
-    from runtime.policy import OnnxPolicy
-    from runtime.route import Route
+    from vtr.runtime.client import SimClient
+    from vtr.runtime.policy import OnnxPolicy
+    from vtr.runtime.route import Route
 
     policy = OnnxPolicy(cfg.model, threads=cfg.threads)
     route = Route.load(cfg.route)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
-from runtime.preprocess import PREPROCESSING
+from vtr.runtime.preprocess import PREPROCESSING
 
 #: Metadata key prefix in the ONNX file's metadata_props.
 PREFIX = "vtr."

@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 import onnxruntime as ort
 
-from runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
-from runtime.preprocess import PREPROCESSING, to_nchw
+from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
+from vtr.runtime.preprocess import PREPROCESSING, to_nchw
 
 
 class ModelMismatchError(ValueError):

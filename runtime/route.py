@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from runtime.atomic import atomic_path
+from vtr.runtime.atomic import atomic_path
 
 ROUTE_FORMAT_VERSION = 1
 

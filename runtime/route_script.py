@@ -13,7 +13,7 @@ import os
 from dataclasses import dataclass
 from typing import Any
 
-from runtime import protocol
+from vtr.runtime import protocol
 
 
 class RouteScriptError(ValueError):

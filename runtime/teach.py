@@ -25,11 +25,11 @@ from typing import Any
 
 import numpy as np
 
-from runtime.preprocess import image_error
-from runtime.protocol import jsonable
-from runtime.robot import Observation, ResettableRobot, RobotError
-from runtime.route import Route
-from runtime.route_script import RouteScript
+from vtr.runtime.preprocess import image_error
+from vtr.runtime.protocol import jsonable
+from vtr.runtime.robot import Observation, ResettableRobot, RobotError
+from vtr.runtime.route import Route
+from vtr.runtime.route_script import RouteScript
 
 SPACING_RULES = ("steps", "distance", "image")
 
@@ -174,8 +174,8 @@ class TeachRunConfig:
 
 
 def run(cfg: TeachRunConfig) -> Route:
-    from runtime.client import SimClient
-    from runtime.route_script import load_route_script
+    from vtr.runtime.client import SimClient
+    from vtr.runtime.route_script import load_route_script
 
     script = load_route_script(cfg.route)
     with SimClient(cfg.sim, cfg.timeout_s, cfg.retries) as client:

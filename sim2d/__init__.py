@@ -2,7 +2,7 @@
 
 Public API (see docs/ARCHITECTURE.md)::
 
-    from sim2d import Simulator, SimConfig, CameraConfig, Pose, load_house
+    from vtr.sim2d import Simulator, SimConfig, CameraConfig, Pose, load_house
 
 Names are imported lazily so that `vtr sim --help` does not import pymunk.
 """
@@ -25,23 +25,23 @@ __all__ = [
 ]
 
 _WHERE = {
-    "CameraConfig": "sim2d.config",
-    "SimConfig": "sim2d.config",
-    "Pose": "sim2d.config",
-    "House": "sim2d.house",
-    "HouseError": "sim2d.house",
-    "load_house": "sim2d.house",
-    "Simulator": "sim2d.simulator",
-    "Route": "sim2d.routes",
-    "load_route": "sim2d.routes",
-    "list_routes": "sim2d.routes",
+    "CameraConfig": "vtr.sim2d.config",
+    "SimConfig": "vtr.sim2d.config",
+    "Pose": "vtr.sim2d.config",
+    "House": "vtr.sim2d.house",
+    "HouseError": "vtr.sim2d.house",
+    "load_house": "vtr.sim2d.house",
+    "Simulator": "vtr.sim2d.simulator",
+    "Route": "vtr.sim2d.routes",
+    "load_route": "vtr.sim2d.routes",
+    "list_routes": "vtr.sim2d.routes",
 }
 
 if TYPE_CHECKING:
-    from sim2d.config import CameraConfig, Pose, SimConfig
-    from sim2d.house import House, HouseError, load_house
-    from sim2d.routes import Route, list_routes, load_route
-    from sim2d.simulator import Simulator
+    from vtr.sim2d.config import CameraConfig, Pose, SimConfig
+    from vtr.sim2d.house import House, HouseError, load_house
+    from vtr.sim2d.routes import Route, list_routes, load_route
+    from vtr.sim2d.simulator import Simulator
 
 
 def __getattr__(name: str) -> Any:
@@ -49,4 +49,4 @@ def __getattr__(name: str) -> Any:
         import importlib
 
         return getattr(importlib.import_module(_WHERE[name]), name)
-    raise AttributeError(f"module 'sim2d' has no attribute {name!r}")
+    raise AttributeError(f"module 'vtr.sim2d' has no attribute {name!r}")

@@ -30,9 +30,9 @@ import math
 
 import numpy as np
 
-from sim2d.config import CameraConfig
-from sim2d.house import House
-from sim2d.textures import TEX, mip_levels
+from vtr.sim2d.config import CameraConfig
+from vtr.sim2d.house import House
+from vtr.sim2d.textures import TEX, mip_levels
 
 _TEX_LEVELS = 4  # mip levels kept per surface texture: 64, 32, 16, 8 texels
 _TEX_SHIFT = TEX.bit_length() - 1  # log2(TEX)

@@ -41,9 +41,9 @@ class SnapshotConfig:
 
 
 def run_snapshot(cfg: SnapshotConfig) -> int:
-    from sim2d.config import CameraConfig, Pose, SimConfig
-    from sim2d.simulator import Simulator
-    from sim2d.snapshot import snapshot
+    from vtr.sim2d.config import CameraConfig, Pose, SimConfig
+    from vtr.sim2d.simulator import Simulator
+    from vtr.sim2d.snapshot import snapshot
 
     sim = Simulator(SimConfig(house=cfg.house, camera=CameraConfig(brightness=cfg.brightness)))
     base = sim.house.start_poses[0]
@@ -71,10 +71,10 @@ def run_snapshot(cfg: SnapshotConfig) -> int:
 
 
 def run_serve(bind: str, noise: float, house: str, brightness: float, mode: str = "lockstep") -> int:
-    from sim2d.config import CameraConfig, SimConfig
+    from vtr.sim2d.config import CameraConfig, SimConfig
 
     try:
-        from sim2d.server import ServerConfig, serve
+        from vtr.sim2d.server import ServerConfig, serve
     except ImportError as err:
         print(
             f"vtr sim serve: the simulator server (sim2d/server.py) is not available: {err}", file=sys.stderr

@@ -15,8 +15,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from sim2d.config import SimConfig
-from sim2d.simulator import Simulator
+from vtr.sim2d.config import SimConfig
+from vtr.sim2d.simulator import Simulator
 
 
 @dataclass(frozen=True)

@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from sim2d.config import Pose
-from sim2d.textures import make_texture, mosaic_floor
+from vtr.sim2d.config import Pose
+from vtr.sim2d.textures import make_texture, mosaic_floor
 
 MAPS_DIR = Path(__file__).resolve().parent / "maps"
 FLOOR_TEX = 512  # texels per side of the floor mosaic (power of two)

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from runtime.robot import Observation
-from sim2d.server import make_pose
+from vtr.runtime.robot import Observation
+from vtr.sim2d.server import make_pose
 
 
 def _pose_tuple(pose: Any) -> tuple[float, float, float]:

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import pymunk
 
-from sim2d.config import Pose
-from sim2d.house import House
+from vtr.sim2d.config import Pose
+from vtr.sim2d.house import House
 
 # pymunk's default slop (0.1) is in world units, i.e. 10 cm here: far too much overlap for metres.
 COLLISION_SLOP = 5e-4

@@ -9,8 +9,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from runtime.route_script import RouteScript as Route
-from runtime.route_script import Segment, load_route_script
+from vtr.runtime.route_script import RouteScript as Route
+from vtr.runtime.route_script import Segment, load_route_script
 
 __all__ = ["ROUTES_DIR", "Route", "Segment", "list_routes", "load_route"]
 

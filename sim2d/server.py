@@ -30,8 +30,8 @@ from typing import Any, NamedTuple
 
 import zmq
 
-from runtime import protocol
-from runtime.protocol import Limits, ProtocolError
+from vtr.runtime import protocol
+from vtr.runtime.protocol import Limits, ProtocolError
 
 
 class _Pose(NamedTuple):
@@ -45,7 +45,7 @@ class _Pose(NamedTuple):
 def make_pose(x: float, y: float, yaw: float) -> Any:
     """A ``sim2d.Pose`` when the simulator core is importable, else an equivalent named tuple."""
     try:
-        from sim2d import Pose  # type: ignore[attr-defined]
+        from vtr.sim2d import Pose  # type: ignore[attr-defined]
     except ImportError:
         return _Pose(x, y, yaw)
     return Pose(x, y, yaw)
@@ -294,7 +294,7 @@ class SimServer:
 def serve(cfg: ServerConfig, simulator: Any = None) -> int:
     """`vtr sim serve`: build the simulator (unless given), serve until SIGINT/SIGTERM, return 0."""
     if simulator is None:
-        from sim2d import SimConfig, Simulator  # type: ignore[attr-defined]  # pymunk lives behind this
+        from vtr.sim2d import SimConfig, Simulator  # type: ignore[attr-defined]  # pymunk lives behind this
 
         simulator = Simulator(cfg.sim if cfg.sim is not None else SimConfig())
         simulator.reset()
@@ -356,7 +356,7 @@ class ServerThread:
 def _process_main(cfg: ServerConfig, factory: Callable[[], Any] | None, conn: Any) -> None:
     simulator = factory() if factory is not None else None
     if simulator is None:
-        from sim2d import SimConfig, Simulator  # type: ignore[attr-defined]
+        from vtr.sim2d import SimConfig, Simulator  # type: ignore[attr-defined]
 
         simulator = Simulator(cfg.sim if cfg.sim is not None else SimConfig())
         simulator.reset()

@@ -13,10 +13,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim2d.camera import Camera
-from sim2d.config import Pose, SimConfig
-from sim2d.house import House, load_house
-from sim2d.physics import World, advance, build_world, pose_of
+from vtr.sim2d.camera import Camera
+from vtr.sim2d.config import Pose, SimConfig
+from vtr.sim2d.house import House, load_house
+from vtr.sim2d.physics import World, advance, build_world, pose_of
 
 
 @dataclass

@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from runtime.atomic import write_bytes_atomic
-from sim2d.config import Pose
-from sim2d.simulator import Simulator
+from vtr.runtime.atomic import write_bytes_atomic
+from vtr.sim2d.config import Pose
+from vtr.sim2d.simulator import Simulator
 
 
 def top_down(sim: Simulator, px_per_m: float = 60.0) -> np.ndarray:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from runtime.atomic import atomic_path, write_text_atomic
+from vtr.runtime.atomic import atomic_path, write_text_atomic
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
@@ -67,7 +67,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _train_cfg(base: Any, args: argparse.Namespace, steps: int | None = None) -> Any:
-    from training.config import override
+    from vtr.training.config import override
 
     return override(
         base,
@@ -96,7 +96,7 @@ class AllConfig:
     int8: bool = True  # also write the int8 model
 
     def __post_init__(self) -> None:
-        from training.config import PRESETS
+        from vtr.training.config import PRESETS
 
         if self.preset not in PRESETS:
             raise ValueError(f"AllConfig.preset must be one of {sorted(PRESETS)}, got {self.preset!r}")
@@ -106,15 +106,15 @@ def run_all(cfg: AllConfig, preset: Any) -> dict[str, Any]:
     """Collect (if needed) -> ViewNet -> VelocityNet -> export. Stages already finished are skipped."""
     import json
 
-    from training.train import MODEL, train_velocitynet, train_viewnet
+    from vtr.training.train import MODEL, train_velocitynet, train_viewnet
 
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}
     t0 = time.perf_counter()
     if not Path(cfg.data).exists():
-        from training.collect import run as collect
-        from training.config import override
+        from vtr.training.collect import run as collect
+        from vtr.training.config import override
 
         if int(os.environ.get("WORLD_SIZE", "1")) > 1:
             raise FileNotFoundError(f"{cfg.data} does not exist; collect it before launching with torchrun")
@@ -140,8 +140,8 @@ def run_all(cfg: AllConfig, preset: Any) -> dict[str, Any]:
     if int(os.environ.get("RANK", "0")) != 0:
         return timings
     t = time.perf_counter()
-    from export.cli import ExportConfig
-    from export.cli import run as export
+    from vtr.export.cli import ExportConfig
+    from vtr.export.cli import run as export
 
     models = Path(cfg.models_dir)
     models.mkdir(parents=True, exist_ok=True)
@@ -164,9 +164,9 @@ def run_all(cfg: AllConfig, preset: Any) -> dict[str, Any]:
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    from training.config import get_preset, override
-    from training.dataset import DatasetError
-    from training.train import train_velocitynet, train_viewnet
+    from vtr.training.config import get_preset, override
+    from vtr.training.dataset import DatasetError
+    from vtr.training.train import train_velocitynet, train_viewnet
 
     preset = get_preset(args.preset)
     preset.loss = override(preset.loss, w1=args.w1, w2=args.w2)

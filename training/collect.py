@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from training.config import CollectConfig
+from vtr.training.config import CollectConfig
 
 _KINDS = ("translate", "rotate", "combined", "stop")
 _KIND_P = (0.3, 0.3, 0.35, 0.05)
@@ -71,8 +71,8 @@ def run(cfg: CollectConfig) -> dict[str, Any]:
     """Drive, record and write the dataset atomically; returns a summary."""
     from tqdm import tqdm
 
-    from sim2d import CameraConfig, Pose, SimConfig, Simulator
-    from training.dataset import FORMAT_VERSION, FrameData, save_dataset
+    from vtr.sim2d import CameraConfig, Pose, SimConfig, Simulator
+    from vtr.training.dataset import FORMAT_VERSION, FrameData, save_dataset
 
     sim_cfg = SimConfig(camera=CameraConfig(width=cfg.image_size, height=cfg.image_size), noise=cfg.noise)
     sim = Simulator(sim_cfg)

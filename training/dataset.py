@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from runtime.atomic import atomic_path
+from vtr.runtime.atomic import atomic_path
 
 FORMAT_VERSION = 1
 _KEYS = ("images", "commands", "poses", "episodes", "meta")

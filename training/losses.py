@@ -22,7 +22,7 @@ from collections.abc import Callable
 
 import torch
 
-from training.config import MPCLossConfig
+from vtr.training.config import MPCLossConfig
 
 VelocityFn = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]  # (B,3,H,W) x2 -> (B, 2, N)
 ViewFn = Callable[[torch.Tensor, torch.Tensor], torch.Tensor]  # (B,3,H,W), (B,2) -> (B,3,H,W)

@@ -13,7 +13,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from training.config import VelocityNetConfig, ViewNetConfig
+from vtr.training.config import VelocityNetConfig, ViewNetConfig
 
 
 def _conv_bn_act(c_in: int, c_out: int, stride: int, slope: float, kernel: int = 3) -> nn.Sequential:

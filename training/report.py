@@ -14,11 +14,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
-from training.config import MPCLossConfig
-from training.losses import mpc_loss
+from vtr.training.config import MPCLossConfig
+from vtr.training.losses import mpc_loss
 
 if TYPE_CHECKING:
-    from training.train import Windows
+    from vtr.training.train import Windows
 
 
 def _ratio(model: float, baseline: float) -> float:

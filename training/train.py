@@ -24,12 +24,19 @@ import numpy as np
 import torch
 from torch import nn
 
-from runtime.atomic import atomic_path, write_text_atomic
-from runtime.preprocess import PREPROCESSING
-from training.config import MPCLossConfig, TrainConfig, VelocityNetConfig, ViewNetConfig, from_dict, to_dict
-from training.dataset import DatasetError, FrameData, load_dataset, split_episodes, window_starts
-from training.losses import mpc_loss, viewnet_loss
-from training.models import VelocityNet, ViewNet
+from vtr.runtime.atomic import atomic_path, write_text_atomic
+from vtr.runtime.preprocess import PREPROCESSING
+from vtr.training.config import (
+    MPCLossConfig,
+    TrainConfig,
+    VelocityNetConfig,
+    ViewNetConfig,
+    from_dict,
+    to_dict,
+)
+from vtr.training.dataset import DatasetError, FrameData, load_dataset, split_episodes, window_starts
+from vtr.training.losses import mpc_loss, viewnet_loss
+from vtr.training.models import VelocityNet, ViewNet
 
 CHECKPOINT = "checkpoint.pt"
 MODEL = "model.pt"
@@ -383,7 +390,7 @@ def _finish(
 
 
 def _write_report(out: Path, report: dict[str, Any]) -> None:
-    from training.report import format_report
+    from vtr.training.report import format_report
 
     write_text_atomic(out / REPORT, json.dumps(report, indent=2))
     print(format_report(report))
@@ -397,7 +404,7 @@ def train_viewnet(
     resume: bool = False,
 ) -> dict[str, Any]:
     """Train ViewNet on forward and reversed pairs; returns the offline quality report."""
-    from training.report import viewnet_report
+    from vtr.training.report import viewnet_report
 
     out = Path(out)
     dist = setup_dist(cfg)
@@ -431,7 +438,7 @@ def train_velocitynet(
     resume: bool = False,
 ) -> dict[str, Any]:
     """Train VelocityNet with the offline MPC loss through a frozen ViewNet; returns the quality report."""
-    from training.report import velocitynet_report
+    from vtr.training.report import velocitynet_report
 
     out = Path(out)
     dist = setup_dist(cfg)

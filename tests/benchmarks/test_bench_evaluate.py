@@ -9,14 +9,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from benchmarks.onnx_tools import make_standin_velocitynet
-from runtime.model_meta import ModelMeta
+from vtr.benchmarks.onnx_tools import make_standin_velocitynet
+from vtr.runtime.model_meta import ModelMeta
 
-sim2d = pytest.importorskip("sim2d")
+sim2d = pytest.importorskip("vtr.sim2d")
 if not hasattr(sim2d, "Simulator"):
     pytest.skip("sim2d.Simulator has not landed yet", allow_module_level=True)
-pytest.importorskip("sim2d.local_robot")
-pytest.importorskip("runtime.daemon")
+pytest.importorskip("vtr.sim2d.local_robot")
+pytest.importorskip("vtr.runtime.daemon")
 
 SHORT_ROUTE = {
     "name": "short",
@@ -32,7 +32,7 @@ def small_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture(scope="module")
 def short_route(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from sim2d import Simulator
+    from vtr.sim2d import Simulator
 
     start = Simulator().house.start_poses[0]
     data = dict(SHORT_ROUTE, start={"x": float(start.x), "y": float(start.y), "yaw": float(start.yaw)})
@@ -42,7 +42,7 @@ def short_route(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_eval_quick_writes_every_output(small_model: Path, short_route: Path, tmp_path: Path) -> None:
-    from benchmarks import evaluate
+    from vtr.benchmarks import evaluate
 
     cfg = evaluate.EvalConfig(
         model=small_model,
@@ -71,15 +71,15 @@ def test_eval_quick_writes_every_output(small_model: Path, short_route: Path, tm
     assert "| short | velocitynet |" in md and "Bar (issue 5)" in md
     pngs = sorted(p.name for p in (tmp_path / "plots").glob("*.png"))
     assert pngs == ["short_error.png", "short_path.png"]
-    from benchmarks import report
+    from vtr.benchmarks import report
 
     section = report.build(None, [on_disk])
     assert "### Closed-loop tracking" in section and f"--routes {short_route}" in section
 
 
 def test_open_loop_drifts_under_noise_and_not_without(short_route: Path) -> None:
-    from benchmarks import evaluate
-    from runtime.route_script import load_route_script
+    from vtr.benchmarks import evaluate
+    from vtr.runtime.route_script import load_route_script
 
     route, script = evaluate.teach(short_route, (32, 32), 0.1)
     clean = evaluate.repeat_open_loop(
@@ -94,7 +94,7 @@ def test_open_loop_drifts_under_noise_and_not_without(short_route: Path) -> None
 
 
 def test_demo_runs_end_to_end(small_model: Path, short_route: Path, tmp_path: Path) -> None:
-    from benchmarks import demo
+    from vtr.benchmarks import demo
 
     result = demo.run(demo.DemoConfig(model=small_model, route=str(short_route), out=tmp_path))
     assert Path(result["png"]).is_file() and (tmp_path / "short.npz").is_file()
@@ -105,7 +105,7 @@ def test_demo_runs_end_to_end(small_model: Path, short_route: Path, tmp_path: Pa
 
 def test_pose_oracle_closes_the_loop(small_model: Path, short_route: Path) -> None:
     # The harness end to end (daemon, controller, pose recording, scoring) with a policy that can succeed.
-    from benchmarks import evaluate
+    from vtr.benchmarks import evaluate
 
     cfg = evaluate.EvalConfig(
         model=small_model, routes=(str(short_route),), quick=True, workers=1, oracle=True, open_loop=False
@@ -117,7 +117,7 @@ def test_pose_oracle_closes_the_loop(small_model: Path, short_route: Path) -> No
 
 
 def test_vtr_eval_quick_cli(small_model: Path, short_route: Path, tmp_path: Path) -> None:
-    from runtime.cli import main
+    from vtr.runtime.cli import main
 
     out = tmp_path / "e.json"
     assert (

@@ -9,9 +9,9 @@ import numpy as np
 import onnxruntime as ort
 import pytest
 
-from benchmarks import latency
-from benchmarks.onnx_tools import OnnxTorchModule, count_flops, make_standin_velocitynet
-from runtime.model_meta import ModelMeta
+from vtr.benchmarks import latency
+from vtr.benchmarks.onnx_tools import OnnxTorchModule, count_flops, make_standin_velocitynet
+from vtr.runtime.model_meta import ModelMeta
 
 TINY = ModelMeta(image_height=32, image_width=32, horizon=2)
 
@@ -65,7 +65,7 @@ def test_latency_smoke_run(tiny_model: Path, tmp_path: Path) -> None:
     on_disk = json.loads((tmp_path / "lat.json").read_text())
     assert on_disk["gflop"] == pytest.approx(result["gflop"])
     assert "targets (issue 5)" in latency.format_report(result)
-    from benchmarks import report
+    from vtr.benchmarks import report
 
     md = report.build(on_disk, [])
     assert "| whole_step |" in md and "| 1 | ort_fp32 |" in md and "peak RSS" in md
@@ -81,7 +81,7 @@ def test_config_rejects_bad_values(tiny_model: Path) -> None:
 
 
 def test_vtr_bench_latency_cli(tiny_model: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from runtime.cli import main
+    from vtr.runtime.cli import main
 
     argv = ["bench", "latency", "--model", str(tiny_model), "--steps", "3", "--warmup", "1", "--thread-counts", "1",
             "--backends", "ort_fp32", "--matmul-size", "32", "--no-zmq", "--no-memory", "--sim-steps", "0",

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 torch = pytest.importorskip("torch")
-models = pytest.importorskip("training.models")
-config = pytest.importorskip("training.config")
+models = pytest.importorskip("vtr.training.models")
+config = pytest.importorskip("vtr.training.config")
 
 
 def _zero_viewnet(path: Path) -> Path:
@@ -26,7 +26,7 @@ def _zero_viewnet(path: Path) -> Path:
 
 
 def test_mpc_returns_bounded_plan(tmp_path: Path) -> None:
-    from benchmarks.evaluate import ViewNetMPC
+    from vtr.benchmarks.evaluate import ViewNetMPC
 
     ckpt = _zero_viewnet(tmp_path / "viewnet.pt")
     mpc = ViewNetMPC(ckpt, horizon=2, samples=8, iterations=2, threads=1, seed=0)
@@ -42,7 +42,7 @@ def test_mpc_returns_bounded_plan(tmp_path: Path) -> None:
 
 
 def test_mpc_rejects_a_velocitynet_checkpoint(tmp_path: Path) -> None:
-    from benchmarks.evaluate import ViewNetMPC
+    from vtr.benchmarks.evaluate import ViewNetMPC
 
     cfg = config.VelocityNetConfig(image_size=32, channels=(4, 4, 8, 8, 8, 8, 8))
     path = tmp_path / "vel.pt"

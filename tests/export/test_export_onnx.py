@@ -11,16 +11,16 @@ import onnxruntime as ort
 import pytest
 import torch
 
-from export.cli import ExportConfig, int8_path
-from export.cli import run as export_run
-from export.onnx_export import ParityError, check_parity, export_onnx, velocitynet_meta
-from export.quantize import calibration_pairs, compare, quantize_int8
-from runtime import cli
-from runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
-from training.config import VelocityNetConfig, ViewNetConfig, to_dict
-from training.dataset import save_dataset, synthetic_dataset
-from training.models import VelocityNet, ViewNet
-from training.train import atomic_save
+from vtr.export.cli import ExportConfig, int8_path
+from vtr.export.cli import run as export_run
+from vtr.export.onnx_export import ParityError, check_parity, export_onnx, velocitynet_meta
+from vtr.export.quantize import calibration_pairs, compare, quantize_int8
+from vtr.runtime import cli
+from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
+from vtr.training.config import VelocityNetConfig, ViewNetConfig, to_dict
+from vtr.training.dataset import save_dataset, synthetic_dataset
+from vtr.training.models import VelocityNet, ViewNet
+from vtr.training.train import atomic_save
 
 SIZE = 32
 
@@ -103,12 +103,12 @@ def test_parity_check_raises_past_the_tolerance(exported: tuple[Path, VelocityNe
 
 
 def test_runtime_policy_loads_the_export(exported: tuple[Path, VelocityNet, dict]) -> None:
-    policy_mod = pytest.importorskip("runtime.policy")
+    policy_mod = pytest.importorskip("vtr.runtime.policy")
     path, net, _ = exported
     policy = policy_mod.OnnxPolicy(path)
     rng = np.random.default_rng(1)
     cur, sub = (rng.integers(0, 256, (SIZE, SIZE, 3), dtype=np.uint8) for _ in range(2))
-    from runtime.preprocess import to_nchw
+    from vtr.runtime.preprocess import to_nchw
 
     want = net(torch.from_numpy(to_nchw(cur)), torch.from_numpy(to_nchw(sub))).detach().numpy()[0]
     np.testing.assert_allclose(policy.predict(cur, sub), want, atol=1e-5)

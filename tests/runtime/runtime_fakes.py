@@ -101,7 +101,7 @@ def build_velocitynet_onnx(
     import onnx
     from onnx import TensorProto, helper
 
-    from runtime.model_meta import ModelMeta
+    from vtr.runtime.model_meta import ModelMeta
 
     cur, sub = input_names
     nodes = [
@@ -149,7 +149,7 @@ def build_velocitynet_onnx(
 
 def corridor_route(length_m: float = 0.4, spacing_m: float = 0.05, h: int = H, w: int = W):
     """A Route along the corridor: subgoals every ``spacing_m`` from x=0 to ``length_m``."""
-    from runtime.route import Route
+    from vtr.runtime.route import Route
 
     xs = np.arange(0.0, length_m + 1e-9, spacing_m)
     images = np.stack([render(x, h, w) for x in xs])

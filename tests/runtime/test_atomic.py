@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from runtime.atomic import atomic_path, write_bytes_atomic, write_text_atomic
+from vtr.runtime.atomic import atomic_path, write_bytes_atomic, write_text_atomic
 
 
 def test_atomic_write_replaces_the_target_and_leaves_no_temporary(tmp_path: Path) -> None:

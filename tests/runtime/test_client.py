@@ -11,11 +11,11 @@ import pytest
 import zmq
 from runtime_fakes import FakeSim, render
 
-from runtime import protocol
-from runtime.client import SimClient
-from runtime.protocol import BadFrameError
-from runtime.robot import Robot, RobotError
-from sim2d.server import ServerConfig, ServerThread
+from vtr.runtime import protocol
+from vtr.runtime.client import SimClient
+from vtr.runtime.protocol import BadFrameError
+from vtr.runtime.robot import Robot, RobotError
+from vtr.sim2d.server import ServerConfig, ServerThread
 
 
 class ScriptedServer:

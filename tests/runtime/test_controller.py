@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from runtime.controller import Action, Controller, ControllerConfig, calibrate_e_m, consecutive_errors
-from runtime.daemon import RepeatConfig, repeat
-from runtime.robot import Observation
-from runtime.route import Route
+from vtr.runtime.controller import Action, Controller, ControllerConfig, calibrate_e_m, consecutive_errors
+from vtr.runtime.daemon import RepeatConfig, repeat
+from vtr.runtime.robot import Observation
+from vtr.runtime.route import Route
 
 PAPER = ControllerConfig.paper()
 

@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 from runtime_fakes import FakeSim, FakeSimAt, build_velocitynet_onnx, corridor_route, render
 
-from runtime.client import SimClient
-from runtime.controller import ControllerConfig
-from runtime.daemon import RepeatConfig, repeat
-from runtime.policy import OnnxPolicy
-from runtime.protocol import BadFrameError
-from runtime.robot import Observation
-from sim2d.local_robot import LocalRobot
-from sim2d.server import ServerConfig, ServerThread, start_server_process
+from vtr.runtime.client import SimClient
+from vtr.runtime.controller import ControllerConfig
+from vtr.runtime.daemon import RepeatConfig, repeat
+from vtr.runtime.policy import OnnxPolicy
+from vtr.runtime.protocol import BadFrameError
+from vtr.runtime.robot import Observation
+from vtr.sim2d.local_robot import LocalRobot
+from vtr.sim2d.server import ServerConfig, ServerThread, start_server_process
 
 LOG_KEYS = {
     "step",
@@ -228,8 +228,8 @@ def test_server_killed_for_good_the_repeat_stops_cleanly(policy_path):
 
 
 def test_teach_then_repeat_over_zeromq_through_the_cli(policy_path, tmp_path, capsys):
-    from runtime.cli import main
-    from runtime.route import Route
+    from vtr.runtime.cli import main
+    from vtr.runtime.route import Route
 
     script = tmp_path / "corridor.json"
     script.write_text(
@@ -271,8 +271,8 @@ def test_teach_then_repeat_over_zeromq_through_the_cli(policy_path, tmp_path, ca
 
 
 def test_teach_spacing_rules(tmp_path):
-    from runtime.route_script import parse_route_script
-    from runtime.teach import TeachConfig, teach
+    from vtr.runtime.route_script import parse_route_script
+    from vtr.runtime.teach import TeachConfig, teach
 
     script = parse_route_script(
         {"start": {"x": 0, "y": 0, "yaw": 0}, "segments": [{"v": 0.5, "w": 0, "duration": 1.0}]}
@@ -317,7 +317,7 @@ def test_camera_at_the_wrong_resolution_never_reaches_the_network(policy_path):
 
 
 def test_cli_reports_bad_inputs_without_a_traceback(policy_path, tmp_path, capsys):
-    from runtime.cli import main
+    from vtr.runtime.cli import main
 
     route = tmp_path / "route.npz"
     corridor_route(h=8, w=8).save(route)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from runtime_fakes import H, W, build_velocitynet_onnx, corridor_route, render
 
-from runtime.policy import ModelMismatchError, OnnxPolicy
+from vtr.runtime.policy import ModelMismatchError, OnnxPolicy
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from runtime.preprocess import image_error, to_nchw
+from vtr.runtime.preprocess import image_error, to_nchw
 
 
 def test_image_error_is_the_mean_absolute_difference_on_the_255_scale():

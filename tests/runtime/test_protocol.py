@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from runtime import protocol
-from runtime.protocol import BadFrameError, Limits, ProtocolError
+from vtr.runtime import protocol
+from vtr.runtime.protocol import BadFrameError, Limits, ProtocolError
 
 
 def header(**overrides):

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from runtime_fakes import corridor_route
 
-from runtime.route import Route, RouteError
-from runtime.route_script import RouteScriptError, load_route_script, parse_route_script
+from vtr.runtime.route import Route, RouteError
+from vtr.runtime.route_script import RouteScriptError, load_route_script, parse_route_script
 
 
 def test_route_round_trip(tmp_path):

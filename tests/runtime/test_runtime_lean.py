@@ -17,19 +17,19 @@ from pathlib import Path
 import pytest
 from runtime_fakes import FakeSim, build_velocitynet_onnx, corridor_route
 
-from sim2d.server import ServerThread
+from vtr.sim2d.server import ServerThread
 
 ROOT = Path(__file__).resolve().parents[2]
-BLOCKED = ("torch", "pymunk", "cv2", "onnx", "sim2d", "matplotlib", "gymnasium")
+BLOCKED = ("torch", "pymunk", "cv2", "onnx", "vtr.sim2d", "matplotlib", "gymnasium")
 
 PRELUDE = f"""
 import sys
 for name in {BLOCKED!r}:
     sys.modules[name] = None
-from runtime.cli import main
+from vtr.runtime.cli import main
 code = main(sys.argv[1:])
-import runtime.client, runtime.controller, runtime.daemon, runtime.policy, runtime.protocol  # noqa
-import runtime.robot, runtime.route, runtime.route_script, runtime.teach  # noqa
+import vtr.runtime.client, vtr.runtime.controller, vtr.runtime.daemon, vtr.runtime.policy, vtr.runtime.protocol  # noqa
+import vtr.runtime.robot, vtr.runtime.route, vtr.runtime.route_script, vtr.runtime.teach  # noqa
 leaked = sorted(n for n in {BLOCKED!r} if sys.modules.get(n) is not None)
 print("LEAKED", leaked, file=sys.stderr)
 sys.exit(code)

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import zmq
 
-from runtime import protocol
-from sim2d.server import ServerConfig, ServerThread, SimServer, start_server_process
+from vtr.runtime import protocol
+from vtr.sim2d.server import ServerConfig, ServerThread, SimServer, start_server_process
 
 
 class Pose(NamedTuple):
@@ -201,7 +201,7 @@ class FakeClock:
 
 
 def test_realtime_mode_keeps_driving_until_stop():
-    from sim2d.server import Deferred
+    from vtr.sim2d.server import Deferred
 
     sim, clock = TinySim(), FakeClock()
     server = SimServer(sim, ServerConfig(mode="realtime"), clock=clock)
@@ -227,7 +227,7 @@ def test_realtime_server_over_zeromq_answers_steps_after_their_duration():
     sim = TinySim()
     cfg = ServerConfig(bind="tcp://127.0.0.1:*", mode="realtime", realtime_factor=10.0, poll_ms=5)
     with ServerThread(sim, cfg) as server:
-        from runtime.client import SimClient
+        from vtr.runtime.client import SimClient
 
         with SimClient(server.endpoint, timeout_s=5.0) as client:
             first = client.observe()

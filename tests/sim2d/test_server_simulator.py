@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 try:
-    from sim2d import CameraConfig, SimConfig, Simulator
+    from vtr.sim2d import CameraConfig, SimConfig, Simulator
 except ImportError:  # the simulator core has not landed on this branch yet
     Simulator = None
 
@@ -18,9 +18,9 @@ def small_sim() -> Simulator:
 
 
 def test_images_over_zeromq_equal_the_in_process_ones():
-    from runtime.client import SimClient
-    from sim2d.local_robot import LocalRobot
-    from sim2d.server import ServerThread
+    from vtr.runtime.client import SimClient
+    from vtr.sim2d.local_robot import LocalRobot
+    from vtr.sim2d.server import ServerThread
 
     commands = [(0.3, 0.0), (0.2, 0.5), (0.0, -1.0), (0.5, 0.2)]
     local = LocalRobot(small_sim())
@@ -42,9 +42,9 @@ def test_images_over_zeromq_equal_the_in_process_ones():
 
 
 def test_simulator_refusal_is_an_error_reply_and_the_server_keeps_serving():
-    from runtime.client import SimClient
-    from runtime.robot import RobotError
-    from sim2d.server import ServerThread
+    from vtr.runtime.client import SimClient
+    from vtr.runtime.robot import RobotError
+    from vtr.sim2d.server import ServerThread
 
     with ServerThread(small_sim()) as server, SimClient(server.endpoint, timeout_s=10.0) as client:
         with pytest.raises(RobotError, match="not free space"):
@@ -60,14 +60,14 @@ def test_vtr_sim_serve_shuts_down_cleanly_on_signals(sig):
     import sys
     from pathlib import Path
 
-    from runtime.client import SimClient
-    from sim2d.server import ServerThread
+    from vtr.runtime.client import SimClient
+    from vtr.sim2d.server import ServerThread
 
     with ServerThread(small_sim()) as probe:  # borrow a free port
         endpoint = probe.endpoint
     root = Path(__file__).resolve().parents[2]
     proc = subprocess.Popen(
-        [sys.executable, "-m", "runtime.cli", "sim", "serve", "--bind", endpoint],
+        [sys.executable, "-m", "vtr.runtime.cli", "sim", "serve", "--bind", endpoint],
         cwd=root,
         env=dict(os.environ, PYTHONPATH=str(root)),
         stdout=subprocess.PIPE,

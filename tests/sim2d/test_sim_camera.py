@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim2d import CameraConfig, Pose, SimConfig, Simulator
-from sim2d.camera import Camera
-from sim2d.house import load_house
+from vtr.sim2d import CameraConfig, Pose, SimConfig, Simulator
+from vtr.sim2d.camera import Camera
+from vtr.sim2d.house import load_house
 
 
 @pytest.fixture(scope="module")

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from sim2d import CameraConfig, HouseError, Pose, SimConfig, Simulator, load_house
+from vtr.sim2d import CameraConfig, HouseError, Pose, SimConfig, Simulator, load_house
 
 
 def tiny_house() -> dict:
@@ -74,7 +74,7 @@ def test_floor_mosaic_is_deterministic_and_colourful():
     a = load_house("house").floor_image
     assert a.shape == (512, 512, 3) and a.dtype == np.uint8
     assert len(np.unique(a.reshape(-1, 3), axis=0)) > 200  # many tiles of different colours
-    from sim2d.textures import mosaic_floor
+    from vtr.sim2d.textures import mosaic_floor
 
     b = mosaic_floor(0, 0, 10.3, 64, 0.3, 7, np.array([55.0, 55, 60]))
     c = mosaic_floor(0, 0, 10.3, 64, 0.3, 7, np.array([55.0, 55, 60]))

@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from sim2d import SimConfig, Simulator, list_routes, load_route
+from vtr.sim2d import SimConfig, Simulator, list_routes, load_route
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +59,7 @@ def test_route_validation(tmp_path):
 
 
 def _cli(argv: list[str]) -> int:
-    from sim2d import cli
+    from vtr.sim2d import cli
 
     parser = argparse.ArgumentParser()
     cli.add_arguments(parser)
@@ -80,7 +80,7 @@ def test_snapshot_cli_writes_a_png(tmp_path, capsys):
 
 
 def test_serve_without_server_module_says_so(monkeypatch, capsys):
-    monkeypatch.setitem(sys.modules, "sim2d.server", None)  # as if the module did not exist
+    monkeypatch.setitem(sys.modules, "vtr.sim2d.server", None)  # as if the module did not exist
     assert _cli(["serve", "--bind", "tcp://127.0.0.1:5599"]) == 3
     assert "sim2d/server.py" in capsys.readouterr().err
 
@@ -88,8 +88,8 @@ def test_serve_without_server_module_says_so(monkeypatch, capsys):
 def test_gym_env_passes_check_env():
     from gymnasium.utils.env_checker import check_env
 
-    from sim2d import CameraConfig
-    from sim2d.gym_env import GymEnvConfig, SimEnv
+    from vtr.sim2d import CameraConfig
+    from vtr.sim2d.gym_env import GymEnvConfig, SimEnv
 
     env = SimEnv(GymEnvConfig(sim=SimConfig(camera=CameraConfig(width=48, height=32)), max_steps=5))
     check_env(env, skip_render_check=True)
@@ -101,7 +101,7 @@ def test_gym_env_passes_check_env():
 
 
 def test_throughput_benchmark_smoke(tmp_path):
-    from benchmarks.sim_throughput import SimBenchConfig, format_table, run
+    from vtr.benchmarks.sim_throughput import SimBenchConfig, format_table, run
 
     out = tmp_path / "bench.json"
     r = run(SimBenchConfig(steps=20, warmup=2, width=32, height=32, json_path=str(out)))

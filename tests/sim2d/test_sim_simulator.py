@@ -9,7 +9,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sim2d import CameraConfig, Pose, SimConfig, Simulator
+from vtr.sim2d import CameraConfig, Pose, SimConfig, Simulator
 
 SMALL = CameraConfig(width=64, height=64)
 
@@ -179,7 +179,7 @@ def test_random_commands_never_leave_the_house_or_cross_a_wall(sim, start, comma
 
 
 def test_noise_has_a_systematic_part_that_open_loop_driving_cannot_average_out():
-    from sim2d import Pose, SimConfig, Simulator
+    from vtr.sim2d import Pose, SimConfig, Simulator
 
     ends = []
     for seed in (1, 2):

@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 import torch
 
-from runtime import cli
-from training.dataset import save_dataset, synthetic_dataset
+from vtr.runtime import cli
+from vtr.training.dataset import save_dataset, synthetic_dataset
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -123,7 +123,7 @@ def test_torchrun_two_cpu_processes(data: Path, tmp_path: Path) -> None:
         "--standalone",
         "--nproc_per_node=2",
         "-m",
-        "runtime.cli",
+        "vtr.runtime.cli",
         "train",
         "viewnet",
         "--preset",
@@ -204,8 +204,8 @@ def test_default_preset_beats_both_baselines(tmp_path: Path) -> None:
 def test_interrupt_saves_a_checkpoint_that_resume_continues(
     data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    import training.train as train_mod
-    from training.config import get_preset, override
+    import vtr.training.train as train_mod
+    from vtr.training.config import get_preset, override
 
     preset = get_preset("tiny")
     cfg = override(preset.train_viewnet, steps=5, val_every=100)

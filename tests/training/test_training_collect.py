@@ -8,17 +8,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from training.collect import arc_points
-from training.config import CollectConfig
-from training.dataset import load_dataset
+from vtr.training.collect import arc_points
+from vtr.training.config import CollectConfig
+from vtr.training.dataset import load_dataset
 
 pytest.importorskip("pymunk")
-pytest.importorskip("sim2d.simulator")  # the simulator lands from its own branch
+pytest.importorskip("vtr.sim2d.simulator")  # the simulator lands from its own branch
 
 
 @pytest.fixture(scope="module")
 def collected(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
-    from training.collect import run
+    from vtr.training.collect import run
 
     out = tmp_path_factory.mktemp("collect") / "tiny.npz"
     cfg = CollectConfig(
@@ -64,7 +64,7 @@ def test_driving_covers_every_kind_of_motion(collected: tuple[Path, dict]) -> No
 
 
 def test_same_seed_same_dataset(collected: tuple[Path, dict], tmp_path: Path) -> None:
-    from training.collect import run
+    from vtr.training.collect import run
 
     out = tmp_path / "again.npz"
     run(
@@ -78,7 +78,7 @@ def test_same_seed_same_dataset(collected: tuple[Path, dict], tmp_path: Path) ->
 
 
 def test_collect_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from runtime import cli
+    from vtr.runtime import cli
 
     out = tmp_path / "c.npz"
     args = ["collect", "--out", str(out), "--frames", "40", "--image-size", "32", "--no-progress", "--noise"]

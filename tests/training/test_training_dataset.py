@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from training.dataset import (
+from vtr.training.dataset import (
     DatasetError,
     FrameData,
     load_dataset,

@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 import torch
 
-from training.config import MPCLossConfig, VelocityNetConfig, ViewNetConfig
-from training.losses import mpc_loss, viewnet_loss
-from training.models import VelocityNet, ViewNet
+from vtr.training.config import MPCLossConfig, VelocityNetConfig, ViewNetConfig
+from vtr.training.losses import mpc_loss, viewnet_loss
+from vtr.training.models import VelocityNet, ViewNet
 
 # Pass-1 and pass-2 velocities of the stub VelocityNet: rows (v, w), columns n = 1, 2.
 U1 = torch.tensor([[0.2, 0.1], [0.3, -0.4]])

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import torch
 
-from runtime.preprocess import to_nchw
-from training.config import PRESETS, TrainConfig, VelocityNetConfig, ViewNetConfig, get_preset
-from training.models import VelocityNet, ViewNet
-from training.train import images_to_float
+from vtr.runtime.preprocess import to_nchw
+from vtr.training.config import PRESETS, TrainConfig, VelocityNetConfig, ViewNetConfig, get_preset
+from vtr.training.models import VelocityNet, ViewNet
+from vtr.training.train import images_to_float
 
 
 def _tiny_viewnet() -> ViewNet:
