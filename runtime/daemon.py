@@ -73,8 +73,8 @@ class RepeatConfig:
 
 @dataclass
 class RepeatSummary:
-    """How a repeat ended. ``reason``: finished | stalled | step_limit | interrupted | no_valid_frame |
-    robot_error."""
+    """How a repeat ended. ``reason``: finished | stalled | lost | collided | step_limit | interrupted |
+    no_valid_frame | robot_error."""
 
     completed: bool
     reason: str
@@ -192,7 +192,7 @@ def repeat(
             t0 = time.perf_counter()
             from_subgoal, advances, jumps = controller.index, 0, []
             while True:
-                decision = controller.decide(obs.image)
+                decision = controller.decide(obs.image, obs.collided)
                 if decision.action is Action.ADVANCE:
                     advances += 1
                     continue
@@ -204,8 +204,8 @@ def repeat(
             if decision.action is Action.FINISHED:
                 reason = "finished"
                 break
-            if decision.action is Action.STALLED:
-                reason, detail = "stalled", decision.note
+            if decision.action in (Action.STALLED, Action.LOST, Action.COLLIDED):
+                reason, detail = decision.action.value, decision.note
                 break
             if steps >= cfg.max_steps:
                 reason = "step_limit"
@@ -295,7 +295,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--e-m",
         type=float,
         default=None,
-        help="fixed switch threshold (paper: 17); default: calibrated from the route",
+        help="fixed switch threshold (paper: 17 with --match raw); default: one per subgoal from the route",
     )
     parser.add_argument("--threads", type=int, default=1, help="onnxruntime intra-op threads")
     parser.add_argument("--max-steps", type=int, default=2000, help="stop after this many control steps")
@@ -306,12 +306,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--settle",
         type=int,
         default=None,
-        help="extra commands at a subgoal while the error still falls under e_m (default: 2; paper: 0)",
+        help="extra commands at a subgoal while the error still falls under e_m (default: 1; paper: 0)",
     )
     parser.add_argument(
         "--paper",
         action="store_true",
-        help="the paper's Algorithm 1 exactly: e_m 17, no settling, no stall guard",
+        help="the paper's Algorithm 1 exactly: raw error, e_m 17, no settling, stall guard or lost test",
+    )
+    parser.add_argument(
+        "--match",
+        choices=("patch", "raw"),
+        default=None,
+        help="image comparison: patch-normalised median (default) or raw mean abs error (paper)",
+    )
+    parser.add_argument(
+        "--lost-steps",
+        type=int,
+        default=None,
+        help="stop as lost after this many steps with no nearby subgoal matching; 0 disables (default: 5)",
     )
     parser.add_argument("--localise", action="store_true", help="start at the best-matching subgoal")
     parser.add_argument("--continuous", action="store_true", help="no zero command between control steps")
@@ -392,6 +404,8 @@ def run_cli(args: argparse.Namespace) -> int:
         e_m=args.e_m if args.e_m is not None else base.e_m,
         stall_steps=args.stall_steps if args.stall_steps is not None else base.stall_steps,
         settle_steps=args.settle if args.settle is not None else base.settle_steps,
+        match=replace(base.match, method=args.match) if args.match is not None else base.match,
+        lost_steps=args.lost_steps if args.lost_steps is not None else base.lost_steps,
         localise=args.localise,
         continuous=args.continuous,
     )
