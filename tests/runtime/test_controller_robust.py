@@ -11,7 +11,7 @@ import pytest
 from texture_views import lit, view
 
 from vtr.runtime.controller import Action, Controller, ControllerConfig, thresholds
-from vtr.runtime.daemon import RepeatConfig, repeat
+from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
 from vtr.runtime.robot import Observation
 from vtr.runtime.route import Route
 
@@ -127,6 +127,8 @@ class StillPolicy:
 def test_the_loop_ends_with_status_collided_and_stops_the_robot():
     route = Route(images=ROUTE, poses=np.full((len(ROUTE), 3), np.nan), commands=np.zeros((len(ROUTE), 2)))
     robot = ContactRobot()
-    summary = repeat(robot, StillPolicy(), route, RepeatConfig(controller=robust(lost_steps=0)))
-    assert summary.reason == "collided" and not summary.completed and summary.steps == 2
+    summary = Repeater(
+        robot, StillPolicy(), route, config=RepeatConfig(controller=robust(lost_steps=0))
+    ).run()
+    assert summary.status is RepeatStatus.COLLIDED and not summary.completed and summary.steps == 2
     assert robot.calls[-1] == "stop"
