@@ -816,6 +816,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--threads", type=int, default=1, help="inference threads per worker")
     parser.add_argument("--workers", type=int, default=2, help="processes over routes")
     parser.add_argument("--quick", action="store_true", help="one short route, noise scenario only, no MPC")
+    from vtr.benchmarks import condition_suite
+
+    condition_suite.add_arguments(parser)
 
 
 def config_from_args(args: argparse.Namespace) -> EvalConfig:
@@ -842,6 +845,10 @@ def config_from_args(args: argparse.Namespace) -> EvalConfig:
 
 
 def run_cli(args: argparse.Namespace) -> int:
+    if getattr(args, "suite", None) == "conditions":
+        from vtr.benchmarks import condition_suite
+
+        return condition_suite.run_cli(args)
     try:
         cfg = config_from_args(args)
     except ValueError as err:
