@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
+from vtr.benchmarks.results import write_json
 from vtr.benchmarks.timing import time_call, time_interleaved
-from vtr.runtime.atomic import write_text_atomic
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
 
@@ -250,7 +250,7 @@ def _backend_runner(
 def _torch_module(cfg: LatencyConfig) -> Callable[[Any, Any], Any]:
     """VelocityNet as a torch eager callable: from a checkpoint if given, else rebuilt from the ONNX weights."""
     if cfg.checkpoint is not None:
-        from vtr.training.train import load_model
+        from vtr.training.checkpoint import load_model
 
         kind, net, _ = load_model(cfg.checkpoint)
         if kind != "velocitynet":
@@ -526,20 +526,6 @@ def run(cfg: LatencyConfig) -> dict[str, Any]:
     if cfg.json_path is not None:
         write_json(cfg.json_path, result)
     return result
-
-
-def write_json(path: Path, data: Any) -> None:
-    write_text_atomic(path, json.dumps(data, indent=2, default=_json_default) + "\n")
-
-
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

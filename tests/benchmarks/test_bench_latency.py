@@ -81,7 +81,7 @@ def test_config_rejects_bad_values(tiny_model: Path) -> None:
 
 
 def test_vtr_bench_latency_cli(tiny_model: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from vtr.runtime.cli import main
+    from vtr.cli import main
 
     argv = ["bench", "latency", "--model", str(tiny_model), "--steps", "3", "--warmup", "1", "--thread-counts", "1",
             "--backends", "ort_fp32", "--matmul-size", "32", "--no-zmq", "--no-memory", "--sim-steps", "0",
