@@ -37,6 +37,7 @@ from vtr.models import find_model
 from vtr.runtime.atomic import write_text_atomic
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT, Policy
+from vtr.runtime.route_script import load_route_script
 from vtr.sim2d.routes import ROUTES_DIR
 
 QUICK_ROUTES = ("translation",)
@@ -108,7 +109,8 @@ class EvalConfig:
             raise ValueError(f"threads and workers must be >= 1, got {self.threads}, {self.workers}")
         if self.json_path is not None and self.markdown_path is None:
             self.markdown_path = Path(self.json_path).with_suffix(".md")
-        route_files(self.routes)  # a bad route name is an input error now, not a traceback later
+        for path in route_files(self.routes):  # a bad route is an input error now, not in a worker later
+            load_route_script(path)
 
 
 # ---------------------------------------------------------------- routes and teach

@@ -262,7 +262,8 @@ def train_velocitynet(
         raise ValueError(f"{viewnet_path} holds a {kind}, not a ViewNet")
     if viewnet.cfg.image_size != model_cfg.image_size:
         raise ValueError(
-            f"ViewNet image size {viewnet.cfg.image_size} != VelocityNet's {model_cfg.image_size}"
+            f"the ViewNet at {viewnet_path} takes {viewnet.cfg.image_size}px images but this preset's VelocityNet "
+            f"takes {model_cfg.image_size}px; train with the preset the ViewNet was trained with (--preset)"
         )
     viewnet.to(dist.device).eval().requires_grad_(False)  # frozen: eval BN statistics, no weight updates
     if data is None:

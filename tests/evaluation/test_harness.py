@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vtr.benchmarks.onnx_tools import make_standin_velocitynet
+from vtr.benchmarks.standin import make_standin_velocitynet
 from vtr.runtime.model_meta import ModelMeta
 
 SHORT_ROUTE = {
