@@ -233,6 +233,9 @@ class Repeater:
             )
         self.dt = float(self.config.dt if self.config.dt is not None else (model_dt or CONTROL_DT))
         self.controller = controller or Controller(route.images, self.config.controller)
+        # one view object per subgoal, passed again while it is steered to (OnnxPolicy keeps its tensor)
+        self._views = list(self.controller.subgoals)
+        self._last = len(self._views) - 1
         self.on_step = on_step
         self.stop_event = stop_event or threading.Event()
         self.max_steps = self.config.max_steps
@@ -328,7 +331,7 @@ class Repeater:
             return self._end(status, decision.note if status is not RepeatStatus.FINISHED else "", verdict)
         if self.steps >= self.max_steps:
             return self._end(RepeatStatus.STEP_LIMIT, "", verdict)
-        velocities = self.policy.predict(obs.image, self.controller.subgoal)
+        velocities = self.policy.predict(obs.image, self._views[min(self.controller.index, self._last)])
         v, w = float(velocities[0, 0]), float(velocities[1, 0])
         t_policy = time.perf_counter()
         stage = dict(getattr(self.policy, "last_timing_ms", None) or {})
