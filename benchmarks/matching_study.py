@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from vtr.benchmarks.conditions import LIGHTING, SCENES, write_scene_house
+from vtr.evaluation.conditions import LIGHTING, SCENES, write_scene_house
 from vtr.runtime.matching import MatchConfig, Matcher
 
 #: Routes this study (and any threshold chosen from it) may look at; the held-out routes never appear here.
@@ -73,7 +73,7 @@ def _render_all(sims: dict[str, Any], poses: dict[Any, tuple[float, float, float
 
 
 def study(routes: tuple[str, ...], stride: int, methods: dict[str, MatchConfig]) -> dict[str, Any]:
-    from vtr.benchmarks.evaluate import route_files, teach
+    from vtr.evaluation.harness import route_files, teach
     from vtr.sim2d import CameraConfig, SimConfig, Simulator
 
     camera = CameraConfig(width=128, height=128)

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from vtr.benchmarks.conditions import LIGHTING, SCENES
+from vtr.evaluation.conditions import LIGHTING, SCENES
 from vtr.runtime.controller import ControllerConfig
 from vtr.runtime.matching import MatchConfig
 
@@ -66,7 +66,7 @@ CONTROLLERS: dict[str, ControllerConfig] = {
 class SuiteConfig:
     """One condition-suite run."""
 
-    model: Path  # fp32 VelocityNet ONNX
+    model: Path | None = None  # fp32 VelocityNet ONNX; None: the shipped one (vtr.models.find_model)
     int8_model: Path | None = None  # None: `<model stem>-int8.onnx` beside the model, if present
     routes: tuple[str, ...] = ()  # names in sim2d/routes/heldout or sim2d/routes, or paths; () = held-out
     conditions: tuple[str, ...] = tuple(CONDITIONS)
@@ -80,9 +80,12 @@ class SuiteConfig:
     json_path: Path | None = None
 
     def __post_init__(self) -> None:
-        self.model = Path(self.model)
-        if not self.model.is_file():
-            raise ValueError(f"model file not found: {self.model}")
+        from vtr.models import find_model
+
+        try:
+            self.model = find_model(self.model)
+        except FileNotFoundError as err:
+            raise ValueError(str(err)) from err
         if self.int8_model is None:
             sibling = self.model.with_name(self.model.stem + "-int8" + self.model.suffix)
             self.int8_model = sibling if sibling.is_file() else None
@@ -142,8 +145,9 @@ def _start(pose: np.ndarray, offset: tuple[float, float], seed: int) -> tuple[fl
 def run_once(route: Any, script: Any, cond: Condition, house: str, seed: int, ctrl: ControllerConfig,
              policy: Any, cfg: SuiteConfig) -> dict[str, Any]:  # fmt: skip
     """One repeat under ``cond``; the scores of benchmarks.evaluate plus status, cause and steps ratio."""
-    from vtr.benchmarks.conditions import LitRobot
-    from vtr.benchmarks.evaluate import RunLog, score
+    from vtr.evaluation.conditions import LitRobot
+    from vtr.evaluation.runs import RunLog
+    from vtr.evaluation.scoring import score
     from vtr.runtime.controller import Action
     from vtr.runtime.repeater import RepeatConfig, Repeater, StepRecord
     from vtr.sim2d import CameraConfig, SimConfig, Simulator
@@ -209,8 +213,8 @@ def evaluate_task(task: tuple[Path, str, SuiteConfig]) -> list[dict[str, Any]]:
     """All seeds, controllers and models of one (route, condition): a process-pool task."""
     import tempfile
 
-    from vtr.benchmarks.conditions import write_scene_house
-    from vtr.benchmarks.evaluate import teach
+    from vtr.evaluation.conditions import write_scene_house
+    from vtr.evaluation.harness import teach
 
     path, cond_name, cfg = task
     os.environ.setdefault("OMP_NUM_THREADS", str(cfg.threads))
@@ -357,7 +361,7 @@ def run_cli(args: argparse.Namespace) -> int:
                           conditions=tuple(args.conditions), seeds=tuple(args.seeds),
                           controllers=tuple(args.controllers), models=tuple(args.suite_models),
                           max_steps_factor=args.max_steps_factor, threads=args.threads, workers=args.workers,
-                          json_path=args.json)  # fmt: skip
+                          json_path=args.json_path)  # fmt: skip
     except ValueError as err:
         print(f"vtr eval: {err}", file=sys.stderr)
         return 2
