@@ -52,13 +52,25 @@ CONDITIONS: dict[str, Condition] = {
     **{name: Condition(scene=name) for name in SCENES},
 }
 
-CONTROLLERS: dict[str, ControllerConfig] = {
-    "paper": ControllerConfig.paper(),  # Algorithm 1: raw error, e_m = 17
-    "before": ControllerConfig.before(),  # the previous default: raw error, one e_m per route
-    "after": ControllerConfig(),  # patch matching, per-subgoal thresholds + relative switch, lost, contact
-    # ablations of "after"
-    "after_raw_matching": replace(ControllerConfig(), match=MatchConfig.paper()),
-    "after_route_threshold": replace(ControllerConfig(), e_m_mode="calibrated", pass_ratio=0.0),
+
+@dataclass(frozen=True)
+class Method:
+    """How the runtime repeats: the controller's settings, and whether the current image is recoloured to
+    the subgoal's light before the policy sees it (runtime.light)."""
+
+    controller: ControllerConfig
+    match_light: bool = False
+
+
+AFTER = ControllerConfig()  # patch matching, per-subgoal thresholds + relative switch, lost, contact stop
+CONTROLLERS: dict[str, Method] = {
+    "paper": Method(ControllerConfig.paper()),  # Algorithm 1: raw error, e_m = 17
+    "before": Method(ControllerConfig.before()),  # the previous default: raw error, one e_m per route
+    "after": Method(AFTER, match_light=True),
+    # ablations of "after", one part off each
+    "after_no_light_matching": Method(AFTER),
+    "after_raw_matching": Method(replace(AFTER, match=MatchConfig.paper()), match_light=True),
+    "after_route_threshold": Method(replace(AFTER, e_m_mode="calibrated", pass_ratio=0.0), match_light=True),
 }
 
 
@@ -142,13 +154,14 @@ def _start(pose: np.ndarray, offset: tuple[float, float], seed: int) -> tuple[fl
     return (x - math.sin(yaw) * lateral, y + math.cos(yaw) * lateral, yaw + dyaw)
 
 
-def run_once(route: Any, script: Any, cond: Condition, house: str, seed: int, ctrl: ControllerConfig,
+def run_once(route: Any, script: Any, cond: Condition, house: str, seed: int, method: Method,
              policy: Any, cfg: SuiteConfig) -> dict[str, Any]:  # fmt: skip
     """One repeat under ``cond``; the scores of benchmarks.evaluate plus status, cause and steps ratio."""
     from vtr.evaluation.conditions import LitRobot
     from vtr.evaluation.runs import RunLog
     from vtr.evaluation.scoring import score
     from vtr.runtime.controller import Action
+    from vtr.runtime.light import LightMatchedPolicy
     from vtr.runtime.repeater import RepeatConfig, Repeater, StepRecord
     from vtr.sim2d import CameraConfig, SimConfig, Simulator
     from vtr.sim2d.local_robot import LocalRobot
@@ -174,7 +187,11 @@ def run_once(route: Any, script: Any, cond: Condition, house: str, seed: int, ct
             log.poses.append(inner.last.pose)
             log.collisions += int(inner.last.collided)
 
-    rcfg = RepeatConfig(controller=ctrl, dt=cfg.dt, max_steps=int(cfg.max_steps_factor * taught_steps + 50))
+    rcfg = RepeatConfig(
+        controller=method.controller, dt=cfg.dt, max_steps=int(cfg.max_steps_factor * taught_steps + 50)
+    )
+    if method.match_light:
+        policy = LightMatchedPolicy(policy)
     summary = Repeater(robot, policy, route, config=rcfg, on_step=on_step).run()
     log.subgoals_reached, log.steps, log.outcome = (
         summary.subgoals_reached,
