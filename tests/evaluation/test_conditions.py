@@ -1,0 +1,115 @@
+"""Repeat-time conditions and the condition suite (`vtr eval --suite conditions`) on a tiny stand-in model."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vtr.benchmarks.standin import make_standin_velocitynet
+from vtr.evaluation import condition_suite as suite
+from vtr.evaluation.conditions import LIGHTING, SCENES, LitRobot, brightness, side_darker, write_scene_house
+from vtr.runtime.model_meta import ModelMeta
+from vtr.runtime.robot import Observation
+
+
+def test_lighting_functions():
+    img = np.full((4, 8, 3), 100, np.uint8)
+    assert (brightness(1.5)(img) == 150).all() and (brightness(3.0)(img) == 255).all()
+    dark = side_darker(0.5, "left")(img)
+    assert dark[0, 0, 0] == 50 and dark[0, -1, 0] == 100
+    assert side_darker(0.5, "right")(img)[0, -1, 0] == 50
+    assert set(LIGHTING) >= {"bright_0.6", "bright_1.5", "colour_cast", "left_darker"}
+
+
+class OneFrame:
+    def __init__(self) -> None:
+        self.stopped = False
+
+    def reset(self, pose=None, seed=None) -> Observation:
+        return self.observe()
+
+    def observe(self) -> Observation:
+        return Observation(np.full((4, 4, 3), 200, np.uint8), 0.0, (1.0, 2.0, 0.0), collided=True)
+
+    def step(self, v: float, w: float, duration: float) -> Observation:
+        return self.observe()
+
+    def stop(self) -> None:
+        self.stopped = True
+
+
+def test_lit_robot_changes_only_the_image():
+    robot = LitRobot(OneFrame(), brightness(0.5))
+    for obs in (robot.reset(), robot.observe(), robot.step(0.1, 0.0, 0.1)):
+        assert (obs.image == 100).all() and obs.pose == (1.0, 2.0, 0.0) and obs.collided
+    robot.stop()
+    assert robot.robot.stopped
+
+
+@pytest.mark.parametrize("scene", sorted(SCENES))
+def test_scene_houses_load_and_differ(scene, tmp_path):
+    from vtr.sim2d import Pose, SimConfig, Simulator
+
+    path = write_scene_house(scene, tmp_path)
+    pose = Pose(2.8, 3.0, math.pi)  # living room, looking at the sofa and the tv cabinet
+    if scene == "wall_retextured":
+        pose = Pose(3.0, 2.5, math.pi / 2)  # looking at the living room's north wall
+    if scene == "floor_recoloured":
+        pose = Pose(3.0, 2.5, 0.0)
+    before = Simulator(SimConfig()).reset(pose=pose, seed=0)
+    after = Simulator(SimConfig(house=str(path))).reset(pose=pose, seed=0)
+    assert np.abs(before.astype(int) - after.astype(int)).mean() > 1.0
+    with pytest.raises(ValueError, match="unknown scene"):
+        write_scene_house("flooded", tmp_path)
+
+
+def test_start_offsets_are_lateral_and_flip_with_the_seed():
+    pose = np.array([1.0, 2.0, math.pi / 2])
+    x, y, yaw = suite._start(pose, (0.1, 10.0), seed=0)
+    assert (x, y) == pytest.approx((0.9, 2.0)) and yaw == pytest.approx(math.pi / 2 + math.radians(10))
+    x, y, yaw = suite._start(pose, (0.1, 10.0), seed=1)
+    assert (x, y) == pytest.approx((1.1, 2.0)) and yaw == pytest.approx(math.pi / 2 - math.radians(10))
+
+
+@pytest.fixture(scope="module")
+def small_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    meta = ModelMeta(image_height=32, image_width=32)
+    return make_standin_velocitynet(tmp_path_factory.mktemp("m") / "tiny.onnx", meta=meta, widths=(8, 16, 16))
+
+
+def test_suite_runs_every_combination_and_reports_per_condition(small_model, tmp_path):
+    cfg = suite.SuiteConfig(model=small_model, routes=("ho_study_arc",), conditions=("noise_0.05", "bright_0.6"),
+                            seeds=(0, 1), controllers=("paper", "after"), models=("fp32",), workers=1,
+                            max_steps_factor=0.5, json_path=tmp_path / "suite.json")  # fmt: skip
+    result = suite.run(cfg)
+    assert len(result["runs"]) == 2 * 2 * 2 and len(result["table"]) == 2 * 2
+    for run in result["runs"]:
+        assert run["ran"] and run["status"] in {"finished", "stalled", "lost", "collided", "step_limit"}
+        assert run["completed"] == (run["status"] == "finished" and run["contacts"] == 0)
+        assert run["completed"] or run["cause"]
+    for row in result["table"]:
+        assert row["runs"] == 2 and row["completed"] + sum(row["failure_causes"].values()) == 2
+    saved = json.loads((tmp_path / "suite.json").read_text())
+    assert saved["routes"] == ["ho_study_arc"]
+    assert "| after | fp32 | bright_0.6 |" in (tmp_path / "suite.md").read_text()
+
+
+def test_suite_config_refuses_unknown_names(small_model):
+    with pytest.raises(ValueError, match="condition"):
+        suite.SuiteConfig(model=small_model, conditions=("fog",), models=("fp32",))
+    with pytest.raises(ValueError, match="route not found"):
+        suite.SuiteConfig(model=small_model, routes=("nowhere",), models=("fp32",))
+    with pytest.raises(ValueError, match="int8"):
+        suite.SuiteConfig(model=small_model, models=("int8",))
+
+
+def test_heldout_routes_are_apart_from_the_tuning_routes():
+    from vtr.benchmarks.matching_study import TUNING_ROUTES
+    from vtr.sim2d.routes import list_routes
+
+    heldout = {p.stem for p in suite.route_paths(())}
+    assert len(heldout) == 8 and not heldout & set(list_routes()) and not heldout & set(TUNING_ROUTES)
