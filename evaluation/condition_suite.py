@@ -60,6 +60,7 @@ class Method:
 
     controller: ControllerConfig
     match_light: bool = False
+    side_ramp: bool = True  # with match_light: also even out a left-to-right gain
 
 
 AFTER = ControllerConfig()  # patch matching, per-subgoal thresholds + relative switch, lost, contact stop
@@ -69,6 +70,7 @@ CONTROLLERS: dict[str, Method] = {
     "after": Method(AFTER, match_light=True),
     # ablations of "after", one part off each
     "after_no_light_matching": Method(AFTER),
+    "after_no_side_ramp": Method(AFTER, match_light=True, side_ramp=False),
     "after_raw_matching": Method(replace(AFTER, match=MatchConfig.paper()), match_light=True),
     "after_route_threshold": Method(replace(AFTER, e_m_mode="calibrated", pass_ratio=0.0), match_light=True),
 }
@@ -191,7 +193,7 @@ def run_once(route: Any, script: Any, cond: Condition, house: str, seed: int, me
         controller=method.controller, dt=cfg.dt, max_steps=int(cfg.max_steps_factor * taught_steps + 50)
     )
     if method.match_light:
-        policy = LightMatchedPolicy(policy)
+        policy = LightMatchedPolicy(policy, side_ramp=method.side_ramp)
     summary = Repeater(robot, policy, route, config=rcfg, on_step=on_step).run()
     log.subgoals_reached, log.steps, log.outcome = (
         summary.subgoals_reached,

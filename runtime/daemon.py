@@ -68,6 +68,10 @@ class RepeatRunConfig:
         choices=("route", "here"),
     )
     seed: int | None = opt(1, "actuation-noise seed for the reset (--start route)")
+    match_light: bool = opt(
+        True,
+        "recolour the current image to the subgoal's light before the policy (runtime/light.py; off with --paper)",
+    )
     repeat: RepeatConfig = field(default_factory=RepeatConfig)
 
     def __post_init__(self) -> None:
@@ -90,6 +94,10 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
     policy = OnnxPolicy(cfg.model, threads=cfg.threads)
     route = Route.load(cfg.route)
     policy.check_route(route)
+    if cfg.match_light:
+        from vtr.runtime.light import LightMatchedPolicy
+
+        policy = LightMatchedPolicy(policy)
     with SimClient(cfg.sim, cfg.timeout_s, cfg.retries, expect_shape=policy.image_shape) as client:
         if cfg.start == "route":
             pose = route.poses[0]
@@ -163,6 +171,8 @@ def run_cli(args: argparse.Namespace) -> int:
     try:
         repeat_cfg = config_from_args(RepeatConfig, args, controller=controller_from_args(args))
         cfg = config_from_args(RepeatRunConfig, args, repeat=repeat_cfg)
+        if args.paper:  # Algorithm 1 exactly: the network sees the camera image as it is
+            cfg = replace(cfg, match_light=False)
     except ValueError as exc:
         print(f"vtr repeat: {exc}", file=sys.stderr)
         return 2

@@ -3,7 +3,8 @@
 The light between teach and repeat changes (evening, a lamp off); a network that has only seen the taught
 light steers wrongly when the current image is darker, brighter or tinted. ``match_statistics`` moves the
 current image's per-channel mean and standard deviation onto the subgoal's (the taught light), which
-undoes any global gain, offset or colour cast, before the network sees the pair. DVMPC recolours the same
+undoes any global gain, offset or colour cast, before the network sees the pair; ``remove_side_ramp``
+first evens out a left-to-right gain (one side of the view darker). DVMPC recolours the same
 way (there the subgoal towards the current image); we recolour the current image, so the network keeps
 seeing images lit as in training. It leaves geometry alone: where things are in the image does not move.
 
@@ -43,6 +44,20 @@ def match_statistics(
     return np.clip(out, 0, 255).astype(np.uint8)
 
 
+def remove_side_ramp(image: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """``image`` times a left-to-right gain exp(b x) (x from -1 to 1) that removes the linear trend of
+    log(reference / image) column brightness: one side of the view lit differently (a lamp off). The mean
+    gain is left to :func:`match_statistics`; a trend that geometry made (a nearer wall on one side) is
+    partly removed too, which the measured cost on clean views keeps small (see runtime README)."""
+    img = image.astype(np.float32)
+    cols = img.mean(axis=(0, 2)) + 1.0  # (W,)
+    ref_cols = reference.astype(np.float32).mean(axis=(0, 2)) + 1.0
+    x = np.linspace(-1.0, 1.0, image.shape[1], dtype=np.float32)
+    log_ratio = np.log(ref_cols / cols)
+    slope = float((x * (log_ratio - log_ratio.mean())).sum() / (x * x).sum())
+    return np.clip(img * np.exp(slope * x)[None, :, None] + 0.5, 0, 255).astype(np.uint8)
+
+
 class LightMatchedPolicy:
     """A policy whose current image is recoloured to the subgoal's statistics before each prediction.
 
@@ -50,8 +65,8 @@ class LightMatchedPolicy:
     wrapped policy's. The subgoal's statistics are cached while the same subgoal array comes back.
     """
 
-    def __init__(self, policy: Any) -> None:
-        self.policy = policy
+    def __init__(self, policy: Any, side_ramp: bool = True) -> None:
+        self.policy, self.side_ramp = policy, side_ramp
         self._subgoal: np.ndarray | None = None
         self._stats: tuple[np.ndarray, np.ndarray] | None = None
 
@@ -61,4 +76,6 @@ class LightMatchedPolicy:
     def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
         if subgoal is not self._subgoal or self._stats is None:
             self._subgoal, self._stats = subgoal, channel_stats(subgoal)
+        if self.side_ramp:
+            current = remove_side_ramp(current, subgoal)
         return self.policy.predict(match_statistics(current, subgoal, self._stats), subgoal)

@@ -47,3 +47,15 @@ def test_the_wrapper_recolours_the_current_image_only_and_passes_the_rest_throug
     policy.predict(lit(taught, 0.7), taught)
     assert np.abs(inner.seen[0].astype(int) - taught.astype(int)).mean() < 1.5
     assert policy.image_shape == (64, 64) and policy.nonfinite_count == 3
+
+
+def test_one_side_darker_is_evened_out_before_the_statistics_are_matched():
+    from vtr.runtime.light import remove_side_ramp
+
+    taught = lit(view(70), 0.6, 40)
+    ramp = np.linspace(0.45, 1.0, 64, dtype=np.float32)[None, :, None]
+    darker = lit(taught, ramp)
+    only_stats = match_statistics(darker, taught)
+    both = match_statistics(remove_side_ramp(darker, taught), taught)
+    err = lambda a: np.abs(a.astype(int) - taught.astype(int)).mean()  # noqa: E731
+    assert err(both) < 0.5 * err(only_stats) and err(both) < 4

@@ -107,6 +107,7 @@ def test_signal_commands_zero_velocity_and_exits_with_a_summary(files, sig):
             "0",
             "--match",  # the fake camera encodes position in brightness, which patch matching ignores
             "raw",
+            "--no-match-light",  # ... and which light matching would even out before the fake policy
             "--max-steps",
             "1000000",
         ]
