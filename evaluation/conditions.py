@@ -68,6 +68,11 @@ class LitRobot:
     def __init__(self, robot: Any, light: ImageFn) -> None:
         self.robot, self.light = robot, light
 
+    @property
+    def last(self) -> Observation | None:
+        """The wrapped robot's last observation, unlit (the evaluation scores with its true pose)."""
+        return self.robot.last
+
     def _lit(self, obs: Observation) -> Observation:
         return Observation(image=self.light(obs.image), stamp=obs.stamp, pose=obs.pose, collided=obs.collided)
 

@@ -80,9 +80,17 @@ class PoseOracle:
 
 
 def repeat_closed_loop(
-    robot: Any, policy: Policy, route: Any, start: tuple[float, float, float], cfg: EvalConfig, seed: int
+    robot: Any,
+    policy: Policy,
+    route: Any,
+    start: tuple[float, float, float],
+    cfg: EvalConfig,
+    seed: int,
+    controller_cfg: Any = None,
 ) -> RunLog:
-    """The runtime's Repeater (Algorithm 1 + controller) on images; poses are kept for scoring only."""
+    """The runtime's Repeater (Algorithm 1 + controller) on images; poses are kept for scoring only.
+
+    ``controller_cfg`` (a ControllerConfig) overrides the one ``cfg`` implies (the condition suite's)."""
     from vtr.runtime.controller import Controller, ControllerConfig
     from vtr.runtime.repeater import RepeatConfig, Repeater, StepRecord
 
@@ -90,6 +98,7 @@ def repeat_closed_loop(
     first = robot.reset(pose=start, seed=seed)
     log.poses.append(first.pose)
     ccfg = ControllerConfig() if cfg.e_m is None else ControllerConfig(e_m_mode="fixed", e_m=cfg.e_m)
+    ccfg = controller_cfg if controller_cfg is not None else ccfg
     rcfg = RepeatConfig(controller=ccfg, dt=cfg.dt, max_steps=int(cfg.max_steps_factor * len(route) + 50))
     controller = Controller(route.images, ccfg)
     if isinstance(policy, PoseOracle):
