@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from vtr.evaluation.conditions import LIGHTING, SCENES
+from vtr.evaluation.conditions import LIGHTING, PATH_SCENES, SCENES
 from vtr.runtime.controller import ControllerConfig
 from vtr.runtime.matching import MatchConfig
 
@@ -49,7 +49,7 @@ CONDITIONS: dict[str, Condition] = {
     "offset_5cm_5deg": Condition(offset=(0.05, 5.0)),
     "offset_10cm_10deg": Condition(offset=(0.10, 10.0)),
     **{name: Condition(light=name) for name in LIGHTING},
-    **{name: Condition(scene=name) for name in SCENES},
+    **{name: Condition(scene=name) for name in (*SCENES, *PATH_SCENES)},
 }
 
 
@@ -221,7 +221,12 @@ def evaluate_task(task: tuple[Path, str, SuiteConfig]) -> list[dict[str, Any]]:
     route, script = teach(path, tuple(_policy(cfg.model, cfg.threads).image_shape), cfg.dt)
     out = []
     with tempfile.TemporaryDirectory() as tmp:
-        house = str(write_scene_house(cond.scene, Path(tmp))) if cond.scene else "house"
+        try:
+            house = str(write_scene_house(cond.scene, Path(tmp), path=route.poses)) if cond.scene else "house"
+        except ValueError as err:  # e.g. no free floor for a box beside this path
+            blocked = {"status": "scene_not_placeable", "cause": str(err), "completed": False, "ran": False}
+            return [{"route": path.stem, "condition": cond_name, "model": m, "controller": c, "seed": s, **blocked}
+                    for m in cfg.models for c in cfg.controllers for s in cfg.seeds]  # fmt: skip
         for model in cfg.models:
             policy = _policy(Path(models[model]), cfg.threads)
             for ctrl in cfg.controllers:
@@ -251,7 +256,7 @@ def aggregate(runs: list[dict[str, Any]]) -> list[dict[str, Any]]:
         causes = Counter(r["cause"].split(":")[0] for r in ran if not r["completed"])
         rows.append({
             "controller": ctrl, "model": model, "condition": cond, "runs": len(ran),
-            "start_blocked": len(rs) - len(ran), "completed": len(done),
+            "not_run": len(rs) - len(ran), "completed": len(done),
             "completion_rate": len(done) / len(ran) if ran else None,
             "mean_position_error_m": mean("position_error_m"), "max_position_error_m": mean("max_position_error_m"),
             "mean_yaw_error_deg": mean("yaw_error_deg"), "cross_track_m": mean("cross_track_m"),
@@ -281,7 +286,7 @@ def markdown(result: dict[str, Any]) -> str:
     ]
     for r in result["table"]:
         fails = ", ".join(f"{k} {v}" for k, v in sorted(r["failure_causes"].items())) or "-"
-        blocked = f" (+{r['start_blocked']} start blocked)" if r["start_blocked"] else ""
+        blocked = f" ({r['not_run']} not run: start or scene blocked)" if r["not_run"] else ""
         lines.append(
             f"| {r['controller']} | {r['model']} | {r['condition']} | {r['completed']}/{r['runs']}{blocked} "
             f"| {f(r['mean_position_error_m'], 1e3)} | {f(r['max_position_error_m'], 1e3)} | {f(r['mean_yaw_error_deg'], 1, 2)} "

@@ -6,13 +6,15 @@ Two kinds, each deterministic and named so a run is reproducible from the comman
   the runtime receives (the taught route is untouched): global gain, a colour cast, one side darker.
 - **scene** (``SCENES``): a changed house, written as a modified copy of the house JSON that the repeat's
   simulator loads: one wall per room re-textured, every piece of furniture moved, part of the floor
-  re-coloured, a box placed on the floor. The robot's physics sees moved furniture and the box.
+  re-coloured; and, relative to the taught path (``PATH_SCENES``), a box placed beside it. The robot's
+  physics sees moved furniture and the box.
 """
 
 from __future__ import annotations
 
 import copy
 import json
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -119,23 +121,65 @@ def _recolour_floor(house: dict[str, Any]) -> None:
     house["floor"]["grout"] = [110, 80, 50]
 
 
+#: Box placed beside the path: side (m), and the gap between its edge and the robot's body on the path.
+BOX_SIDE, BOX_GAP, ROBOT_RADIUS = 0.3, 0.12, 0.17
+
+
+def _obstacle_beside_path(house: dict[str, Any], path: np.ndarray | None) -> None:
+    """A 30 cm box on the floor beside the taught path, 12 cm clear of the robot's body on it: something
+    new in view that the robot must not touch. Placed beside the middle of the path, left then right, else
+    beside a point further from it (1/3, 2/3, 1/4, ...), on free floor where the house stays valid."""
+    from vtr.sim2d.house import House
+
+    if path is None or len(path) < 2:
+        raise ValueError("the obstacle_beside_path scene needs the taught path")
+    offset = ROBOT_RADIUS + BOX_GAP + BOX_SIDE / 2
+    before = House(house, "unchanged")
+    for k in (len(path) * f // 12 for f in (6, 4, 8, 3, 9, 2, 10)):
+        x, y, yaw = (float(v) for v in path[k])
+        for side in (1.0, -1.0):
+            cx, cy = x - side * math.sin(yaw) * offset, y + side * math.cos(yaw) * offset
+            if (
+                np.hypot(path[:, 0] - cx, path[:, 1] - cy).min() < offset - 1e-6
+                or before.clearance(cx, cy) < BOX_SIDE
+            ):
+                continue  # on the path, or in (or against) furniture already there
+            box = {"name": "box", "shape": "box", "center": [cx, cy], "size": [BOX_SIDE] * 2, "height": 0.4,
+                   "texture": "metal_blue", "angle_deg": math.degrees(yaw)}  # fmt: skip
+            try:
+                House({**house, "furniture": [*house["furniture"], box]}, "obstacle_beside_path")
+            except ValueError:
+                continue
+            house["furniture"].append(box)
+            return
+    raise ValueError("no room for a box beside this path")
+
+
 SCENES: dict[str, Callable[[dict[str, Any]], None]] = {
     "wall_retextured": _retexture_walls,
     "furniture_moved": _move_furniture,
     "floor_recoloured": _recolour_floor,
 }
+#: Scene changes placed relative to the taught path (they take it as a second argument).
+PATH_SCENES: dict[str, Callable[[dict[str, Any], np.ndarray | None], None]] = {
+    "obstacle_beside_path": _obstacle_beside_path,
+}
 
 
-def write_scene_house(scene: str, out_dir: Path, base: str = "house") -> Path:
-    """A copy of the house JSON with ``scene`` applied, written into ``out_dir``; returns its path."""
+def write_scene_house(scene: str, out_dir: Path, base: str = "house", path: np.ndarray | None = None) -> Path:
+    """A copy of the house JSON with ``scene`` applied, written into ``out_dir``; returns its path.
+
+    ``path``: the taught (x, y, yaw) poses, for the scenes in PATH_SCENES."""
     from vtr.runtime.atomic import write_text_atomic
     from vtr.sim2d.house import resolve_house_path
 
-    if scene not in SCENES:
-        raise ValueError(f"unknown scene change {scene!r}; known: {', '.join(SCENES)}")
-    data = json.loads(resolve_house_path(base).read_text(encoding="utf-8"))
-    data = copy.deepcopy(data)
-    SCENES[scene](data)
+    if scene not in SCENES and scene not in PATH_SCENES:
+        raise ValueError(f"unknown scene change {scene!r}; known: {', '.join([*SCENES, *PATH_SCENES])}")
+    data = copy.deepcopy(json.loads(resolve_house_path(base).read_text(encoding="utf-8")))
+    if scene in SCENES:
+        SCENES[scene](data)
+    else:
+        PATH_SCENES[scene](data, None if path is None else np.asarray(path, dtype=np.float64))
     path = Path(out_dir) / f"house_{scene}.json"
     write_text_atomic(path, json.dumps(data))
     return path

@@ -113,3 +113,17 @@ def test_heldout_routes_are_apart_from_the_tuning_routes():
 
     heldout = {p.stem for p in suite.route_paths(())}
     assert len(heldout) == 8 and not heldout & set(list_routes()) and not heldout & set(TUNING_ROUTES)
+
+
+def test_a_box_is_placed_beside_the_path_clear_of_the_robot(tmp_path):
+    from vtr.evaluation.conditions import BOX_GAP, BOX_SIDE, ROBOT_RADIUS
+    from vtr.sim2d import load_house
+
+    path = np.array([[2.0 + 0.05 * k, 3.0, 0.0] for k in range(30)])  # straight along +x in the living room
+    house = load_house(write_scene_house("obstacle_beside_path", tmp_path, path=path))
+    (box,) = [f for f in house.furniture if f.name == "box"]
+    gap = np.hypot(path[:, 0] - box.center[0], path[:, 1] - box.center[1]).min()
+    assert gap == pytest.approx(ROBOT_RADIUS + BOX_GAP + BOX_SIDE / 2)
+    assert min(house.clearance(x, y) for x, y, _ in path) >= ROBOT_RADIUS + BOX_GAP - 1e-6
+    with pytest.raises(ValueError, match="needs the taught path"):
+        write_scene_house("obstacle_beside_path", tmp_path)
