@@ -43,12 +43,12 @@ LATERAL = (0.0, 0.03, 0.06, 0.12)
 YAW = (0.0, 2.0, 5.0, 10.0)
 STUDY_LIGHTING = ("bright_0.6", "bright_1.5", "colour_cast", "left_darker")
 METHODS: dict[str, MatchConfig] = {
-    "raw": MatchConfig(method="raw"),
+    "raw": MatchConfig(method="raw"),  # the paper's
     "patch_mean": MatchConfig(trim=0.0),
     "patch_trim25": MatchConfig(trim=0.25),
-    "patch_median": MatchConfig(trim=0.5),
-    "patch_full_res": MatchConfig(downsample=1, patch=8, trim=0.25),
-    "patch16": MatchConfig(downsample=2, patch=16, trim=0.25),
+    "patch_median": MatchConfig(trim=0.5),  # the default (MatchConfig())
+    "patch_full_res": MatchConfig(downsample=1, patch=8, trim=0.5),
+    "patch16": MatchConfig(downsample=2, patch=16, trim=0.5),
 }
 
 

@@ -41,7 +41,7 @@ class MatchConfig:
     #: Tile side in (downsampled) pixels; the image side must be a multiple of downsample * patch.
     patch: int = 8
     #: Fraction of the worst tile scores left out of the mean (0 = plain mean, 0.5 = lower half).
-    trim: float = 0.25
+    trim: float = 0.5
     #: Floor on a tile's standard deviation, in 0..255 pixel units.
     std_floor: float = 4.0
 
