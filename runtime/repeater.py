@@ -68,6 +68,10 @@ def _status_of(value: str, default: RepeatStatus) -> RepeatStatus:
         return default
 
 
+#: Default step limit per subgoal (plus 50): 4x the taught control steps, as subgoals are 2 steps apart.
+STEPS_PER_SUBGOAL = 8
+
+
 class Repeater:
     """Follow ``route`` with ``policy`` on ``robot`` (see the module docstring).
 
@@ -109,7 +113,8 @@ class Repeater:
         self._last = len(self._views) - 1
         self.on_step = on_step
         self.stop_event = stop_event or threading.Event()
-        self.max_steps = self.config.max_steps
+        # a lost robot must stop; a long route must not be cut short
+        self.max_steps = self.config.max_steps or STEPS_PER_SUBGOAL * len(route) + 50
         self.steps = 0
         self.bad_frames = 0
         self.status: RepeatStatus | None = None

@@ -132,3 +132,13 @@ def test_the_loop_ends_with_status_collided_and_stops_the_robot():
     ).run()
     assert summary.status is RepeatStatus.COLLIDED and not summary.completed and summary.steps == 2
     assert robot.calls[-1] == "stop"
+
+
+def test_the_default_step_limit_scales_with_the_route():
+    short = Route(images=ROUTE[:2], poses=np.full((2, 3), np.nan), commands=np.zeros((2, 2)))
+    long = Route(
+        images=np.concatenate([ROUTE] * 40), poses=np.full((320, 3), np.nan), commands=np.zeros((320, 2))
+    )
+    assert Repeater(ContactRobot(), StillPolicy(), short).max_steps == 8 * 2 + 50
+    assert Repeater(ContactRobot(), StillPolicy(), long).max_steps == 8 * 320 + 50 > 2000
+    assert Repeater(ContactRobot(), StillPolicy(), long, config=RepeatConfig(max_steps=7)).max_steps == 7
