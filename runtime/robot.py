@@ -54,3 +54,15 @@ class ResettableRobot(Robot, Protocol):
     def reset(self, pose: tuple[float, float, float] | None = None, seed: int | None = None) -> Observation:
         """Place the robot at ``pose`` (None: the map's default start) and return the first frame."""
         ...
+
+
+class RobotRestarted(RobotError):
+    """The robot's session changed: it rebooted and no longer is where the run left it."""
+
+
+class LinkLost(RobotError):
+    """The robot did not answer, not even the zero command sent after the missed reply."""
+
+
+class Interrupted(RobotError):
+    """A wait for the robot was abandoned because the run was asked to stop (Ctrl-C, SIGTERM)."""
