@@ -70,7 +70,14 @@ def run_snapshot(cfg: SnapshotConfig) -> int:
     return 0
 
 
-def run_serve(bind: str, noise: float, house: str, brightness: float, mode: str = "lockstep") -> int:
+def run_serve(
+    bind: str,
+    noise: float,
+    house: str,
+    brightness: float,
+    mode: str = "lockstep",
+    cmd_vel_timeout: float = 0.5,
+) -> int:
     from vtr.sim2d.config import CameraConfig, SimConfig
 
     try:
@@ -81,7 +88,8 @@ def run_serve(bind: str, noise: float, house: str, brightness: float, mode: str 
         )
         return 3
     sim_cfg = SimConfig(house=house, noise=noise, camera=CameraConfig(brightness=brightness))
-    return int(serve(ServerConfig(bind=bind, sim=sim_cfg, mode=mode)) or 0)
+    cfg = ServerConfig(bind=bind, sim=sim_cfg, mode=mode, cmd_vel_timeout=cmd_vel_timeout)
+    return int(serve(cfg) or 0)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -112,6 +120,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default="lockstep",
         help="lockstep: time advances only in step requests (deterministic); realtime: follows the wall clock",
     )
+    serve.add_argument(
+        "--cmd-vel-timeout",
+        type=float,
+        default=0.5,
+        help="realtime: stop the robot when no step arrived for this many seconds; 0 disables (default: 0.5)",
+    )
 
 
 def run_cli(args: argparse.Namespace) -> int:
@@ -127,7 +141,7 @@ def run_cli(args: argparse.Namespace) -> int:
                 brightness=args.brightness,
             )
             return run_snapshot(cfg)
-        return run_serve(args.bind, args.noise, args.house, args.brightness, args.mode)
+        return run_serve(args.bind, args.noise, args.house, args.brightness, args.mode, args.cmd_vel_timeout)
     except ValueError as err:  # bad configuration values or a bad map file
         print(f"vtr sim {args.sim_command}: {err}", file=sys.stderr)
         return 2
