@@ -16,7 +16,6 @@ import onnxruntime as ort
 from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
 from vtr.runtime.preprocess import PREPROCESSING, to_nchw
 
-
 #: A VelocityNet is a few MB; a file past this is refused before onnxruntime reads it.
 MAX_MODEL_BYTES = 256 * 1024 * 1024
 
