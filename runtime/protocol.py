@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from vtr.runtime import contracts as _contracts
 from vtr.runtime.wire_json import (  # noqa: F401  (re-exported)
     MAX_DEPTH,
     MAX_HEADER_BYTES,
@@ -44,9 +45,9 @@ IMAGE_COMMANDS = ("reset", "observe", "step")
 GUARDED_COMMANDS = ("reset", "step")
 ENCODING = "rgb8"
 
-#: Default limits (the paper's robot): |v| <= 0.5 m/s, |w| <= 1.0 rad/s, one step lasts at most 10 s.
-V_MAX = 0.5
-W_MAX = 1.0
+#: Default limits (the paper's robot, from runtime.contracts); one step lasts at most 10 s.
+V_MAX = _contracts.V_MAX
+W_MAX = _contracts.W_MAX
 MAX_DURATION = 10.0
 #: Default cap on the total size of one message (a 1024x1024 RGB image fits).
 MAX_MESSAGE_BYTES = 4 * 1024 * 1024
