@@ -29,6 +29,7 @@ from typing import IO
 import numpy as np
 
 from vtr.runtime.controller import ControllerConfig
+from vtr.runtime.hello import check_robot_fits
 from vtr.runtime.repeater import RepeatConfig, Repeater, StepRecord, Summary
 from vtr.runtime.robot import RobotError
 
@@ -86,7 +87,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--seed", type=int, default=1, help="actuation-noise seed for the reset (--start route)"
     )
-    parser.add_argument("--timeout", type=float, default=2.0, help="seconds to wait for each reply")
+    parser.add_argument(
+        "--timeout",
+        type=float,
+        default=0.3,
+        help="seconds to wait for a reply beyond the step's own duration; then a stop is sent (default: 0.3)",
+    )
     parser.add_argument("--retries", type=int, default=3, help="tries per request before giving up")
     parser.add_argument(
         "--frame-timeout", type=float, default=5.0, help="seconds without a valid frame before stopping"
@@ -102,7 +108,7 @@ class RepeatRunConfig:
     route: str  # route .npz path
     log: str | None = None  # JSON-lines log path
     threads: int = 1  # onnxruntime intra-op threads
-    timeout_s: float = 2.0  # per-reply timeout
+    timeout_s: float = 0.3  # reply wait beyond a step's duration (then a stop is sent)
     retries: int = 3  # tries per request
     #: "route": reset the simulator to the route's first pose before repeating; "here": start where it is
     #: (a real robot placed by hand, or a bridge that does not implement reset).
@@ -134,7 +140,12 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
     policy.check_route(route)
     log_file = open(cfg.log, "w", encoding="utf-8") if cfg.log else None  # noqa: SIM115
     try:
-        with SimClient(cfg.sim, cfg.timeout_s, cfg.retries, expect_shape=policy.image_shape) as client:
+        with SimClient(
+            cfg.sim, cfg.timeout_s, cfg.retries, expect_shape=policy.image_shape, cancel=stop_event
+        ) as client:
+            # what the robot announces: its limits check every step, its camera must match route and model
+            for note in check_robot_fits(client.handshake(), route.camera, policy.meta):
+                print(f"vtr repeat: note: {note}", file=sys.stderr)
             if cfg.start == "route":
                 pose = route.poses[0]
                 if not np.all(np.isfinite(pose)):
@@ -198,5 +209,6 @@ def run_cli(args: argparse.Namespace) -> int:
             f"vtr repeat: {s.status.value}{' (' + s.detail + ')' if s.detail else ''}; {s.subgoals_reached}/{s.subgoals_total} "
             f"subgoals, {s.steps} steps, e_m={s.e_m:.2f}, simulated {s.sim_time_s:.1f} s, wall {s.wall_time_s:.1f} s, "
             f"bad frames {s.bad_frames}, non-finite outputs {s.nonfinite_outputs}"
+            + (f", re-localised after {s.robot_restarts} robot restart(s)" if s.robot_restarts else "")
         )
     return 0 if summary.completed else 1

@@ -10,7 +10,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from vtr.runtime.protocol import BadFrameError, Limits, Reply, integer, number
+from vtr.runtime.contracts import CameraSpec
+from vtr.runtime.protocol import MAX_IMAGE_SIDE, BadFrameError, Limits, Reply, integer, number
 
 #: Cameras whose horizontal fields of view differ by more than this (degrees) see different images.
 FOV_TOLERANCE_DEG = 2.0
@@ -24,38 +25,20 @@ class CameraMismatchError(ValueError):
     """Robot, route and model disagree about the camera; the message says which and how."""
 
 
-@dataclass(frozen=True)
-class CameraSpec:
-    """A camera: image size in pixels, horizontal field of view (degrees) and height above the floor (m)."""
-
-    width: int
-    height: int
-    fov_deg: float | None = None
-    height_m: float | None = None
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "width": self.width,
-            "height": self.height,
-            "fov_deg": self.fov_deg,
-            "height_m": self.height_m,
-        }
-
-    @classmethod
-    def from_dict(cls, d: Any, err: type[ValueError] = BadFrameError, where: str = "camera.") -> CameraSpec:
-        """Read ``{"width", "height", "fov_deg"?, "height_m"?}``; ``camera_height`` (the simulator's and
-        older routes' name) is read as ``height_m``."""
-        if not isinstance(d, dict):
-            raise err(f"{where.rstrip('.')} must be an object with width and height, got {d!r:.60}")
-        width, height = integer(d, "width", err, where), integer(d, "height", err, where)
-        if not (0 < width <= 4096 and 0 < height <= 4096):
-            raise err(f"{where}width/height must be in 1..4096, got {width}x{height}")
-        fov = number(d, "fov_deg", err, where) if d.get("fov_deg") is not None else None
-        if fov is not None and not 0 < fov < 360:
-            raise err(f"{where}fov_deg must be in (0, 360), got {fov}")
-        key = "height_m" if d.get("height_m") is not None else "camera_height"
-        height_m = number(d, key, err, where) if d.get(key) is not None else None
-        return cls(width=width, height=height, fov_deg=fov, height_m=height_m)
+def camera_from_dict(d: Any, err: type[ValueError] = BadFrameError, where: str = "camera.") -> CameraSpec:
+    """Read ``{"width", "height", "fov_deg"?, "height_m"?}``; ``camera_height`` (the simulator's and older
+    routes' name) is read as ``height_m``. A field not given is None (unknown)."""
+    if not isinstance(d, dict):
+        raise err(f"{where.rstrip('.')} must be an object with width and height, got {d!r:.60}")
+    width, height = integer(d, "width", err, where), integer(d, "height", err, where)
+    if not (0 < width <= MAX_IMAGE_SIDE and 0 < height <= MAX_IMAGE_SIDE):
+        raise err(f"{where}width/height must be in 1..{MAX_IMAGE_SIDE}, got {width}x{height}")
+    fov = number(d, "fov_deg", err, where) if d.get("fov_deg") is not None else None
+    if fov is not None and not 0 < fov < 360:
+        raise err(f"{where}fov_deg must be in (0, 360), got {fov}")
+    key = "height_m" if d.get("height_m") is not None else "camera_height"
+    height_m = number(d, key, err, where) if d.get(key) is not None else None
+    return CameraSpec(width=width, height=height, fov_deg=fov, height_m=height_m)
 
 
 @dataclass(frozen=True)
@@ -86,7 +69,7 @@ def parse_hello(reply: Reply) -> Hello:
     if reply.cmd != "hello" or not reply.ok or reply.session is None or reply.stamp is None:
         raise BadFrameError("not an ok hello reply")
     version = integer(h, "protocol_version")
-    camera = CameraSpec.from_dict(h.get("camera"))
+    camera = camera_from_dict(h.get("camera"))
     limits_raw = h.get("limits")
     if not isinstance(limits_raw, dict):
         raise BadFrameError(f"hello field 'limits' must be an object, got {limits_raw!r:.60}")
@@ -136,4 +119,30 @@ def check_camera(
                     f"the robot's {label} is {a:g}{unit} but the {name} was made with {b:g}{unit} "
                     f"(tolerance {tol:g}{unit})"
                 )
+    return notes
+
+
+def route_camera(camera: Any) -> CameraSpec | None:
+    """The camera a route records in its metadata (None when it records none)."""
+    if not isinstance(camera, dict) or "width" not in camera:
+        return None
+    return camera_from_dict(camera, CameraMismatchError, "route camera.")
+
+
+def check_robot_fits(hello: Hello, route_cam: dict[str, Any] | None, model: Any) -> list[str]:
+    """Refuse (CameraMismatchError, one line) a robot whose camera differs from the route's or the model's
+    (``model``: a ModelMeta), whose limits are below the model's, or whose steps cannot last the model's dt.
+    Returns notes on what could not be compared."""
+    notes = check_camera(hello.camera, route_camera(route_cam), model.camera)
+    for name, unit in (("v_max", "m/s"), ("w_max", "rad/s")):
+        mine, robots = getattr(model, name), getattr(hello.limits, name)
+        if mine > robots + 1e-9:
+            raise CameraMismatchError(
+                f"the model commands up to {name}={mine:g} {unit} but the robot accepts at most {robots:g} {unit}"
+            )
+    if not hello.dt <= model.dt <= hello.limits.max_duration:
+        raise CameraMismatchError(
+            f"the model's control step is {model.dt:g} s but the robot runs steps of "
+            f"{hello.dt:g}..{hello.limits.max_duration:g} s"
+        )
     return notes
