@@ -68,7 +68,7 @@ def parse_hello(reply: Reply) -> Hello:
     h = reply.header
     if reply.cmd != "hello" or not reply.ok or reply.session is None or reply.stamp is None:
         raise BadFrameError("not an ok hello reply")
-    version = integer(h, "protocol_version")
+    version = integer(h, "protocol_version", BadFrameError)
     camera = camera_from_dict(h.get("camera"))
     limits_raw = h.get("limits")
     if not isinstance(limits_raw, dict):
