@@ -2,6 +2,7 @@
 
 - ``server-fuzz``: N fuzzed requests to a live `vtr sim serve` process: deaths, replies, RSS growth.
 - ``client-fuzz``: N fuzzed replies to the client: tracebacks, desyncs that outlive one bad reply.
+- ``loop-fuzz``: N fuzzed replies to the repeat loop: tracebacks, motion commands sent right after a bad one.
 - ``silent``: the robot goes silent mid-route; robot-side delay from the unanswered step to the zero command.
 - ``restart``: the robot reboots mid-route; how the repeat ends, motion executed by the rebooted robot.
 - ``sigkill``: `vtr repeat --continuous` on a realtime simulator is killed; delay until the robot is at rest.
@@ -195,13 +196,96 @@ def client_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.5) -> dict[str,
 # ------------------------------------------------------------------------------------------- the repeat loop
 
 
-def run_repeat(client: SimClient, stop_event: threading.Event | None = None) -> Any:
+def run_repeat(client: SimClient, stop_event: threading.Event | None = None, max_steps: int = 10_000) -> Any:
     """The real repeat loop with a policy that always drives, on a route it never reaches."""
     from vtr.runtime.controller import ControllerConfig
-    from vtr.runtime.daemon import RepeatConfig, repeat
+    from vtr.runtime.repeater import RepeatConfig, Repeater
 
-    cfg = RepeatConfig(controller=ControllerConfig(stall_steps=0), max_steps=10_000, frame_timeout_s=2.0)
-    return repeat(client, DrivingPolicy(), unreachable_route(), cfg, None, stop_event)
+    cfg = RepeatConfig(controller=ControllerConfig(stall_steps=0), max_steps=max_steps, frame_timeout_s=2.0)
+    return Repeater(client, DrivingPolicy(), unreachable_route(), config=cfg, stop_event=stop_event).run()
+
+
+#: Not a bad frame to the client: skipped by seq matching, or a mutation that left the reply valid.
+HARMLESS = ("duplicate", "stale_then_good", "mutated_but_valid")
+
+
+def _acceptable(frames: list[bytes], good: list[bytes], req: protocol.Request) -> bool:
+    """Whether a mutated reply is still a correct answer to ``req`` (same stamp and session as ``good``)."""
+    try:
+        got = protocol.decode_reply(frames, expect_cmd=req.cmd, expect_seq=req.seq, expect_shape=(16, 16))
+    except ProtocolError:
+        return False
+    want = protocol.decode_reply(good)
+    return got.ok and (got.stamp, got.session) == (want.stamp, want.session)
+
+
+def loop_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.3) -> dict[str, Any]:
+    """The repeat loop (Repeater over SimClient) while the robot sends ``n`` faulty replies in all: what is
+    the next request after each fault? A step there is a motion command sent on a bad frame."""
+    rng = random.Random(seed)
+    faults: list[tuple[int, str]] = []  # (index of the faulty reply's request in arrivals, kind)
+    state: dict[str, Any] = {"previous": None, "late": None}
+
+    def behaviour(robot: FakeRobot, req: protocol.Request) -> list[list[bytes]]:
+        good = good_reply(robot, req)
+        out: list[list[bytes]] = []
+        if state["late"] is not None:
+            out.append(state["late"])
+            state["late"] = None
+        if len(faults) < n and rng.random() < p_fault:
+            kind, replies = fuzz_reply(rng, good, state["previous"])
+            if kind == "mutated" and _acceptable(replies[0], good, req):
+                kind = "mutated_but_valid"  # e.g. a changed field the reply's kind ignores
+            faults.append((len(robot.arrivals) - 1, kind))
+            state["late"] = good if kind == "late" else None
+            out += replies
+        else:
+            out.append(good)
+        state["previous"] = good
+        return out
+
+    robot = FakeRobot(behaviour)
+    tracebacks: list[str] = []
+    endings: dict[str, int] = {}
+    run_starts: set[int] = set()  # the first request of each run: what follows a run's end is not a reaction
+    t0 = time.perf_counter()
+    while len(faults) < n:
+        run_starts.add(len(robot.arrivals))
+        with SimClient(robot.endpoint, timeout_s=0.05, retries=2, expect_shape=(16, 16)) as client:
+            try:
+                summary = run_repeat(client, max_steps=200)
+                endings[summary.status.value] = endings.get(summary.status.value, 0) + 1
+            except Exception as exc:  # escaped the loop: a traceback in a real run
+                tracebacks.append(f"{type(exc).__name__}: {exc}")
+    seconds = time.perf_counter() - t0
+    robot.close()
+    arrivals = robot.arrivals
+    after: dict[str, int] = {}
+    motion_after_bad = 0
+    unusual: list[str] = []
+    for index, kind in faults:
+        if kind in HARMLESS or index + 1 >= len(arrivals) or index + 1 in run_starts:
+            continue
+        nxt = arrivals[index + 1].req
+        name = nxt.cmd if nxt is not None else "undecodable"
+        after[name] = after.get(name, 0) + 1
+        if name != "stop":
+            faulty = arrivals[index].req
+            unusual.append(f"{kind} reply to {faulty.cmd if faulty else '?'} -> next {name}")
+        if nxt is not None and nxt.cmd == "step" and (nxt.fields["v"] or nxt.fields["w"]):
+            motion_after_bad += 1
+    return {
+        "fuzzed_replies": len(faults),
+        "harmless_faults": sum(1 for _, k in faults if k in HARMLESS),
+        "next_request_after_a_bad_reply": after,
+        "nonzero_commands_after_a_bad_frame": motion_after_bad,
+        "not_followed_by_a_stop": sorted(set(unusual))[:12],
+        "loop_tracebacks": len(tracebacks),
+        "traceback_examples": tracebacks[:3],
+        "run_endings": endings,
+        "seed": seed,
+        "seconds": round(seconds, 1),
+    }
 
 
 def silent(trials: int = 20, seed: int = 0) -> dict[str, Any]:
@@ -224,7 +308,7 @@ def silent(trials: int = 20, seed: int = 0) -> dict[str, Any]:
         last = max(i for i, a in enumerate(cmds) if a.req.cmd == "step")
         stop = next(a for a in cmds[last + 1 :] if a.req.cmd == "stop")
         delays.append(stop.t - cmds[last].t)
-        reasons.append(getattr(summary, "reason", None) or str(summary.status))
+        reasons.append(summary.status.value)
     return _delay_summary(delays, trials, reasons, "step_to_zero_s")
 
 
@@ -242,7 +326,7 @@ def restart(trials: int = 20, seed: int = 0) -> dict[str, Any]:
             summary = run_repeat(client)
             timer.join(5)
         robot.close()
-        text = f"{getattr(summary, 'reason', '')} {getattr(summary, 'status', '')} {summary.detail}"
+        text = f"{summary.status.value}: {summary.detail}"
         said += int("restarted" in text)
         details.append(text.strip()[:120])
         new = robot.session
@@ -277,7 +361,7 @@ def _delay_summary(delays: list[float], trials: int, reasons: list[str], name: s
 
 # ------------------------------------------------------------------------------------------- CLI
 
-BENCHES = ("server-fuzz", "client-fuzz", "silent", "restart", "sigkill")
+BENCHES = ("server-fuzz", "client-fuzz", "loop-fuzz", "silent", "restart", "sigkill")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -297,6 +381,7 @@ def run_cli(args: argparse.Namespace) -> int:
     runs = {
         "server-fuzz": lambda: server_fuzz(args.n or 10_000, args.seed),
         "client-fuzz": lambda: client_fuzz(args.n or 2000, args.seed),
+        "loop-fuzz": lambda: loop_fuzz(args.n or 2000, args.seed),
         "silent": lambda: silent(args.trials, args.seed),
         "restart": lambda: restart(args.trials, args.seed),
         "sigkill": lambda: sigkill(args.trials, args.seed),

@@ -189,18 +189,19 @@ class SimClient:
             raise
 
     def _stop_after_timeout(self) -> bool:
-        """One stop on a fresh socket; True when it was answered (by this session)."""
-        try:
-            if self._attempt("stop", {}) is not None:
+        """Stops on a fresh socket, up to ``retries``; True as soon as one is answered, even badly or with
+        a refusal (the robot is there). A new session raises RobotRestarted."""
+        for _ in range(self.retries):
+            try:
+                if self._attempt("stop", {}) is not None:
+                    return True
+            except RobotRestarted:
+                raise
+            except (RobotError, BadFrameError):
                 return True
+            self.timeouts += 1
             self._drop()
-            return False
-        except RobotRestarted:
-            raise
-        except RobotError:
-            return True  # refused, but answered: the link is alive
-        except BadFrameError:
-            return False
+        return False
 
     def _reject(self, why: str) -> None:
         self.bad_frames += 1

@@ -289,21 +289,29 @@ class Repeater:
             except BadFrameError as exc:
                 self.bad_frames += 1
                 self._last_rejected = str(exc)
-            safe_stop(self.robot)
+            self._zero()
             if time.monotonic() - self._last_valid > self.config.frame_timeout_s or self.stop_event.is_set():
                 raise _NoValidFrame()
             time.sleep(self.config.bad_frame_backoff_s)
             call = self.robot.observe
 
     def _zero(self) -> None:
-        """The zero command between steps; a bad reply to it is a bad frame like any other (counted, and
-        the stop sent again), a lost link or a restarted robot ends the step like any RobotError."""
-        try:
-            self.robot.stop()
-        except BadFrameError as exc:
-            self.bad_frames += 1
-            self._last_rejected = str(exc)
-            safe_stop(self.robot)
+        """The zero command, re-sent while its reply is bad (each one counted as a bad frame) until one is
+        good or ``frame_timeout_s`` passes: after a bad reply the robot gets nothing but stops. A lost link
+        or a restarted robot (RobotError) ends the step like any other."""
+        while True:
+            try:
+                self.robot.stop()
+                return
+            except BadFrameError as exc:
+                self.bad_frames += 1
+                self._last_rejected = str(exc)
+                if (
+                    time.monotonic() - self._last_valid > self.config.frame_timeout_s
+                    or self.stop_event.is_set()
+                ):
+                    raise _NoValidFrame() from None
+                time.sleep(self.config.bad_frame_backoff_s)
 
     def _relocalise(self, why: str) -> StepRecord:
         """``localise``: the robot restarted; stop it, then find the route again on its next frame."""

@@ -152,7 +152,7 @@ def test_a_silent_robot_gets_a_stop_within_half_a_second_and_never_the_step_agai
     with ScriptedServer(lambda req: None) as server, SimClient(server.endpoint) as client:
         with pytest.raises(LinkLost, match="nor to the stop"):
             client.step(0.3, 0.0, 0.1)
-        assert server.cmds() == ["step", "stop"]
+        assert server.cmds() == ["step", "stop", "stop", "stop"]  # stops are retried, the step never
 
 
 BAD_FRAME_CASES = {
@@ -250,7 +250,7 @@ def test_an_oversized_reply_is_dropped_by_zeromq_before_it_takes_memory():
     ):
         with pytest.raises(LinkLost):
             client.observe()
-        assert client.bad_frames == 0 and client.timeouts == 3
+        assert client.bad_frames == 0 and client.timeouts >= 3
 
 
 def test_cancel_ends_a_wait_at_once_and_the_stop_still_goes_through():
