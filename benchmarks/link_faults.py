@@ -6,6 +6,7 @@
 - ``silent``: the robot goes silent mid-route; robot-side delay from the unanswered step to the zero command.
 - ``restart``: the robot reboots mid-route; how the repeat ends, motion executed by the rebooted robot.
 - ``sigkill``: `vtr repeat --continuous` on a realtime simulator is killed; delay until the robot is at rest.
+- ``files``: crafted routes, datasets and models: code run, peak memory against the file's size.
 
 Each prints one JSON object (and writes it with ``--out``). Faults come from a seeded generator.
 """
@@ -361,7 +362,7 @@ def _delay_summary(delays: list[float], trials: int, reasons: list[str], name: s
 
 # ------------------------------------------------------------------------------------------- CLI
 
-BENCHES = ("server-fuzz", "client-fuzz", "loop-fuzz", "silent", "restart", "sigkill")
+BENCHES = ("server-fuzz", "client-fuzz", "loop-fuzz", "silent", "restart", "sigkill", "files")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -375,6 +376,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
+    from vtr.benchmarks.link_files import files
     from vtr.benchmarks.link_sigkill import sigkill
     from vtr.runtime.atomic import write_text_atomic
 
@@ -385,6 +387,7 @@ def run_cli(args: argparse.Namespace) -> int:
         "silent": lambda: silent(args.trials, args.seed),
         "restart": lambda: restart(args.trials, args.seed),
         "sigkill": lambda: sigkill(args.trials, args.seed),
+        "files": files,
     }
     result: dict[str, Any] = {}
     for name in BENCHES if args.which == "all" else (args.which,):

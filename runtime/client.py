@@ -17,7 +17,8 @@ retried. ``cancel`` (the run's stop event, set by Ctrl-C/SIGTERM) ends any wait 
 Stamps are judged per robot session: a stamp older than the last accepted one is stale; one further ahead
 than the wall clock allows (``duration`` + elapsed wall time x the announced rate + 1 s) is from the
 future; either is rejected without moving the reference, so one outlier costs one frame. ``reset``
-restarts the clock. A new session token means the robot restarted: :class:`RobotRestarted`.
+restarts the clock. A new session token, confirmed by a ``hello`` that carries it too, means the robot
+restarted: :class:`RobotRestarted` (one corrupt session field is one bad frame, not a restart).
 """
 
 from __future__ import annotations
@@ -89,6 +90,7 @@ class SimClient:
         self._last_stamp: float | None = None
         self._last_stamp_wall = 0.0
         self._seq = 0
+        self._confirming = False  # inside the hello that checks a session change
         self._ctx = zmq.Context()
         self._sock: zmq.Socket | None = None
 
@@ -237,15 +239,30 @@ class SimClient:
         return reply
 
     def _check_session(self, reply: Reply) -> None:
-        if reply.session is None or reply.session == self.session:
+        """A reply from another session: the robot restarted, or the reply is corrupt. A ``hello`` tells
+        which: the same new session again confirms the restart (RobotRestarted), the old one makes this
+        reply one bad frame."""
+        if reply.session is None or reply.session == self.session or self._confirming:
             return
-        previous, self.session = self.session, reply.session
+        previous = self.session
+        if previous is None:
+            self.session, self._last_stamp = reply.session, None
+            return
+        self._confirming = True
+        try:
+            confirm = self._attempt("hello", {})
+        except (RobotError, BadFrameError):
+            confirm = None
+        finally:
+            self._confirming = False
+        if confirm is not None and confirm.session == previous:
+            self._reject(f"reply from session {reply.session}, but the robot is still session {previous}")
+        self.session = confirm.session if confirm is not None and confirm.session else reply.session
         self._last_stamp = None
-        if previous is not None:
-            self.session_changes += 1
-            raise RobotRestarted(
-                f"robot restarted: session {previous} became {reply.session}; it is not where the run left it"
-            )
+        self.session_changes += 1
+        raise RobotRestarted(
+            f"robot restarted: session {previous} became {self.session}; it is not where the run left it"
+        )
 
     def _check_stamp(self, reply: Reply, duration: float) -> None:
         assert reply.stamp is not None

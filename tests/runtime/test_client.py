@@ -214,22 +214,40 @@ def test_a_stamp_from_the_future_is_one_bad_frame_not_the_end_of_the_run():
         assert client.observe().stamp == 1.4 and client.bad_frames == 2
 
 
-def test_a_new_session_is_a_restart_and_reset_restarts_the_clock():
-    script = iter([(5.0, "s1"), (0.0, "s2"), (0.5, "s2"), (0.0, "s2")])
+def test_a_new_session_confirmed_by_hello_is_a_restart_and_reset_restarts_the_clock():
+    state = {"session": "s1", "stamp": 5.0}
 
     def respond(req):
-        stamp, session = next(script)
-        return ok(req, stamp, session)
+        return ok(req, state["stamp"], state["session"])
 
     with ScriptedServer(respond) as server, SimClient(server.endpoint) as client:
         assert client.observe().stamp == 5.0
+        state.update(session="s2", stamp=0.0)  # the robot rebooted: its clock starts again
         with pytest.raises(RobotRestarted, match="session s1 became s2"):
             client.observe()
-        assert client.session_changes == 1 and client.session == "s2"
+        assert server.cmds()[-1] == "hello" and client.session_changes == 1 and client.session == "s2"
+        state["stamp"] = 0.5
         assert client.step(0.1, 0.0, 0.5).stamp == 0.5
+        state["stamp"] = 0.0
         assert client.reset().stamp == 0.0
-        step, reset = server.arrivals[2][1], server.arrivals[3][1]
+        step, reset = server.arrivals[-2][1], server.arrivals[-1][1]
         assert step.session == "s2" and reset.session == "s2"  # motion commands name the session they are for
+
+
+def test_one_reply_with_a_corrupt_session_is_one_bad_frame_not_a_restart():
+    corrupt = {"left": 1}
+
+    def respond(req):
+        if req.cmd == "observe" and req.seq > 1 and corrupt["left"]:
+            corrupt["left"] -= 1
+            return ok(req, 1.0, "zz-corrupt")
+        return ok(req, 1.0, "s1")
+
+    with ScriptedServer(respond) as server, SimClient(server.endpoint) as client:
+        client.observe()
+        with pytest.raises(BadFrameError, match="still session s1"):
+            client.observe()
+        assert client.observe().stamp == 1.0 and client.session == "s1" and client.session_changes == 0
 
 
 def test_a_rebooted_server_refuses_a_step_meant_for_its_previous_life():
