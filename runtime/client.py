@@ -30,6 +30,7 @@ from typing import Any
 import zmq
 
 from vtr.runtime import protocol
+from vtr.runtime.address import check_endpoint
 from vtr.runtime.hello import Hello, parse_hello
 from vtr.runtime.protocol import BadFrameError, Limits, Reply
 from vtr.runtime.robot import Interrupted, LinkLost, Observation, RobotError, RobotRestarted
@@ -63,8 +64,7 @@ class SimClient:
             raise ValueError(f"timeout_s and setup_timeout_s must be > 0, got {timeout_s}, {setup_timeout_s}")
         if retries < 1:
             raise ValueError(f"retries must be >= 1, got {retries}")
-        if "://" not in endpoint:
-            raise ValueError(f"endpoint must be a ZeroMQ address like tcp://127.0.0.1:5555, got {endpoint!r}")
+        check_endpoint(endpoint)
         self.endpoint = endpoint
         self.timeout_s = float(timeout_s)
         self.setup_timeout_s = float(setup_timeout_s)

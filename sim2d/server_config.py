@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from vtr.runtime import protocol
+from vtr.runtime.address import check_endpoint
 from vtr.runtime.protocol import Limits
 
 
@@ -38,8 +39,7 @@ class ServerConfig:
     cmd_vel_timeout: float = 0.5
 
     def __post_init__(self) -> None:
-        if not isinstance(self.bind, str) or "://" not in self.bind:
-            raise ValueError(f"bind must be a ZeroMQ endpoint like tcp://127.0.0.1:5555, got {self.bind!r}")
+        check_endpoint(self.bind, bind=True)
         if self.max_message_bytes < 1024:
             raise ValueError(f"max_message_bytes must be >= 1024, got {self.max_message_bytes}")
         if self.hard_max_message_bytes < self.max_message_bytes:

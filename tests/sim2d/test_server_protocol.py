@@ -183,7 +183,7 @@ def test_server_process_shuts_down_cleanly_on_sigterm():
 @pytest.mark.parametrize(
     "kwargs, fragment",
     [
-        ({"bind": "localhost:5555"}, "endpoint"),
+        ({"bind": "localhost:5555"}, "no transport"),
         ({"max_message_bytes": 10}, "max_message_bytes"),
         ({"v_max": float("nan")}, "v_max"),
         ({"poll_ms": 0}, "poll_ms"),
