@@ -372,6 +372,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--trials", type=int, default=20, help="trials for silent/restart/sigkill (default: 20)"
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the fault generator (default: 0)")
+    parser.add_argument(
+        "--cmd-vel-timeout",
+        type=float,
+        default=0.5,
+        help="sigkill: the simulator's watchdog; 0 runs the control without it (default: 0.5)",
+    )
     parser.add_argument("--out", default=None, help="also write the JSON result here")
 
 
@@ -386,7 +392,7 @@ def run_cli(args: argparse.Namespace) -> int:
         "loop-fuzz": lambda: loop_fuzz(args.n or 2000, args.seed),
         "silent": lambda: silent(args.trials, args.seed),
         "restart": lambda: restart(args.trials, args.seed),
-        "sigkill": lambda: sigkill(args.trials, args.seed),
+        "sigkill": lambda: sigkill(args.trials, args.seed, cmd_vel_timeout=args.cmd_vel_timeout),
         "files": files,
     }
     result: dict[str, Any] = {}

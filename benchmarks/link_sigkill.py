@@ -73,7 +73,9 @@ def sigkill(
     with tempfile.TemporaryDirectory() as tmp:
         route_path = _teach(Path(tmp), route)
         for trial in range(trials):
-            cfg = ServerConfig(bind="tcp://127.0.0.1:*", mode="realtime", cmd_vel_timeout=0.5, poll_ms=20)
+            cfg = ServerConfig(
+                bind="tcp://127.0.0.1:*", mode="realtime", cmd_vel_timeout=cmd_vel_timeout, poll_ms=20
+            )
             server = start_server_process(cfg)
             cmd = [
                 sys.executable,
@@ -128,5 +130,5 @@ def sigkill(
         "rest_delay_s_p100": round(delays[-1], 3),
         "within_0_6_s": sum(d <= 0.6 for d in delays),
         "rest_delay_s_all": [round(d, 3) for d in delays],
-        "cmd_vel_timeout_s": 0.5,
+        "cmd_vel_timeout_s": cmd_vel_timeout,
     }

@@ -7,7 +7,10 @@ earlier request (late or duplicated) is counted in :attr:`SimClient.stale_replie
 wait goes on; a malformed reply, or one for no request we sent, is counted in :attr:`bad_frames` and
 raised as :class:`BadFrameError`, and the next exchange starts clean with a new ``seq``. No fault
 outlives one reply. The socket is rebuilt (LINGER=0) only after a timeout, which drops any request
-still queued for a peer that went away, so a rebooted robot never receives a command from before.
+still queued for a peer that went away, so a rebooted robot never receives a command from before. A
+socket monitor notices a dropped connection; the next ``reset``/``step`` is then preceded by a ``hello``
+that reveals a rebooted robot before any motion command reaches it (and the server refuses a motion
+command naming another session, should one slip through).
 
 Timeouts never resend a motion command. A ``step`` waits ``duration + timeout_s``; when nothing comes,
 the first thing sent is a ``stop``. If the stop is answered the step raises BadFrameError (the robot is
@@ -93,6 +96,7 @@ class SimClient:
         self._confirming = False  # inside the hello that checks a session change
         self._ctx = zmq.Context()
         self._sock: zmq.Socket | None = None
+        self._monitor: zmq.Socket | None = None
 
     @property
     def limits(self) -> Limits | None:
@@ -104,14 +108,26 @@ class SimClient:
             sock = self._ctx.socket(zmq.DEALER)
             sock.setsockopt(zmq.LINGER, 0)
             sock.setsockopt(zmq.MAXMSGSIZE, self.max_message_bytes)  # a 300 MiB reply never reaches memory
+            # disconnects (a robot that died or rebooted) are noticed before the next motion command
+            self._monitor = sock.get_monitor_socket(zmq.EVENT_DISCONNECTED)
             sock.connect(self.endpoint)
             self._sock = sock
         return self._sock
 
     def _drop(self) -> None:
         if self._sock is not None:
+            self._sock.disable_monitor()
+            self._monitor.close(linger=0)
             self._sock.close(linger=0)
             self._sock = None
+
+    def _peer_dropped(self) -> bool:
+        """Whether the connection to the robot dropped since the last look (drains the monitor)."""
+        dropped = False
+        while self._sock is not None and self._monitor.poll(0):
+            self._monitor.recv_multipart()
+            dropped = True
+        return dropped
 
     def close(self) -> None:
         self._drop()
@@ -156,9 +172,14 @@ class SimClient:
 
     def _attempt(self, cmd: str, fields: dict[str, Any]) -> Reply | None:
         """Send once and wait; the reply, or None on timeout. Raises on a bad reply or a cancel."""
+        guard = self.session if cmd in protocol.GUARDED_COMMANDS else None
+        if guard is not None and self._peer_dropped():
+            self._attempt(
+                "hello", {}
+            )  # the robot went away and came back: same session? (else RobotRestarted)
+            guard = self.session
         self._seq += 1
         seq = self._seq
-        guard = self.session if cmd in protocol.GUARDED_COMMANDS else None
         frames = protocol.encode_request(cmd, seq, time.time(), self.limits, session=guard, **fields)
         sock = self._socket()
         t0 = time.perf_counter()
