@@ -62,8 +62,13 @@ def _teach(model_dir: Path, route: str) -> Path:
 
 
 def sigkill(
-    trials: int = 20, seed: int = 0, model: str | None = None, route: str = "living_s_curve"
+    trials: int = 20,
+    seed: int = 0,
+    model: str | None = None,
+    route: str = "living_s_curve",
+    cmd_vel_timeout: float = 0.5,
 ) -> dict[str, Any]:
+    """``cmd_vel_timeout`` 0 is the control: without the watchdog the robot should keep moving."""
     from vtr.sim2d.server import ServerConfig, start_server_process
 
     rng = random.Random(seed)
