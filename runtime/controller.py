@@ -345,6 +345,10 @@ class Controller:
             decision = self.decide(image, collided)
         return Verdict(decision, tuple(events), from_index)
 
+    def relocalise(self) -> None:
+        """Search the whole route for the best-matching subgoal on the next image (after a robot restart)."""
+        self._localise_pending = True
+
     def _window(self) -> range:
         return range(max(0, self.index - 1), min(len(self), self.index + 1 + self.cfg.lookahead))
 
