@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from vtr.evaluation.condition_tables import markdown
 from vtr.evaluation.conditions import LIGHTING, PATH_SCENES, SCENES
 from vtr.runtime.controller import ControllerConfig
 from vtr.runtime.matching import MatchConfig
@@ -268,32 +269,6 @@ def aggregate(runs: list[dict[str, Any]]) -> list[dict[str, Any]]:
     order = {n: i for i, n in enumerate(CONTROLLERS)}
     conds = {n: i for i, n in enumerate(CONDITIONS)}
     return sorted(rows, key=lambda r: (order[r["controller"]], r["model"], conds[r["condition"]]))
-
-
-def markdown(result: dict[str, Any]) -> str:
-    def f(x: float | None, scale: float = 1.0, digits: int = 1) -> str:
-        return "-" if x is None else f"{x * scale:.{digits}f}"
-
-    cfg = result["config"]
-    lines = [
-        f"Condition suite: routes {', '.join(result['routes'])}; seeds {cfg['seeds']}; step limit "
-        f"{cfg['max_steps_factor']} x subgoals + 50. Completed = finished without touching anything; errors "
-        "are means over completed runs (nearest-point position error per taught pose, the paper's metric).",
-        "",
-        "| controller | model | condition | completed | mean err (mm) | max err (mm) | yaw (deg) | cross-track (mm) "
-        "| final (mm / deg) | runs w/ contact | steps / taught | failures |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for r in result["table"]:
-        fails = ", ".join(f"{k} {v}" for k, v in sorted(r["failure_causes"].items())) or "-"
-        blocked = f" ({r['not_run']} not run: start or scene blocked)" if r["not_run"] else ""
-        lines.append(
-            f"| {r['controller']} | {r['model']} | {r['condition']} | {r['completed']}/{r['runs']}{blocked} "
-            f"| {f(r['mean_position_error_m'], 1e3)} | {f(r['max_position_error_m'], 1e3)} | {f(r['mean_yaw_error_deg'], 1, 2)} "
-            f"| {f(r['cross_track_m'], 1e3)} | {f(r['final_position_m'], 1e3)} / {f(r['final_yaw_deg'], 1, 1)} "
-            f"| {r['runs_with_contact']} | {f(r['steps_per_taught_step'], 1, 2)} | {fails} |"
-        )  # fmt: skip
-    return "\n".join(lines) + "\n"
 
 
 def run(cfg: SuiteConfig) -> dict[str, Any]:

@@ -127,3 +127,20 @@ def test_a_box_is_placed_beside_the_path_clear_of_the_robot(tmp_path):
     assert min(house.clearance(x, y) for x, y, _ in path) >= ROBOT_RADIUS + BOX_GAP - 1e-6
     with pytest.raises(ValueError, match="needs the taught path"):
         write_scene_house("obstacle_beside_path", tmp_path)
+
+
+def test_comparison_table_puts_methods_side_by_side(tmp_path, capsys):
+    from vtr.evaluation.condition_tables import main
+
+    row = {"controller": "after", "model": "fp32", "condition": "bright_0.6", "completed": 2, "runs": 3,
+           "mean_position_error_m": 0.0081, "steps_per_taught_step": 1.42}  # fmt: skip
+    other = dict(row, controller="paper", completed=0, mean_position_error_m=None, steps_per_taught_step=None)
+    for name, r in (("a", row), ("b", other)):
+        (tmp_path / f"{name}.json").write_text(json.dumps({"table": [r]}))
+    assert main([str(tmp_path / "a.json"), str(tmp_path / "b.json")]) == 0
+    out = capsys.readouterr().out
+    assert (
+        "| condition | after fp32 | paper fp32 |" in out
+        and "| bright_0.6 | 2/3, 8.1 mm, 1.42x | 0/3, -, - |" in out
+    )
+    assert main([str(tmp_path / "missing.json")]) == 2
