@@ -40,7 +40,7 @@ default of the release before the robust rules, kept for comparison):
 - **Start-anywhere localisation** (``localise``) and **continuous mode** (``continuous``): as before.
 
 Chosen on the tuning routes (sim2d/routes, never the held-out ones; numbers in evaluation/README.md):
-median tile matching (benchmarks.matching_study), three quarters of the incoming gap, and 1 settling
+median tile matching (evaluation.matching_study), three quarters of the incoming gap, and 1 settling
 command (0: 1.06 control steps per taught step at 11.5 mm mean error; 1: 1.41 at 8.9 mm; 2: 1.82 at 6.6 mm).
 """
 
