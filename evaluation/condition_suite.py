@@ -188,7 +188,7 @@ def run_once(route: Any, script: Any, cond: Condition, house: str, seed: int, me
     if log.outcome == "finished":
         cause = "finished but touched furniture" if touched else ""
     else:
-        cause = log.outcome
+        cause = f"{log.outcome}: {log.detail}" if log.detail else log.outcome
     return {
         "ran": True,
         "status": log.outcome,

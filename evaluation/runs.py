@@ -31,6 +31,7 @@ class RunLog:
     sim_time: float = 0.0
     collisions: int = 0
     outcome: str = ""
+    detail: str = ""  # how the repeat ended, in words (Summary.detail)
     policy_ms: list[float] = field(default_factory=list)
     e_m: float | None = None
 
@@ -122,6 +123,7 @@ def repeat_closed_loop(
     log.subgoals_reached = summary.subgoals_reached
     log.steps = summary.steps
     log.outcome = summary.status.value
+    log.detail = summary.detail
     log.e_m = summary.e_m
     log.sim_time = float(summary.sim_time_s)
     return log

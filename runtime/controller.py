@@ -21,10 +21,9 @@ default of the release before the robust rules, kept for comparison):
   the robot sees when it drives the gap into i, so creeping and fast segments of one route each get their
   own (a route-wide threshold set by many creeping gaps stalled the robot on the fast ones).
 - **Relative switch** (``pass_ratio`` > 0): ADVANCE when subgoal i+1 matches at least as well as i
-  (``d(I, i+1) <= pass_ratio * d(I, i)``, and i+1 within ``jump_factor`` of its threshold, so that two
-  unrelated views cannot pass for a match): the robot is past i, whatever the light does to both errors.
-  It switches early, so the robot no longer stops short of every subgoal; and a robot standing on a taught
-  pose can always switch (its own subgoal matches best, under the threshold or on the plateau below).
+  (``d(I, i+1) <= pass_ratio * d(I, i)``, and i+1 under the lost bound, so that two unrelated views
+  cannot pass for a match): the robot is past i, whatever the light does to both errors.
+  It switches early; a robot standing on a taught pose can always switch (threshold, or the plateau).
 - **Settling** (``settle_steps``): once under the threshold, keep steering to the same subgoal while the
   error still falls, for at most ``settle_steps`` extra commands.
 - **Stall guard** (``stall_steps`` > 0): after ``stall_steps`` commands without progress, JUMP to the best
@@ -33,29 +32,31 @@ default of the release before the robust rules, kept for comparison):
   the subgoal) -- but with ``plateau_needs_motion`` only if the view changed since the last plateau
   acceptance by at least ``motion_fraction`` of a gap, so a robot that does not move never accepts more
   than one subgoal; else STALLED.
-- **Lost** (``lost_steps`` > 0): when the best match among subgoals i-1 .. i+lookahead stays above
-  ``lost_factor`` times the route's median gap for ``lost_steps`` commands, stop with LOST ("lost at
+- **Lost** (``lost_steps`` > 0): when the best match among subgoals i-2 .. i+20 stays above ``lost_factor``
+  times the route's median gap (and LOST_FLOOR) for ``lost_steps`` commands, stop with LOST ("lost at
   subgoal i, best match error X"): the view cannot be matched and driving on is a guess.
+- **Turns in place** (``hold_turns``): where the taught robot turned on the spot, |v| is limited to 0.
 - **Contact** (``stop_on_contact``): an image reported with ``collided=True`` ends the repeat (COLLIDED).
 - **Start-anywhere localisation** (``localise``) and **continuous mode** (``continuous``): as before.
 
-Chosen on the tuning routes (sim2d/routes, never the held-out ones; numbers in evaluation/README.md):
-median tile matching (evaluation.matching_study), three quarters of the incoming gap, and 1 settling
-command (0: 1.06 control steps per taught step at 11.5 mm mean error; 1: 1.41 at 8.9 mm; 2: 1.82 at 6.6 mm).
+Chosen on the tuning routes (sim2d/routes): median tiles (evaluation.matching_study), 3/4 of the incoming
+gap, 1 settling command (0, 1, 2: 1.06, 1.41, 1.82 control steps per taught step at 11.5, 8.9, 6.6 mm).
 """
 
 from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
-from vtr.runtime.matching import MatchConfig, Matcher
+from vtr.runtime.controller_config import ControllerConfig
+from vtr.runtime.matching import Matcher
 from vtr.runtime.thresholds import (  # noqa: F401 - calibrate_e_m, consecutive_errors: part of this API
     DEFAULT_BOUNDS,
-    THRESHOLD_MODES,
+    LOST_FLOOR,
+    LOST_WINDOW,
     calibrate_e_m,
     consecutive_errors,
     gaps_between,
@@ -86,6 +87,8 @@ class Decision:
     #: COMMAND only: send a zero command after the control step (False in continuous mode).
     then_stop: bool = True
     note: str = ""
+    #: COMMAND only: |v| the robot may drive at (0 during a taught turn in place, see ``hold_turns``).
+    v_limit: float = math.inf
 
 
 #: Decisions the controller takes without moving the robot: it acts on them itself and judges again.
@@ -106,102 +109,13 @@ class Verdict:
     from_index: int
 
 
-@dataclass
-class ControllerConfig:
-    """Subgoal-switching settings (see the module docstring for each rule)."""
-
-    #: Image comparison (runtime.matching): patch-normalised by default, raw for the paper.
-    match: MatchConfig = field(default_factory=MatchConfig)
-    #: "fixed" uses ``e_m``; "calibrated": one threshold from the route; "per_subgoal": one per subgoal.
-    e_m_mode: str = "per_subgoal"
-    #: Fixed switch threshold in the matcher's units (the paper's 17 on 0..255 for raw).
-    e_m: float = 17.0
-    #: Quantile of the consecutive-subgoal distances used by "calibrated" (0.5 = median).
-    calib_quantile: float = 0.5
-    #: Fraction of that distance (of the incoming gap, for "per_subgoal") taken as the threshold.
-    calib_fraction: float = 0.75
-    #: Bounds on a derived threshold; None takes DEFAULT_BOUNDS for the matching method.
-    e_m_min: float | None = None
-    e_m_max: float | None = None
-    #: Relative switch: ADVANCE when d(next) <= pass_ratio * d(current); 0 disables (the paper has none).
-    pass_ratio: float = 1.0
-    #: Commands without progress before the stall guard acts; 0 disables it (the paper has none).
-    stall_steps: int = 10
-    #: Progress means the error fell this much below its best at this subgoal (matcher units); None:
-    #: 2% of the subgoal's threshold.
-    stall_min_improvement: float | None = None
-    #: How many subgoals ahead the stall guard, the lost test and localisation look.
-    lookahead: int = 5
-    #: The stall guard jumps to / accepts a subgoal only within jump_factor thresholds.
-    jump_factor: float = 2.0
-    #: A plateau acceptance needs the view to have changed since the previous one (the robot moved).
-    plateau_needs_motion: bool = True
-    #: "Changed" means a distance of at least this fraction of the current subgoal's incoming gap.
-    motion_fraction: float = 0.25
-    #: Lost when the best nearby match exceeds lost_factor * the route's median gap ...
-    lost_factor: float = 2.0
-    #: ... for this many consecutive commands; 0 disables the test.
-    lost_steps: int = 5
-    #: Stop the repeat when an observation reports a contact.
-    stop_on_contact: bool = True
-    #: Pick the starting subgoal by best match over the whole route (the paper starts at 0).
-    localise: bool = False
-    #: Localisation confidence floor: best-match error must be at most this; None means 3 * e_m.
-    localise_max_error: float | None = None
-    #: Keep moving between control steps instead of the paper's stop-and-go.
-    continuous: bool = False
-    #: Extra commands at a subgoal while the error still falls under the threshold (0: switch at once).
-    settle_steps: int = 1
-
-    @classmethod
-    def paper(cls) -> ControllerConfig:
-        """Algorithm 1 exactly: raw error, fixed e_m = 17, switch at once, nothing else."""
-        return cls(match=MatchConfig.paper(), e_m_mode="fixed", e_m=17.0, pass_ratio=0.0, stall_steps=0,
-                   settle_steps=0, lost_steps=0, stop_on_contact=False)  # fmt: skip
-
-    @classmethod
-    def before(cls) -> ControllerConfig:
-        """The previous default: raw error, one calibrated e_m per route, settle 2, old plateau rule."""
-        return cls(match=MatchConfig.paper(), e_m_mode="calibrated", pass_ratio=0.0, settle_steps=2,
-                   plateau_needs_motion=False, lost_steps=0, stop_on_contact=False,
-                   stall_min_improvement=0.25)  # fmt: skip
-
-    def __post_init__(self) -> None:
-        if self.e_m_mode not in THRESHOLD_MODES:
-            raise ValueError(f"e_m_mode must be one of {THRESHOLD_MODES}, got {self.e_m_mode!r}")
-        positive = {"e_m": self.e_m, "calib_fraction": self.calib_fraction, "jump_factor": self.jump_factor,
-                    "lost_factor": self.lost_factor}  # fmt: skip
-        for name, value in positive.items():
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-        if not 0.0 <= self.calib_quantile <= 1.0:
-            raise ValueError(f"calib_quantile must be in [0, 1], got {self.calib_quantile}")
-        lo, hi = self.bounds
-        if not 0 < lo <= hi:
-            raise ValueError(f"e_m_max={hi} must be >= e_m_min={lo} > 0")
-        for name in ("stall_steps", "settle_steps", "lost_steps"):
-            if getattr(self, name) < 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
-        if self.stall_min_improvement is not None and not self.stall_min_improvement >= 0:
-            raise ValueError(f"stall_min_improvement must be >= 0, got {self.stall_min_improvement}")
-        for name in ("pass_ratio", "motion_fraction"):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
-        if self.lookahead < 1:
-            raise ValueError(f"lookahead must be >= 1, got {self.lookahead}")
-        if self.localise_max_error is not None and not self.localise_max_error > 0:
-            raise ValueError(f"localise_max_error must be > 0, got {self.localise_max_error}")
-
-    @property
-    def bounds(self) -> tuple[float, float]:
-        lo, hi = DEFAULT_BOUNDS[self.match.method]
-        return (lo if self.e_m_min is None else self.e_m_min, hi if self.e_m_max is None else self.e_m_max)
-
-
 class Controller:
     """Decide, image by image, whether to command, advance, jump, finish or stop (stalled, lost, collided)."""
 
-    def __init__(self, subgoals: np.ndarray, cfg: ControllerConfig | None = None) -> None:
+    def __init__(
+        self, subgoals: np.ndarray, cfg: ControllerConfig | None = None, commands: np.ndarray | None = None
+    ) -> None:
+        """``commands``: the taught (v, w) after each subgoal (``Route.commands``), for ``hold_turns``."""
         if (
             subgoals.dtype != np.uint8
             or subgoals.ndim != 4
@@ -212,6 +126,7 @@ class Controller:
                 f"subgoals must be (L, H, W, 3) uint8 with L >= 1, got {subgoals.shape} {subgoals.dtype}"
             )
         self.cfg = cfg or ControllerConfig()
+        self.commands = None if commands is None else np.asarray(commands, dtype=np.float64).reshape(-1, 2)
         self.subgoals = subgoals
         self.matcher = Matcher(self.cfg.match)
         self._feats = self.matcher.features(subgoals)
@@ -219,6 +134,10 @@ class Controller:
         self.gaps = gaps_between(self.matcher, self._feats)
         self.thresholds = thresholds(self.gaps, n, self.cfg)
         self.median_gap = float(np.median(self.gaps)) if n > 1 else float(self.thresholds[0])
+        #: A view farther than this from every nearby subgoal is not on the route (see LOST_FLOOR).
+        self.lost_bound = max(self.cfg.lost_factor * self.median_gap, LOST_FLOOR[self.cfg.match.method])
+        if n < 2 or self.gaps.max() < DEFAULT_BOUNDS[self.cfg.match.method][0] / 10:
+            self.lost_bound = math.inf  # a route whose views barely change cannot tell being lost
         self.index = 0
         self.stalled = False
         self.status: Action | None = None  # the terminal action once the run stopped
@@ -287,9 +206,9 @@ class Controller:
         threshold = self.thresholds[i]
         if self.cfg.pass_ratio > 0 and i + 1 < len(self) and error > threshold:
             nxt = self.matcher.distance(view, self._feats[i + 1])
-            # only a real match counts: two unrelated views score alike, and a lost robot must not
-            # "pass" subgoals on noise
-            if nxt <= self.cfg.pass_ratio * error and nxt <= self.cfg.jump_factor * self.thresholds[i + 1]:
+            # only a real match counts (under the lost bound): two unrelated views score alike, and a
+            # lost robot must not "pass" subgoals on noise
+            if nxt <= self.cfg.pass_ratio * error and nxt < self.lost_bound:
                 self.early_switches += 1
                 self._set_index(i + 1)
                 return Decision(Action.ADVANCE, self.index, error, note="next subgoal matches as well")
@@ -300,7 +219,7 @@ class Controller:
         if error <= threshold:
             if improving and self._settled < self.cfg.settle_steps:
                 self._settled += 1
-                return Decision(Action.COMMAND, i, error, then_stop=not self.cfg.continuous, note="settling")
+                return self._command(i, error, note="settling")
             self._set_index(i + 1)
             return Decision(Action.ADVANCE, self.index, error)
         if self.cfg.lost_steps > 0:
@@ -316,7 +235,14 @@ class Controller:
                 self._no_progress += 1
             if self._no_progress >= self.cfg.stall_steps:
                 return self._unstall(view, error)
-        return Decision(Action.COMMAND, i, error, then_stop=not self.cfg.continuous)
+        return self._command(i, error)
+
+    def _command(self, i: int, error: float, note: str = "") -> Decision:
+        turning = (
+            self.cfg.hold_turns and self.commands is not None and i > 0 and self.commands[i - 1, 0] == 0.0
+        )
+        return Decision(Action.COMMAND, i, error, then_stop=not self.cfg.continuous, note=note,
+                        v_limit=0.0 if turning else math.inf)  # fmt: skip
 
     def judge(self, image: np.ndarray, collided: bool = False) -> Verdict:
         """Decide on ``image`` until a decision needs the robot: subgoal switches (ADVANCE, JUMP) are
@@ -332,15 +258,12 @@ class Controller:
         """Search the whole route for the best-matching subgoal on the next image (after a robot restart)."""
         self._localise_pending = True
 
-    def _window(self) -> range:
-        return range(max(0, self.index - 1), min(len(self), self.index + 1 + self.cfg.lookahead))
-
     def _lost(self, view: np.ndarray, error: float) -> Decision | None:
-        window = self._window()
+        ahead = max(self.cfg.lookahead, LOST_WINDOW)
+        window = range(max(0, self.index - 2), min(len(self), self.index + 1 + ahead))
         errors = self.matcher.distances(view, self._feats[window.start : window.stop])
         best = int(np.argmin(errors))
-        # a route whose views barely change (median gap under the threshold floor) cannot tell being lost
-        bound = self.cfg.lost_factor * self.median_gap if self.median_gap >= self.cfg.bounds[0] else math.inf
+        bound = self.lost_bound
         if errors[best] <= bound:
             self._lost_count = 0
             return None
@@ -350,7 +273,7 @@ class Controller:
         return self._stop(
             Action.LOST, error,
             f"lost at subgoal {self.index}, best match error {errors[best]:.3f} (subgoal {window.start + best}) "
-            f"above {self.cfg.lost_factor} * median gap = {bound:.3f} for {self.cfg.lost_steps} steps",
+            f"above {bound:.3f} for {self.cfg.lost_steps} steps",
         )  # fmt: skip
 
     def _localise(self, view: np.ndarray) -> Decision | None:

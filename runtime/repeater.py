@@ -114,7 +114,7 @@ class Repeater:
                 "teach the route again with the model's dt"
             )
         self.dt = float(self.config.dt if self.config.dt is not None else (model_dt or CONTROL_DT))
-        self.controller = controller or Controller(route.images, self.config.controller)
+        self.controller = controller or Controller(route.images, self.config.controller, route.commands)
         # one view object per subgoal, passed again while it is steered to (OnnxPolicy keeps its tensor)
         self._views = list(self.controller.subgoals)
         self._last = len(self._views) - 1
@@ -249,6 +249,7 @@ class Repeater:
             return self._end(RepeatStatus.STEP_LIMIT, "", verdict)
         velocities = self.policy.predict(obs.image, self._views[min(self.controller.index, self._last)])
         v, w = float(velocities[0, 0]), float(velocities[1, 0])
+        v = max(-decision.v_limit, min(decision.v_limit, v))  # no translation in a taught turn in place
         t_policy = time.perf_counter()
         stage = dict(getattr(self.policy, "last_timing_ms", None) or {})
         stage["error"] = (t_error - t0) * 1e3

@@ -12,8 +12,15 @@ if TYPE_CHECKING:
     from vtr.runtime.controller import ControllerConfig
 
 THRESHOLD_MODES = ("fixed", "calibrated", "per_subgoal")
-#: Default bounds of a calibrated threshold, per matching method, in that method's units.
-DEFAULT_BOUNDS = {"raw": (1.0, 64.0), "patch": (0.02, 0.8)}
+#: Default bounds of a derived threshold, per matching method, in that method's units. The patch floor is
+#: what 1-2 cm or 1 degree away from a subgoal scores: finer than the policy steers, and it keeps creeping
+#: segments (subgoals 1 cm apart) switchable.
+DEFAULT_BOUNDS = {"raw": (1.0, 64.0), "patch": (0.15, 0.8)}
+#: "Lost" needs the best nearby match above this too (patch: about 4 gaps of 5 cm away; unrelated views
+#: score 0.8-0.9), so routes whose median gap is tiny (creeping) do not stop on noise.
+LOST_FLOOR = {"raw": 0.0, "patch": 0.6}
+#: The lost test searches this many subgoals ahead at least (creeping subgoals are 1 cm apart).
+LOST_WINDOW = 20
 
 
 def gaps_between(matcher: Matcher, feats: np.ndarray) -> np.ndarray:

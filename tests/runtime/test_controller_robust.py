@@ -142,3 +142,49 @@ def test_the_default_step_limit_scales_with_the_route():
     assert Repeater(ContactRobot(), StillPolicy(), short).max_steps == 8 * 2 + 50
     assert Repeater(ContactRobot(), StillPolicy(), long).max_steps == 8 * 320 + 50 > 2000
     assert Repeater(ContactRobot(), StillPolicy(), long, config=RepeatConfig(max_steps=7)).max_steps == 7
+
+
+def test_no_translation_where_the_taught_robot_turned_in_place():
+    commands = np.array([[0.2, 0.0], [0.0, 0.5], [0.0, 0.5], [0.2, 0.0]] + [[0.2, 0.0]] * 4)
+    c = Controller(ROUTE, robust(e_m_mode="fixed", e_m=1e-3, stall_steps=0, pass_ratio=0.0), commands)
+    assert c.decide(view(300)).v_limit == np.inf  # subgoal 0: nothing taught before it
+    c._set_index(2)  # steering into subgoal 2: the taught robot turned in place (v = 0) from subgoal 1
+    assert c.decide(view(300)).v_limit == 0.0
+    c._set_index(4)
+    assert c.decide(view(300)).v_limit == np.inf
+    paper = Controller(ROUTE, ControllerConfig.paper(), commands)
+    paper._set_index(2)
+    assert paper.decide(view(300)).v_limit == np.inf  # Algorithm 1 leaves the policy alone
+
+
+class Recording(ContactRobot):
+    def __init__(self) -> None:
+        super().__init__()
+        self.sent: list[tuple[float, float]] = []
+
+    def step(self, v: float, w: float, duration: float) -> Observation:
+        self.sent.append((v, w))
+        return Observation(view(300), 0.1, collided=False)
+
+
+def test_the_repeater_applies_the_limit_to_the_policys_command():
+    commands = np.array([[0.0, 0.5]] * len(ROUTE))  # a route taught as one turn in place
+    route = Route(images=ROUTE, poses=np.full((len(ROUTE), 3), np.nan), commands=commands)
+    robot = Recording()
+    cfg = RepeatConfig(
+        controller=robust(lost_steps=0, stall_steps=0, e_m_mode="fixed", e_m=1e-3), max_steps=3
+    )
+    rep = Repeater(robot, StillPolicy(), route, config=cfg)
+    rep.controller._set_index(1)
+    rep.run()
+    assert robot.sent and all(v == 0.0 for v, _ in robot.sent)  # StillPolicy says v = 0.1
+
+
+def test_creeping_subgoals_still_switch_and_are_not_taken_for_lost():
+    creep = np.stack([view(100 + k // 4) for k in range(40)])  # 4 subgoals per pixel of motion: creeping
+    c = Controller(creep, robust())
+    assert c.thresholds.min() >= 0.15  # the floor: nearly identical subgoals are not unreachable
+    for k in range(0, 40, 4):  # the robot moves faster than taught: it skips creeping subgoals
+        verdict = c.judge(creep[k])
+        assert verdict.decision.action is Action.COMMAND and c.index >= k
+    assert c.index >= 36 and c.lost_bound == pytest.approx(0.6)
