@@ -122,13 +122,16 @@ class SuiteConfig:
 
 
 def route_paths(names: tuple[str, ...]) -> list[Path]:
-    """ROUTE.json files: the held-out set when ``names`` is empty, else each name or path."""
+    """ROUTE.json files: the held-out set when ``names`` is empty, else each name, path or folder."""
     from vtr.sim2d.routes import ROUTES_DIR
 
     if not names:
         return sorted(HELDOUT_DIR.glob("*.json"))
     out = []
     for name in names:
+        if Path(name).is_dir():  # a folder of routes, e.g. sim2d/routes/heldout2
+            out += sorted(Path(name).glob("*.json"))
+            continue
         candidates = [Path(name), HELDOUT_DIR / f"{name}.json", ROUTES_DIR / f"{name}.json"]
         found = next((p for p in candidates if p.suffix == ".json" and p.is_file()), None)
         if found is None:

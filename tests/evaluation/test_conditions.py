@@ -112,7 +112,9 @@ def test_heldout_routes_are_apart_from_the_tuning_routes():
     from vtr.sim2d.routes import list_routes
 
     heldout = {p.stem for p in suite.route_paths(())}
-    assert len(heldout) == 8 and not heldout & set(list_routes()) and not heldout & set(TUNING_ROUTES)
+    second = {p.stem for p in suite.route_paths((str(suite.HELDOUT_DIR.with_name("heldout2")),))}
+    assert len(heldout) == 8 and len(second) == 6 and not heldout & second
+    assert not (heldout | second) & set(list_routes()) and not (heldout | second) & set(TUNING_ROUTES)
 
 
 def test_a_box_is_placed_beside_the_path_clear_of_the_robot(tmp_path):
