@@ -157,3 +157,33 @@ def test_matching_study_shows_patch_matching_ignores_light_where_the_raw_error_d
     assert raw["bright_0.6"]["switchable"] == 0.0 and patch["bright_0.6"]["switchable"] == 1.0
     assert patch["bright_0.6"]["at_pose"] < 0.2 < 1.0 < raw["bright_0.6"]["at_pose"]
     assert patch["clean"]["along_0.1"] > patch["clean"]["along_0.02"] > patch["clean"]["at_pose"]
+
+
+class Forward:
+    """A policy that always drives forward while turning."""
+
+    image_shape = (32, 32)
+    nonfinite_count = 0
+
+    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+        return np.array([[0.3, 0.3], [0.5, 0.5]], dtype=np.float32)
+
+
+def test_the_evaluation_loop_holds_taught_turns_in_place(tmp_path):
+    from vtr.evaluation.harness import EvalConfig, make_robot, teach
+    from vtr.evaluation.runs import repeat_closed_loop
+    from vtr.runtime.controller import ControllerConfig
+
+    script = {
+        "name": "spin",
+        "start": {"x": 2.8, "y": 3.0, "yaw": 0.0},
+        "segments": [{"v": 0.0, "w": 0.5, "duration": 1.0}],
+    }
+    path = tmp_path / "spin.json"
+    path.write_text(json.dumps(script))
+    route, _ = teach(path, (32, 32), 0.1)
+    cfg = EvalConfig(model=None, quick=True, workers=1)
+    log = repeat_closed_loop(
+        make_robot(0.0, (32, 32)), Forward(), route, (2.8, 3.0, 0.0), cfg, 0, ControllerConfig()
+    )
+    assert log.commands and all(v == 0.0 for v, _ in log.commands[1:])  # subgoal 0 has no taught turn into it
