@@ -74,6 +74,7 @@ CONTROLLERS: dict[str, Method] = {
     "after_no_side_ramp": Method(AFTER, match_light=True, side_ramp=False),
     "after_raw_matching": Method(replace(AFTER, match=MatchConfig.paper()), match_light=True),
     "after_route_threshold": Method(replace(AFTER, e_m_mode="calibrated", pass_ratio=0.0), match_light=True),
+    "after_no_hold_turns": Method(replace(AFTER, hold_turns=False), match_light=True),
 }
 
 
