@@ -1,7 +1,7 @@
 """`vtr sim`: the simulator from the command line.
 
-vtr sim snapshot --out house.png [--x X --y Y --yaw YAW] [--start NAME]
-vtr sim serve --bind tcp://127.0.0.1:5555 [--noise 0.05]
+vtr sim snapshot --out house.png [--house random:SEED] [--x X --y Y --yaw YAW] [--start NAME] [--change SPEC]
+vtr sim serve --bind tcp://127.0.0.1:5555 [--noise 0.05] [--house random:SEED] [--change SPEC ...]
 """
 
 from __future__ import annotations
@@ -30,6 +30,8 @@ class SnapshotConfig:
     """Name of a start pose in the map to use instead of the first one."""
     brightness: float = 1.0
     """Camera brightness multiplier."""
+    changes: tuple[str, ...] = ()
+    """Appearance changes (sim2d.appearance)."""
 
     def __post_init__(self) -> None:
         if not self.out:
@@ -45,7 +47,9 @@ def run_snapshot(cfg: SnapshotConfig) -> int:
     from vtr.sim2d.simulator import Simulator
     from vtr.sim2d.snapshot import snapshot
 
-    sim = Simulator(SimConfig(house=cfg.house, camera=CameraConfig(brightness=cfg.brightness)))
+    sim = Simulator(
+        SimConfig(house=cfg.house, changes=cfg.changes, camera=CameraConfig(brightness=cfg.brightness))
+    )
     base = sim.house.start_poses[0]
     if cfg.start is not None:
         if cfg.start not in sim.house.start_names:
@@ -70,7 +74,14 @@ def run_snapshot(cfg: SnapshotConfig) -> int:
     return 0
 
 
-def run_serve(bind: str, noise: float, house: str, brightness: float, mode: str = "lockstep") -> int:
+def run_serve(
+    bind: str,
+    noise: float,
+    house: str,
+    brightness: float,
+    mode: str = "lockstep",
+    changes: tuple[str, ...] = (),
+) -> int:
     from vtr.sim2d.config import CameraConfig, SimConfig
 
     try:
@@ -80,8 +91,14 @@ def run_serve(bind: str, noise: float, house: str, brightness: float, mode: str 
             f"vtr sim serve: the simulator server (sim2d/server.py) is not available: {err}", file=sys.stderr
         )
         return 3
-    sim_cfg = SimConfig(house=house, noise=noise, camera=CameraConfig(brightness=brightness))
+    sim_cfg = SimConfig(house=house, noise=noise, changes=changes, camera=CameraConfig(brightness=brightness))
     return int(serve(ServerConfig(bind=bind, sim=sim_cfg, mode=mode)) or 0)
+
+
+_CHANGE_HELP = (
+    "appearance change KIND:TARGET=VALUE, repeatable (sim2d/appearance.py), e.g. retexture:wall=3, "
+    "move:sofa=0.3, light:level=0.6, light:dark=w,0.5, obstacle:2.0,3.0=0.4, floor:kitchen=5 (default: none)"
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -91,7 +108,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "snapshot", help="write a top-down picture of the house beside the robot's camera image"
     )
     snap.add_argument("--out", default="house.png", help="output PNG (default: house.png)")
-    snap.add_argument("--house", default="house", help="map name in sim2d/maps or a path (default: house)")
+    snap.add_argument(
+        "--house",
+        default="house",
+        help="map name in sim2d/maps, a path, or random:SEED (a procedural house) (default: house)",
+    )
+    snap.add_argument("--change", action="append", default=[], metavar="SPEC", help=_CHANGE_HELP)
     snap.add_argument("--x", type=float, default=None, help="robot x in metres (default: the start pose)")
     snap.add_argument("--y", type=float, default=None, help="robot y in metres")
     snap.add_argument(
@@ -104,7 +126,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     serve.add_argument(
         "--noise", type=float, default=0.0, help="actuation noise level (SimConfig.noise), 0 = off"
     )
-    serve.add_argument("--house", default="house", help="map name in sim2d/maps or a path")
+    serve.add_argument(
+        "--house",
+        default="house",
+        help="map name in sim2d/maps, a path, or random:SEED (a procedural house) (default: house)",
+    )
+    serve.add_argument("--change", action="append", default=[], metavar="SPEC", help=_CHANGE_HELP)
     serve.add_argument("--brightness", type=float, default=1.0, help="camera brightness multiplier")
     serve.add_argument(
         "--mode",
@@ -125,9 +152,10 @@ def run_cli(args: argparse.Namespace) -> int:
                 yaw=args.yaw,
                 start=args.start,
                 brightness=args.brightness,
+                changes=tuple(args.change),
             )
             return run_snapshot(cfg)
-        return run_serve(args.bind, args.noise, args.house, args.brightness, args.mode)
+        return run_serve(args.bind, args.noise, args.house, args.brightness, args.mode, tuple(args.change))
     except ValueError as err:  # bad configuration values or a bad map file
         print(f"vtr sim {args.sim_command}: {err}", file=sys.stderr)
         return 2

@@ -28,13 +28,16 @@ from typing import Any
 import numpy as np
 
 from vtr.sim2d.config import Pose
-from vtr.sim2d.textures import make_texture, mosaic_floor
+from vtr.sim2d.floors import floor_image
+from vtr.sim2d.lighting import Lighting
+from vtr.sim2d.textures import make_texture
 
 MAPS_DIR = Path(__file__).resolve().parent / "maps"
 FLOOR_TEX = 512  # texels per side of the floor mosaic (power of two)
 CIRCLE_SIDES = 16  # circles are drawn as polygons with this many faces (physics uses the true circle)
 # Start poses are checked against a robot of this radius, the largest one we expect to simulate.
 START_CLEARANCE = 0.25
+RANDOM_PREFIX = "random:"  # --house random:SEED names a procedural house (sim2d.procedural)
 
 
 class HouseError(ValueError):
@@ -174,15 +177,14 @@ class House:
         # Floor mosaic: a square power-of-two texture covering the bounds (with a small margin).
         self.floor_extent = float(max(hi - lo)) + 0.2
         self.floor_origin = (float(lo[0]) - 0.1, float(lo[1]) - 0.1)
-        self.floor_image = mosaic_floor(
-            self.floor_origin[0],
-            self.floor_origin[1],
-            self.floor_extent,
-            FLOOR_TEX,
-            self.floor_tile,
-            self.floor_seed,
-            self.floor_grout,
-        )
+        try:
+            self.lighting = Lighting.from_spec(data.get("lighting"), f"{source}: lighting")
+            floor_img = floor_image(
+                floor, self.floor_origin, self.floor_extent, FLOOR_TEX, f"{source}: floor"
+            )
+        except ValueError as err:
+            raise HouseError(str(err)) from None
+        self.floor_image = self.lighting.light_image(floor_img, self.floor_origin, self.floor_extent)
 
     # ----------------------------------------------------------------------------------------- queries
     def room_at(self, x: float, y: float) -> str | None:
@@ -305,8 +307,7 @@ def resolve_house_path(name_or_path: str | os.PathLike[str]) -> Path:
     return path
 
 
-@functools.lru_cache(maxsize=8)
-def _load_cached(path: str, mtime_ns: int) -> House:
+def _read_json(path: str) -> dict[str, Any]:
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as err:
@@ -317,13 +318,42 @@ def _load_cached(path: str, mtime_ns: int) -> House:
         raise HouseError(f"{path}: invalid JSON at line {err.lineno} column {err.colno}: {err.msg}") from None
     if not isinstance(data, dict):
         raise HouseError(f"{path}: the top level must be a JSON object, got {type(data).__name__}")
-    return House(data, path)
+    return data
 
 
-def load_house(name_or_path: str | os.PathLike[str] = "house") -> House:
-    """Load and validate a house map (cached per file and modification time; Houses are not mutated)."""
-    path = resolve_house_path(name_or_path)
-    return _load_cached(str(path), path.stat().st_mtime_ns)
+def house_data(name_or_path: str | os.PathLike[str] = "house") -> tuple[dict[str, Any], str]:
+    """The map of a house as a fresh JSON-like dict and its source: ``random:SEED`` (sim2d.procedural), a
+    map name in sim2d/maps or a path."""
+    s = os.fspath(name_or_path)
+    if s.startswith(RANDOM_PREFIX):
+        from vtr.sim2d.procedural import generate_house_data, parse_random_seed
+
+        seed = parse_random_seed(s)
+        return generate_house_data(seed), f"{RANDOM_PREFIX}{seed}"
+    path = resolve_house_path(s)
+    return _read_json(str(path)), str(path)
+
+
+@functools.lru_cache(maxsize=8)
+def _load_cached(name: str, mtime_ns: int, changes: tuple[str, ...]) -> House:
+    data, source = house_data(name)
+    if changes:
+        from vtr.sim2d.appearance import apply_changes
+
+        try:
+            data = apply_changes(data, changes)
+        except ValueError as err:
+            raise HouseError(f"{source}: {err}") from None
+        source = f"{source} with {'; '.join(changes)}"
+    return House(data, source)
+
+
+def load_house(name_or_path: str | os.PathLike[str] = "house", changes: tuple[str, ...] = ()) -> House:
+    """Load and validate a house (cached per source, file modification time and appearance changes; Houses
+    are not mutated). ``random:SEED`` generates a procedural house; `changes` are sim2d.appearance specs."""
+    s = os.fspath(name_or_path)
+    mtime = 0 if s.startswith(RANDOM_PREFIX) else resolve_house_path(s).stat().st_mtime_ns
+    return _load_cached(s, mtime, tuple(str(c) for c in changes))
 
 
 # --------------------------------------------------------------------------------------------- helpers
