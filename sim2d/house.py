@@ -129,6 +129,7 @@ class House:
             self.rooms.append(Room(name, poly))
             self._room_textures.append(faces)
 
+        self._room_boxes = [_box_of(r.polygon) for r in self.rooms]
         t = self.wall_thickness
         self.wall_boxes: list[np.ndarray] = []  # (4, 2) counter-clockwise corners of each wall box
         for i, w in enumerate(v.list(data, "walls", min_len=3)):
@@ -189,8 +190,10 @@ class House:
     # ----------------------------------------------------------------------------------------- queries
     def room_at(self, x: float, y: float) -> str | None:
         """Name of the room containing (x, y), or None outside every room."""
-        for room in self.rooms:
-            if _inside(room.polygon, x, y):
+        # Hot path (collection asks several times per frame): a bounding-box test first; for an axis-aligned
+        # rectangle it is the answer (x0 <= x < x1, y0 <= y < y1 is what the even-odd rule gives).
+        for room, (x0, y0, x1, y1, is_rect) in zip(self.rooms, self._room_boxes, strict=True):
+            if x0 <= x < x1 and y0 <= y < y1 and (is_rect or _inside(room.polygon, x, y)):
                 return room.name
         return None
 
@@ -217,6 +220,30 @@ class House:
         if len(radii):
             best = min(best, float(np.max([0.0, np.min(np.hypot(*(centers - (x, y)).T) - radii)])))
         return best
+
+    def clearances(self, xy: np.ndarray) -> np.ndarray:
+        """clearance() of many points (N, 2) at once; 0 outside every room too (so > r means is_free)."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        a, ab, inv_len2, poly_id, n_poly = self._edges
+        ap = xy[:, None, :] - a[None]  # (N, E, 2)
+        t = np.clip(np.einsum("nij,ij->ni", ap, ab) * inv_len2, 0.0, 1.0)
+        d = ap - ab[None] * t[..., None]
+        best = np.sqrt(np.min(d[..., 0] ** 2 + d[..., 1] ** 2, axis=1))
+        b_y = a[:, 1] + ab[:, 1]
+        y = xy[:, 1:2]
+        straddle = (a[None, :, 1] > y) != (b_y[None] > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x_cross = a[None, :, 0] + (y - a[None, :, 1]) * ab[None, :, 0] / ab[None, :, 1]
+        hits = (straddle & (xy[:, :1] < x_cross)).astype(np.int64)
+        inside = np.zeros((len(xy), n_poly), dtype=np.int64)
+        np.add.at(inside.T, poly_id, hits.T)
+        best[np.any(inside % 2 == 1, axis=1)] = 0.0
+        centers, radii = self._circles
+        if len(radii):
+            dc = np.hypot(xy[:, None, 0] - centers[None, :, 0], xy[:, None, 1] - centers[None, :, 1]) - radii
+            best = np.minimum(best, np.maximum(dc.min(axis=1), 0.0))
+        in_room = np.array([self.room_at(float(x), float(y)) is not None for x, y in xy])
+        return np.where(in_room, best, 0.0)
 
     def _build_obstacles(self) -> None:
         """Edges of every obstacle polygon (walls, polygonal furniture) and the circles, as arrays."""
@@ -368,6 +395,14 @@ def _points(value: Any, where: str, n: int | None = None) -> np.ndarray:
         count = f"{n} " if n is not None else ""
         raise HouseError(f"{where}: expected a list of {count}[x, y] points, got {value!r}")
     return np.asarray(value, dtype=np.float64)
+
+
+def _box_of(poly: np.ndarray) -> tuple[float, float, float, float, bool]:
+    """(x0, y0, x1, y1, is an axis-aligned rectangle) of a room polygon."""
+    (x0, y0), (x1, y1) = poly.min(axis=0), poly.max(axis=0)
+    corners = {(float(x), float(y)) for x, y in poly}
+    is_rect = len(poly) == 4 and corners == {(x0, y0), (x1, y0), (x1, y1), (x0, y1)}
+    return float(x0), float(y0), float(x1), float(y1), bool(is_rect)
 
 
 def _inside(poly: np.ndarray, x: float, y: float) -> bool:
