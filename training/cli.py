@@ -3,6 +3,8 @@
     vtr train viewnet --data data/house.npz --out runs/default/viewnet [--preset default]
     vtr train velocitynet --data data/house.npz --viewnet runs/default/viewnet/model.pt --out runs/default/velocitynet
     vtr train all --preset default --out runs/default   # collect (if needed), both nets, export to models/
+    vtr train velocitynet --init runs/default/velocitynet/model.pt --data my_building.npz ...   # fine-tune
+    vtr train evaluate --data data/heldout --viewnet models/viewnet.pt --velocitynet runs/x/velocitynet
 
 Every stage resumes from its checkpoint with --resume. Under `torchrun --nproc_per_node=K` the same
 commands train with DistributedDataParallel (gloo on CPU, nccl on CUDA).
@@ -51,11 +53,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="stage", required=True)
     p = sub.add_parser("viewnet", help="train ViewNet (next-frame prediction, L1, forward + reversed pairs)")
     p.add_argument("--data", required=True, help="dataset from `vtr collect`")
+    p.add_argument("--init", default=None, help="start from this ViewNet checkpoint (e.g. models/viewnet.pt)")
     _add_common(p)
     p = sub.add_parser("velocitynet", help="train VelocityNet with the offline MPC loss (ViewNet frozen)")
     p.add_argument("--data", required=True, help="dataset from `vtr collect`")
     p.add_argument("--viewnet", required=True, help="trained ViewNet (model.pt or its folder)")
+    p.add_argument(
+        "--init", default=None, help="start from this VelocityNet checkpoint (model.pt) to fine-tune"
+    )
     _add_common(p)
+    from vtr.training.transfer import add_evaluate_arguments
+
+    add_evaluate_arguments(sub.add_parser("evaluate", help="offline report of given models on a dataset"))
     p = sub.add_parser("all", help="collect if needed, train ViewNet, VelocityNet, export ONNX (fp32 + int8)")
     p.add_argument("--data", default="data/house.npz", help="dataset; recorded first if it does not exist")
     p.add_argument("--models-dir", default="models", help="where the ONNX models and ViewNet checkpoint go")
@@ -168,12 +177,21 @@ def run_cli(args: argparse.Namespace) -> int:
     from vtr.training.dataset import DatasetError
     from vtr.training.train import train_velocitynet, train_viewnet
 
+    if args.stage == "evaluate":
+        from vtr.training.transfer import run_evaluate
+
+        return run_evaluate(args)
     preset = get_preset(args.preset)
     preset.loss = override(preset.loss, w1=args.w1, w2=args.w2)
     try:
         if args.stage == "viewnet":
             train_viewnet(
-                args.data, args.out, preset.viewnet, _train_cfg(preset.train_viewnet, args), args.resume
+                args.data,
+                args.out,
+                preset.viewnet,
+                _train_cfg(preset.train_viewnet, args),
+                args.resume,
+                init=args.init,
             )
         elif args.stage == "velocitynet":
             train_velocitynet(
@@ -184,6 +202,7 @@ def run_cli(args: argparse.Namespace) -> int:
                 preset.loss,
                 _train_cfg(preset.train_velocitynet, args),
                 args.resume,
+                init=args.init,
             )
         else:
             preset.train_viewnet = _train_cfg(preset.train_viewnet, args, args.viewnet_steps)
@@ -199,7 +218,7 @@ def run_cli(args: argparse.Namespace) -> int:
                 int8=not args.no_int8,
             )
             run_all(cfg, preset)
-    except (DatasetError, FileExistsError, FileNotFoundError) as err:
+    except (DatasetError, FileExistsError, FileNotFoundError, ValueError) as err:
         print(f"vtr train: {err}")
         return 1
     return 0

@@ -34,9 +34,10 @@ from vtr.training.config import (
     from_dict,
     to_dict,
 )
-from vtr.training.dataset import DatasetError, FrameData, load_dataset, split_episodes, window_starts
+from vtr.training.dataset import DatasetError, FrameData, load_dataset, window_starts
 from vtr.training.losses import mpc_loss, viewnet_loss
 from vtr.training.models import VelocityNet, ViewNet
+from vtr.training.transfer import init_weights, split_for
 
 CHECKPOINT = "checkpoint.pt"
 MODEL = "model.pt"
@@ -110,7 +111,7 @@ class Windows:
 
     def __init__(self, data: FrameData, length: int, cfg: TrainConfig, dist: Dist) -> None:
         self.length = length
-        train_ids, self.val_ids = split_episodes(data.episodes, cfg.val_fraction, cfg.seed)
+        train_ids, self.val_ids = split_for(data, cfg)  # whole houses held out when there are several
         self.train_starts = window_starts(data.episodes, length, train_ids)
         self.val_starts = window_starts(data.episodes, length, self.val_ids)
         if len(self.train_starts) == 0 or len(self.val_starts) == 0:
@@ -128,7 +129,10 @@ class Windows:
         self.device = dist.device
         self.on_device = on_device
         target = dist.device if on_device else torch.device("cpu")
-        self.images = torch.from_numpy(data.images).to(target)  # (T, H, W, 3) uint8
+        if isinstance(data.images, np.ndarray):
+            self.images = torch.from_numpy(data.images).to(target)  # (T, H, W, 3) uint8
+        else:  # a sharded dataset (training.shards): frames are gathered per batch from memory maps
+            self.images = data.images
         self.commands = torch.from_numpy(data.commands.astype(np.float32)).to(target)  # (T, 2)
         self.pin = not on_device and dist.device.type == "cuda"
         self.mean_command = data.commands[self.train_starts].mean(axis=0).astype(np.float32)
@@ -136,6 +140,10 @@ class Windows:
     def gather_raw(self, starts: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
         """Window starts (B,) -> uint8 frames (B, L, H, W, 3) and commands (B, L-1, 2), where the data lives."""
         idx = torch.as_tensor(starts, dtype=torch.long)[:, None] + torch.arange(self.length)  # (B, L)
+        if not isinstance(self.images, torch.Tensor):
+            return torch.from_numpy(self.images[idx.numpy()]), self.commands[
+                idx[:, :-1].to(self.commands.device)
+            ]
         idx = idx.to(self.images.device)
         return self.images[idx], self.commands[idx[:, :-1]]
 
@@ -402,8 +410,10 @@ def train_viewnet(
     model_cfg: ViewNetConfig,
     cfg: TrainConfig,
     resume: bool = False,
+    init: str | os.PathLike | None = None,
 ) -> dict[str, Any]:
-    """Train ViewNet on forward and reversed pairs; returns the offline quality report."""
+    """Train ViewNet on forward and reversed pairs (from the weights in `init` if given); returns the
+    offline quality report."""
     from vtr.training.report import viewnet_report
 
     out = Path(out)
@@ -412,6 +422,8 @@ def train_viewnet(
     windows = Windows(data, 2, cfg, dist)
     extra = {"data": str(data_path), "data_meta": data.meta, "val_episodes": windows.val_ids.tolist()}
     model = ViewNet(model_cfg)
+    if init is not None:
+        extra.update(init_weights(model, "viewnet", model_cfg, init))
 
     def loss_fn(net: nn.Module, frames: torch.Tensor, commands: torch.Tensor):
         loss = viewnet_loss(net, frames, commands[:, 0])
@@ -436,8 +448,10 @@ def train_velocitynet(
     loss_cfg: MPCLossConfig,
     cfg: TrainConfig,
     resume: bool = False,
+    init: str | os.PathLike | None = None,
 ) -> dict[str, Any]:
-    """Train VelocityNet with the offline MPC loss through a frozen ViewNet; returns the quality report."""
+    """Train VelocityNet with the offline MPC loss through a frozen ViewNet (from the weights in `init` if
+    given); returns the quality report."""
     from vtr.training.report import velocitynet_report
 
     out = Path(out)
@@ -464,6 +478,8 @@ def train_velocitynet(
         "preprocessing": PREPROCESSING,
     }
     model = VelocityNet(model_cfg)
+    if init is not None:
+        extra.update(init_weights(model, "velocitynet", model_cfg, init))
 
     def loss_fn(net: nn.Module, frames: torch.Tensor, commands: torch.Tensor):
         loss, parts = mpc_loss(net, viewnet, frames, commands, loss_cfg)
