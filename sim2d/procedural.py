@@ -157,7 +157,8 @@ def _piece(kind: str, rect: tuple, rng: np.random.Generator) -> tuple[dict[str, 
             return None
         cx, cy = float(rng.uniform(x0 + m, x1 - m)), float(rng.uniform(y0 + m, y1 - m))
         ang = np.arange(16) * (2 * math.pi / 16)
-        outline = np.stack([cx + r * np.cos(ang), cy + r * np.sin(ang)], axis=1) / math.cos(math.pi / 16)
+        r_out = r / math.cos(math.pi / 16)  # the 16-gon around the disc, as the renderer draws it
+        outline = np.stack([cx + r_out * np.cos(ang), cy + r_out * np.sin(ang)], axis=1)
         return {
             "shape": "circle",
             "center": [round(cx, 3), round(cy, 3)],
