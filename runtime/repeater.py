@@ -180,7 +180,12 @@ class Repeater:
             safe_stop(self.robot)
             raise
         if self.on_step is not None:
-            self.on_step(record)
+            try:
+                self.on_step(record)
+            except BaseException:  # the observer failed (a full disk, Ctrl-C in it): the robot stops first
+                self._crashed = True
+                safe_stop(self.robot)
+                raise
         return record
 
     def _step(self) -> StepRecord:
