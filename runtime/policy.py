@@ -42,7 +42,10 @@ class OnnxPolicy:
         try:
             self.session = ort.InferenceSession(self.path, options, providers=["CPUExecutionProvider"])
         except Exception as exc:
-            raise ModelMismatchError(f"onnxruntime cannot load {self.path!r}: {exc}") from exc
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise ModelMismatchError(
+                f"onnxruntime cannot load {self.path!r} ({first[:160]}); pass a VelocityNet ONNX from `vtr export`"
+            ) from exc
         try:
             self.meta = ModelMeta.from_props(dict(self.session.get_modelmeta().custom_metadata_map))
         except ValueError as exc:
