@@ -78,12 +78,17 @@ def _wrap(angle: float) -> float:
 
 def _robot_info(robot: Any) -> dict[str, Any]:
     """Camera/map description from the robot, when it offers one (SimClient.hello, LocalRobot.sim.info)."""
+    timeouts = getattr(robot, "timeouts", 0)
     try:
         if hasattr(robot, "hello"):
             return dict(robot.hello().get("info") or {})
         sim = getattr(robot, "sim", None)
         if sim is not None and hasattr(sim, "info"):
             return dict(jsonable(sim.info()))
+    except RobotError:
+        if getattr(robot, "timeouts", 0) > timeouts:
+            raise  # nothing answers: say so now, not after a second round of tries on reset
+        return {}  # a bridge that does not implement hello
     except Exception:
         return {}
     return {}
