@@ -102,7 +102,9 @@ class Repeater:
                 "teach the route again with the model's dt"
             )
         self.dt = float(self.config.dt if self.config.dt is not None else (model_dt or CONTROL_DT))
-        self.controller = controller or Controller(route.images, self.config.controller)
+        self.controller = (
+            controller if controller is not None else Controller(route.images, self.config.controller)
+        )
         # one view object per subgoal, passed again while it is steered to (OnnxPolicy keeps its tensor)
         self._views = list(self.controller.subgoals)
         self._last = len(self._views) - 1
