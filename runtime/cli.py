@@ -85,13 +85,16 @@ def dispatch(prog: str, description: str, commands: Mapping[str, Command], argv:
     if name not in commands:
         print(f"{prog}: unknown command {name!r}; choose one of {', '.join(commands)}", file=sys.stderr)
         return EXIT_USAGE
-    command = commands[name]
-    where = f"{prog} {name}"
+    return run_command(f"{prog} {name}", commands[name], rest)
+
+
+def run_command(where: str, command: Command, argv: list[str]) -> int:
+    """Parse ``argv`` for ``command`` and run it, turning errors into exit codes (see the module docstring)."""
     try:
         module = importlib.import_module(command.module)
         parser = OneLineParser(prog=where, description=command.summary)
         module.add_arguments(parser)
-        args = parser.parse_args(rest)
+        args = parser.parse_args(argv)
         return int(module.run_cli(args) or 0)
     except ModuleNotFoundError as err:
         if err.name and err.name.split(".")[0] in EXTRA_OF_MODULE:
