@@ -264,6 +264,10 @@ class Controller:
             decision = self.decide(image)
         return Verdict(decision, tuple(events), from_index)
 
+    def relocalise(self) -> None:
+        """Search the whole route for the best-matching subgoal on the next image (after a robot restart)."""
+        self._localise_pending = True
+
     def _localise(self, image: np.ndarray) -> Decision | None:
         errors = np.array([image_error(image, s) for s in self.subgoals])
         best = int(np.argmin(errors))

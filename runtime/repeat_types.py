@@ -22,7 +22,7 @@ class RepeatStatus(str, enum.Enum):
     STALLED = "stalled"  # the stall guard found no subgoal close enough
     LOST = "lost"  # reserved: matching says the robot is off the route
     COLLIDED = "collided"  # reserved: the robot reports a collision
-    ROBOT_RESTARTED = "robot_restarted"  # reserved: the robot's session changed under us
+    ROBOT_RESTARTED = "robot_restarted"  # the robot's session changed under us (it rebooted)
     LINK_LOST = "link_lost"  # no valid frame within frame_timeout_s
     INTERRUPTED = "interrupted"  # stop_event or KeyboardInterrupt
     STEP_LIMIT = "step_limit"  # max_steps commands sent
@@ -130,6 +130,7 @@ class Summary:
     jumps: int
     localised_to: int | None
     plateaus: int = 0  # subgoals the stall guard accepted next to, at error <= jump_factor * e_m
+    robot_restarts: int = 0  # restarts survived by re-localising (localise only)
     mean_latency_ms: Mapping[str, float] = field(default_factory=dict)
 
     @property

@@ -12,15 +12,19 @@ Safety rules, in order of precedence:
   interrupt (``stop_event`` or KeyboardInterrupt), a robot error, no valid frame in time, or any other
   exception (re-raised after the stop);
 - a frame that fails validation (``BadFrameError`` from the client, or a wrong shape/dtype or a
-  non-finite stamp from any Robot) is counted and never reaches the policy: the robot is stopped and
+  non-finite stamp from any Robot), the reply to the zero command between steps included, is counted
+  and never reaches the policy: the robot is stopped and
   re-polled with ``observe`` until a valid frame arrives, or ``frame_timeout_s`` passes without one;
 - the step limit ends a run whose robot is lost.
 
 How a run ends is a :class:`RepeatStatus`. Produced today: ``finished``, ``stalled`` (the controller's
-stall guard), ``step_limit``, ``interrupted``, ``link_lost`` (no valid frame for ``frame_timeout_s``) and
-``robot_error`` (a ``RobotError``). Reserved for the detectors that land next, and produced through the
-two hooks below without touching this loop: ``lost`` (robust matching says the robot is off the route),
-``collided`` and ``robot_restarted`` (the link sees a new server session).
+stall guard), ``step_limit``, ``interrupted``, ``link_lost`` (no valid frame for ``frame_timeout_s``, or
+the link's ``LinkLost``: no reply even to the stop sent after a missed one), ``robot_error`` (a
+``RobotError``) and ``robot_restarted``. Reserved for the detectors that land next, and produced through
+the two hooks below without touching this loop: ``lost`` (robust matching says the robot is off the
+route) and ``collided``. ``robot_restarted`` (the link saw a new server session: the robot rebooted and is somewhere
+else) ends the run, or with the controller's ``localise`` the robot is stopped and the route searched
+again on its next frame (at most ``MAX_RELOCALISATIONS`` times; the record's detail says so).
 
 - a terminal controller action whose value names a status (``Action.STALLED`` -> ``stalled``; a future
   ``Action("lost")`` -> ``lost``) ends the run with that status;
@@ -45,6 +49,10 @@ from vtr.runtime.robot import RobotError
 from vtr.runtime.route import Route
 
 __all__ = ["RepeatConfig", "RepeatStatus", "Repeater", "StepRecord", "Summary", "safe_stop"]
+
+
+#: Restarts a run re-localises after (``localise``); one more ends it as robot_restarted.
+MAX_RELOCALISATIONS = 3
 
 
 class _NoValidFrame(Exception):
@@ -124,6 +132,8 @@ class Repeater:
         self._last_rejected = ""
         self._totals: dict[str, float] = {}
         self._crashed = False
+        #: Robot restarts survived by re-localising (``localise`` only).
+        self.robot_restarts = 0
 
     @property
     def done(self) -> bool:
@@ -154,11 +164,37 @@ class Repeater:
             except BadFrameError as exc:
                 self.bad_frames += 1
                 self._last_rejected = str(exc)
-            safe_stop(self.robot)
+            self._zero()
             if time.monotonic() - self._last_valid > self.config.frame_timeout_s or self.stop_event.is_set():
                 raise _NoValidFrame()
             time.sleep(self.config.bad_frame_backoff_s)
             call = self.robot.observe
+
+    def _zero(self) -> None:
+        """The zero command, re-sent while its reply is bad (each one counted as a bad frame) until one is
+        good or ``frame_timeout_s`` passes: after a bad reply the robot gets nothing but stops. A lost link
+        or a restarted robot (RobotError) ends the step like any other."""
+        while True:
+            try:
+                self.robot.stop()
+                return
+            except BadFrameError as exc:
+                self.bad_frames += 1
+                self._last_rejected = str(exc)
+                if (
+                    time.monotonic() - self._last_valid > self.config.frame_timeout_s
+                    or self.stop_event.is_set()
+                ):
+                    raise _NoValidFrame() from None
+                time.sleep(self.config.bad_frame_backoff_s)
+
+    def _relocalise(self, why: str) -> StepRecord:
+        """``localise``: the robot restarted; stop it, then find the route again on its next frame."""
+        safe_stop(self.robot)
+        self.robot_restarts += 1
+        self.controller.relocalise()
+        self._obs = None  # the next step fetches a fresh frame from the rebooted robot
+        return self._record(None, None, 0.0, 0.0, False, {}, None, f"{why}; re-localising on the next frame")
 
     # ------------------------------------------------------------------ the loop
     def step(self) -> StepRecord:
@@ -174,7 +210,12 @@ class Repeater:
                 detail = f"no valid frame for {self.config.frame_timeout_s} s; last rejected: {self._last_rejected}"
                 record = self._end(RepeatStatus.LINK_LOST, detail)
         except RobotError as exc:
-            record = self._end(_status_of(getattr(exc, "status", ""), RepeatStatus.ROBOT_ERROR), str(exc))
+            status = _status_of(getattr(exc, "status", ""), RepeatStatus.ROBOT_ERROR)
+            relocalise = self.controller.cfg.localise and self.robot_restarts < MAX_RELOCALISATIONS
+            if status is RepeatStatus.ROBOT_RESTARTED and relocalise:
+                record = self._relocalise(str(exc))
+            else:
+                record = self._end(status, str(exc))
         except KeyboardInterrupt:
             record = self._end(RepeatStatus.INTERRUPTED)
         except BaseException:
@@ -192,7 +233,7 @@ class Repeater:
 
     def _step(self) -> StepRecord:
         if self._obs is None:
-            self._t_start = time.perf_counter()
+            self._t_start = self._t_start or time.perf_counter()
             self._last_valid = time.monotonic()
             self._obs = self._fetch(self.robot.observe)
             self._first_stamp = self._obs.stamp
@@ -219,7 +260,7 @@ class Repeater:
         # the robot's own breakdown of the step round trip (SimClient: receive, decode)
         robot_stage = getattr(self.robot, "last_timing_ms", None) or {}
         if decision.then_stop:
-            self.robot.stop()
+            self._zero()
         t_end = time.perf_counter()
         stage["robot"] = (t_end - t_policy) * 1e3
         stage.update({k: float(x) for k, x in robot_stage.items()})
@@ -300,5 +341,6 @@ class Repeater:
             jumps=self.controller.jumps,
             localised_to=self.controller.localised_to,
             plateaus=self.controller.plateaus,
+            robot_restarts=self.robot_restarts,
             mean_latency_ms={k: round(x / steps, 4) for k, x in self._totals.items()} if steps else {},
         )
