@@ -182,7 +182,8 @@ def run(cfg: TeachRunConfig) -> Route:
     from vtr.runtime.route_script import load_route_script
 
     script = load_route_script(cfg.route)
-    with SimClient(cfg.sim, cfg.timeout_s, cfg.retries) as client:
+    # teach's --timeout bounds every reply, the hello and reset included
+    with SimClient(cfg.sim, cfg.timeout_s, cfg.retries, setup_timeout_s=cfg.timeout_s) as client:
         route = teach(client, script, cfg.teach)
     route.save(cfg.out)
     return route
