@@ -29,6 +29,7 @@ class LoopbackRobot:
     def __init__(self, image: np.ndarray) -> None:
         self.shape = image.shape[:2]
         self._seq = 0
+        self._limits = protocol.Limits()
         self._replies = {
             cmd: protocol.encode_image_reply(cmd, 1, SESSION, 1.0, image, pose=None)
             for cmd in ("observe", "step")
@@ -36,12 +37,17 @@ class LoopbackRobot:
 
     def _exchange(self, cmd: str, **fields: Any) -> Observation:
         self._seq += 1
-        protocol.encode_request(cmd, self._seq, stamp=time.time(), **fields)
+        self._encode(cmd, **fields)
         reply = protocol.decode_reply(
             self._replies[cmd], expect_cmd=cmd, expect_seq=1, expect_shape=self.shape
         )
         assert reply.image is not None and reply.stamp is not None
         return Observation(image=reply.image, stamp=reply.stamp, pose=reply.pose, collided=reply.collided)
+
+    def _encode(self, cmd: str, **fields: Any) -> list[bytes]:
+        """As SimClient: checked against the robot's limits, guarded by its session."""
+        guard = {"session": SESSION} if cmd in protocol.GUARDED_COMMANDS else {}
+        return protocol.encode_request(cmd, self._seq, time.time(), self._limits, **guard, **fields)
 
     def decode(self) -> np.ndarray:
         """Only the reply validation (the ``frame_decode`` stage)."""
@@ -53,7 +59,7 @@ class LoopbackRobot:
 
     def encode_command(self, v: float, w: float) -> list[bytes]:
         """Only the command encode (the ``command_encode`` stage)."""
-        return protocol.encode_request("step", 2, stamp=time.time(), v=v, w=w, duration=CONTROL_DT)
+        return self._encode("step", v=v, w=w, duration=CONTROL_DT)
 
     def observe(self) -> Observation:
         return self._exchange("observe")
@@ -63,7 +69,7 @@ class LoopbackRobot:
 
     def stop(self) -> None:
         self._seq += 1
-        protocol.encode_request("stop", self._seq, stamp=time.time())
+        self._encode("stop")
 
 
 class BenchStep:
