@@ -2,8 +2,9 @@
 whose link is a loopback.
 
 ``LoopbackRobot`` does what ``runtime.client.SimClient`` does for each call minus the socket: encode the
-request (``protocol.encode_request``) and validate a real encoded image reply (``protocol.decode_reply``
-with the expected command, sequence number and shape). So one timed ``Repeater.step`` is the whole step
+request (``protocol.encode_request``, with the limits and the session guard) and validate a real encoded
+reply (``protocol.decode_reply`` with the expected command, sequence number and shape), the zero
+command's reply included. So one timed ``Repeater.step`` is the whole step
 the daemon runs (decode, image error, preprocess, inference, postprocess, encode of the command and of
 the zero command), without the simulator. Imports no torch, OpenCV or pymunk: the runtime-only memory
 probe runs it with those blocked.
@@ -34,6 +35,7 @@ class LoopbackRobot:
             cmd: protocol.encode_image_reply(cmd, 1, SESSION, 1.0, image, pose=None)
             for cmd in ("observe", "step")
         }
+        self._replies["stop"] = protocol.encode_ok("stop", 1, SESSION, 1.0)
 
     def _exchange(self, cmd: str, **fields: Any) -> Observation:
         self._seq += 1
@@ -70,6 +72,7 @@ class LoopbackRobot:
     def stop(self) -> None:
         self._seq += 1
         self._encode("stop")
+        protocol.decode_reply(self._replies["stop"], expect_cmd="stop", expect_seq=1)
 
 
 class BenchStep:
