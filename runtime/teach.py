@@ -80,7 +80,11 @@ def _robot_info(robot: Any) -> dict[str, Any]:
     """Camera/map description from the robot, when it offers one (SimClient.hello, LocalRobot.sim.info)."""
     try:
         if hasattr(robot, "hello"):
-            return dict(robot.hello().get("info") or {})
+            header = robot.hello()
+            info = dict(header.get("info") or {})
+            # the hello schema (docs/PROTOCOL.md) puts camera and map at the top level; info is free-form
+            info.update({k: header[k] for k in ("camera", "map") if header.get(k) is not None})
+            return info
         sim = getattr(robot, "sim", None)
         if sim is not None and hasattr(sim, "info"):
             return dict(jsonable(sim.info()))
