@@ -42,6 +42,7 @@ def test_a_complete_hello_parses():
         ({"dt": 0}, "'dt' must be > 0"),
         ({"mode": "turbo"}, "'mode' must be one of"),
         ({"protocol_version": "1"}, "protocol_version"),
+        ({"mode": "realtime"}, "must announce 'cmd_vel_timeout'"),
     ],
 )
 def test_a_hello_missing_or_mistyping_a_field_is_refused_naming_it(changes, fragment):
