@@ -90,16 +90,6 @@ class Verdict:
     events: tuple[Decision, ...]
     from_index: int
 
-    @property
-    def advanced(self) -> int:
-        """Subgoals reached on this image."""
-        return sum(1 for e in self.events if e.action is Action.ADVANCE)
-
-    @property
-    def jumped_to(self) -> list[int]:
-        """Subgoal indices the stall guard or localisation jumped to on this image."""
-        return [e.index for e in self.events if e.action is Action.JUMP]
-
 
 @dataclass
 class ControllerConfig:
