@@ -21,8 +21,8 @@ from typing import Any
 
 import zmq
 
-from vtr.benchmarks.link_fuzz import fuzz_reply, fuzz_request
-from vtr.benchmarks.link_robot import FakeRobot, good_reply
+from vtr.benchmarks.link_fuzz import HARMLESS, FaultInjector, fuzz_request
+from vtr.benchmarks.link_robot import FakeRobot
 from vtr.benchmarks.link_trials import restart, run_repeat, silent
 from vtr.runtime import protocol
 from vtr.runtime.client import SimClient
@@ -117,28 +117,11 @@ def client_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.5) -> dict[str,
     An exchange is *clean* when every request in it got only the correct reply (and no late reply was
     pending); a clean exchange the client fails, or one that returns anything but that reply, is a desync.
     """
-    rng = random.Random(seed)
-    state: dict[str, Any] = {"faults": 0, "kinds": {}, "late": None, "previous": None, "dirty": False}
+    inject = FaultInjector(random.Random(seed), n, p_fault, harmless=("duplicate", "stale_then_good"))
 
     def behaviour(robot: FakeRobot, req: protocol.Request) -> list[list[bytes]]:
         robot.pose_x = float(req.seq)  # a pose that names the request it answers
-        good = good_reply(robot, req)
-        out: list[list[bytes]] = []
-        if state["late"] is not None:
-            out.append(state["late"])
-            state["late"], state["dirty"] = None, True
-        if state["faults"] < n and rng.random() < p_fault:
-            kind, replies = fuzz_reply(rng, good, state["previous"])
-            state["faults"] += 1
-            state["kinds"][kind] = state["kinds"].get(kind, 0) + 1
-            state["dirty"] = state["dirty"] or kind not in ("duplicate", "stale_then_good")
-            if kind == "late":
-                state["late"] = good
-            out += replies
-        else:
-            out.append(good)
-        state["previous"] = good
-        return out
+        return inject(robot, req)
 
     robot = FakeRobot(behaviour)
     tracebacks: list[str] = []
@@ -147,9 +130,9 @@ def client_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.5) -> dict[str,
     calls = ("observe", "step", "stop")
     with SimClient(robot.endpoint, timeout_s=0.05, retries=2, expect_shape=(16, 16)) as client:
         t0 = time.perf_counter()
-        while state["faults"] < n:
+        while len(inject.faults) < n:
             call = calls[exchanges % 3]
-            state["dirty"] = False
+            inject.dirty = False
             result: Any = None
             failure = ""
             try:
@@ -165,7 +148,7 @@ def client_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.5) -> dict[str,
             except Exception as exc:  # a traceback in a real run
                 tracebacks.append(f"{type(exc).__name__}: {exc}")
             exchanges += 1
-            if not state["dirty"]:
+            if not inject.dirty:
                 clean += 1
                 ok = result == "stopped" or (result is not None and result.pose[0] == client._seq)
                 if not ok:
@@ -180,8 +163,8 @@ def client_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.5) -> dict[str,
         }
     robot.close()
     return {
-        "fuzzed_replies": state["faults"],
-        "fault_kinds": dict(sorted(state["kinds"].items())),
+        "fuzzed_replies": len(inject.faults),
+        "fault_kinds": inject.kinds(),
         "exchanges": exchanges,
         "clean_exchanges": clean,
         "desyncs": desyncs,
@@ -197,46 +180,13 @@ def client_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.5) -> dict[str,
 # ------------------------------------------------------------------------------------------- the repeat loop
 
 
-#: Not a bad frame to the client: skipped by seq matching, or a mutation that left the reply valid.
-HARMLESS = ("duplicate", "stale_then_good", "mutated_but_valid")
-
-
-def _acceptable(frames: list[bytes], good: list[bytes], req: protocol.Request) -> bool:
-    """Whether a mutated reply is still a correct answer to ``req`` (same stamp and session as ``good``)."""
-    try:
-        got = protocol.decode_reply(frames, expect_cmd=req.cmd, expect_seq=req.seq, expect_shape=(16, 16))
-    except ProtocolError:
-        return False
-    want = protocol.decode_reply(good)
-    return got.ok and (got.stamp, got.session) == (want.stamp, want.session)
-
-
 def loop_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.3) -> dict[str, Any]:
     """The repeat loop (Repeater over SimClient) while the robot sends ``n`` faulty replies in all: what is
     the next request after each fault? A step there is a motion command sent on a bad frame."""
-    rng = random.Random(seed)
-    faults: list[tuple[int, str]] = []  # (index of the faulty reply's request in arrivals, kind)
-    state: dict[str, Any] = {"previous": None, "late": None}
+    inject = FaultInjector(random.Random(seed), n, p_fault, harmless=HARMLESS)
+    faults = inject.faults
 
-    def behaviour(robot: FakeRobot, req: protocol.Request) -> list[list[bytes]]:
-        good = good_reply(robot, req)
-        out: list[list[bytes]] = []
-        if state["late"] is not None:
-            out.append(state["late"])
-            state["late"] = None
-        if len(faults) < n and rng.random() < p_fault:
-            kind, replies = fuzz_reply(rng, good, state["previous"])
-            if kind == "mutated" and _acceptable(replies[0], good, req):
-                kind = "mutated_but_valid"  # e.g. a changed field the reply's kind ignores
-            faults.append((len(robot.arrivals) - 1, kind))
-            state["late"] = good if kind == "late" else None
-            out += replies
-        else:
-            out.append(good)
-        state["previous"] = good
-        return out
-
-    robot = FakeRobot(behaviour)
+    robot = FakeRobot(inject)
     tracebacks: list[str] = []
     endings: dict[str, int] = {}
     run_starts: set[int] = set()  # the first request of each run: what follows a run's end is not a reaction
