@@ -25,6 +25,11 @@ COMMANDS: dict[str, tuple[str, str, str | None]] = {
         "follow a taught route from camera images alone (the robot daemon)",
         None,
     ),
+    "check-robot": (
+        "vtr.runtime.check_robot",
+        "check that a robot bridge speaks the protocol correctly",
+        None,
+    ),
     "collect": ("vtr.training.collect", "drive the simulated robot and record a training dataset", "sim"),
     "train": ("vtr.training.cli", "train ViewNet, then VelocityNet with the offline MPC loss", "train"),
     "export": ("vtr.export.cli", "export a VelocityNet checkpoint to ONNX (fp32, int8)", "train"),
