@@ -180,10 +180,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--image-size", type=int, default=128, help="camera width = height (default 128)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    from vtr.training import collect_robot
+
+    collect_robot.add_arguments(parser)
 
 
 def run_cli(args: argparse.Namespace) -> int:
     import json
+
+    if args.sim is not None:  # a protocol robot instead of the in-process simulator
+        from vtr.training import collect_robot
+
+        return collect_robot.run_cli(args)
 
     cfg = CollectConfig(
         out=args.out,
