@@ -185,8 +185,8 @@ def run(cfg: TeachRunConfig) -> Route:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--sim", required=True, help="simulator endpoint, e.g. tcp://127.0.0.1:5555")
-    parser.add_argument("--route", required=True, help="ROUTE.json: start pose and (v, w, duration) segments")
+    parser.add_argument("--sim", default=None, help="robot endpoint, e.g. tcp://127.0.0.1:5555 (or --bag)")
+    parser.add_argument("--route", default=None, help="ROUTE.json: start pose and (v, w, duration) segments")
     parser.add_argument("--out", required=True, help="where to write the route (.npz)")
     parser.add_argument("--dt", type=float, default=0.1, help="control step in seconds")
     parser.add_argument("--spacing", choices=SPACING_RULES, default="steps", help="subgoal spacing rule")
@@ -198,23 +198,32 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--min-image-change", type=float, default=20.0, help="'image': pixel change (0..255)")
     parser.add_argument("--seed", type=int, default=0, help="simulator noise seed at reset")
     parser.add_argument("--timeout", type=float, default=5.0, help="seconds to wait for each reply")
+    from vtr.runtime import bag_teach
+
+    bag_teach.add_arguments(parser)
 
 
 def run_cli(args: argparse.Namespace) -> int:
+    teach_cfg = TeachConfig(
+        dt=args.dt,
+        spacing=args.spacing,
+        every=args.every,
+        min_distance=args.min_distance,
+        min_angle=args.min_angle,
+        min_image_change=args.min_image_change,
+        seed=args.seed,
+    )
+    if args.bag:  # a route from a recorded drive instead of a live robot
+        from vtr.runtime import bag_teach
+
+        return bag_teach.run_cli(args, teach_cfg)
+    if not (args.sim and args.route):
+        print(
+            "vtr teach: needs --sim and --route (a live robot), or --bag (a recorded drive)", file=sys.stderr
+        )
+        return 2
     cfg = TeachRunConfig(
-        sim=args.sim,
-        route=args.route,
-        out=args.out,
-        teach=TeachConfig(
-            dt=args.dt,
-            spacing=args.spacing,
-            every=args.every,
-            min_distance=args.min_distance,
-            min_angle=args.min_angle,
-            min_image_change=args.min_image_change,
-            seed=args.seed,
-        ),
-        timeout_s=args.timeout,
+        sim=args.sim, route=args.route, out=args.out, teach=teach_cfg, timeout_s=args.timeout
     )
     try:
         route = run(cfg)

@@ -183,6 +183,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from vtr.training import collect_robot
 
     collect_robot.add_arguments(parser)
+    from vtr.runtime import bag_read
+
+    bag_read.add_arguments(parser, "a dataset from teleoperated drives")
 
 
 def run_cli(args: argparse.Namespace) -> int:
@@ -192,6 +195,10 @@ def run_cli(args: argparse.Namespace) -> int:
         from vtr.training import collect_robot
 
         return collect_robot.run_cli(args)
+    if args.bag:  # teleoperated drives recorded in ROS bags
+        from vtr.training import collect_bag
+
+        return collect_bag.run_cli(args)
 
     cfg = CollectConfig(
         out=args.out,
