@@ -22,6 +22,7 @@ import numpy as np
 
 from vtr.benchmarks import metrics
 from vtr.runtime.atomic import atomic_path
+from vtr.runtime.contracts import Observation
 from vtr.sim2d.routes import ROUTES_DIR
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -86,8 +87,8 @@ class _Say:
 def run(cfg: DemoConfig) -> dict[str, Any]:
     """Run the demo; returns every number it printed."""
     from vtr.runtime.client import SimClient
-    from vtr.runtime.daemon import RepeatConfig, repeat
     from vtr.runtime.policy import OnnxPolicy
+    from vtr.runtime.repeater import Repeater, StepRecord
     from vtr.runtime.route_script import load_route_script
     from vtr.runtime.teach import TeachConfig, teach
     from vtr.sim2d.server import ServerConfig, start_server_process
@@ -117,16 +118,17 @@ def run(cfg: DemoConfig) -> dict[str, Any]:
             poses: list[tuple[float, float, float]] = [obs.pose]
             commands: list[tuple[float, float]] = []
 
-            def on_record(record: dict[str, Any]) -> None:
-                if "summary" not in record:
-                    commands.append((record["v"], record["w"]))
+            def on_step(record: StepRecord) -> None:
+                if record.commanded:
+                    commands.append((record.v, record.w))
+                    poses.append(pose_client.last_pose)
 
-            pose_robot = _PoseKeeper(client, poses)
-            summary = repeat(pose_robot, policy, route, RepeatConfig(), log=on_record)
-            if summary.reason == "interrupted":  # the daemon stopped the robot on Ctrl-C; end the demo too
+            pose_client = _PoseKeeper(client)
+            summary = Repeater(pose_client, policy, route, on_step=on_step).run()
+            if summary.status == "interrupted":  # the daemon stopped the robot on Ctrl-C; end the demo too
                 raise KeyboardInterrupt
             say(
-                f"repeated: {summary.reason} after {summary.steps} steps, {summary.subgoals_reached}/"
+                f"repeated: {summary.status.value} after {summary.steps} steps, {summary.subgoals_reached}/"
                 f"{summary.subgoals_total} subgoals, e_m {summary.e_m:.1f}"
             )
             ol_poses = _open_loop(client, script, start, cfg.seed, policy.meta.dt) if cfg.open_loop else None
@@ -168,24 +170,22 @@ def run(cfg: DemoConfig) -> dict[str, Any]:
 
 
 class _PoseKeeper:
-    """The SimClient as the daemon sees it (images only); the pose of every step is kept for scoring."""
+    """The SimClient as the Repeater sees it: images only (the pose is stripped, so nothing in the repeat
+    can steer by it); the true pose of the last frame is kept in ``last_pose`` for scoring."""
 
-    def __init__(self, client: Any, poses: list[tuple[float, float, float]]) -> None:
-        self.client, self.poses = client, poses
+    def __init__(self, client: Any) -> None:
+        self.client = client
+        self.last_pose: tuple[float, float, float] | None = None
 
-    @staticmethod
-    def _strip(obs: Any) -> Any:
-        from vtr.runtime.robot import Observation
-
+    def _strip(self, obs: Observation) -> Observation:
+        self.last_pose = obs.pose
         return Observation(image=obs.image, stamp=obs.stamp, pose=None, collided=obs.collided)
 
-    def observe(self) -> Any:
+    def observe(self) -> Observation:
         return self._strip(self.client.observe())
 
-    def step(self, v: float, w: float, duration: float) -> Any:
-        obs = self.client.step(v, w, duration)
-        self.poses.append(obs.pose)
-        return self._strip(obs)
+    def step(self, v: float, w: float, duration: float) -> Observation:
+        return self._strip(self.client.step(v, w, duration))
 
     def stop(self) -> None:
         self.client.stop()
@@ -251,7 +251,7 @@ def format_table(result: dict[str, Any]) -> str:
     lat = s.get("mean_latency_ms", {})
     lines += [
         "",
-        f"completed: {'yes' if s['completed'] else 'no (' + s['reason'] + ')'}  |  subgoals "
+        f"completed: {'yes' if s['completed'] else 'no (' + s['status'] + ')'}  |  subgoals "
         f"{s['subgoals_reached']}/{s['subgoals_total']}  |  {s['steps']} control steps, {s['sim_time_s']:.1f} s "
         f"simulated, {s['wall_time_s']:.1f} s wall",
     ]

@@ -22,7 +22,6 @@ import math
 import os
 import sys
 import time
-from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -31,6 +30,8 @@ import numpy as np
 
 from vtr.benchmarks import metrics
 from vtr.runtime.atomic import atomic_path, write_text_atomic
+from vtr.runtime.contracts import CONTROL_DT, Policy
+from vtr.runtime.controller import Action
 from vtr.sim2d.routes import ROUTES_DIR
 
 #: The paper's three scenarios (route file stems) and its Tables 1 and 2.
@@ -66,7 +67,7 @@ class EvalConfig:
         False  # pose-oracle diagnostic (true poses; the floor e_m switching leaves), noise scenario only
     )
     e_m: float | None = None  # fixed switch threshold (the paper's 17); None = the runtime's calibrated e_m
-    dt: float = 0.1  # s each command is applied for (the paper's control step)
+    dt: float = CONTROL_DT  # s each command is applied for (the paper's control step)
     max_steps_factor: float = 8.0  # give up after factor * subgoals + 50 control steps
     seed: int = 0  # actuation noise seed
     threads: int = 1  # onnxruntime / torch threads per worker
@@ -171,77 +172,33 @@ class RunLog:
     e_m: float | None = None
 
 
-class RecordingRobot:
-    """Passes a robot through to the daemon, keeping the ground-truth pose after every step for scoring.
-
-    The observations handed on carry no pose, so nothing in the runtime can use it.
-    """
-
-    def __init__(self, robot: Any, log: RunLog) -> None:
-        self.robot, self.log = robot, log
-        self.last_pose: tuple[float, float, float] | None = None
-
-    def _strip(self, obs: Any) -> Any:
-        from vtr.runtime.robot import Observation
-
-        self.last_pose = obs.pose
-        return Observation(image=obs.image, stamp=obs.stamp, pose=None, collided=obs.collided)
-
-    def observe(self) -> Any:
-        return self._strip(self.robot.observe())
-
-    def step(self, v: float, w: float, duration: float) -> Any:
-        obs = self.robot.step(v, w, duration)
-        self.log.poses.append(obs.pose)
-        self.log.commands.append((float(v), float(w)))
-        self.log.collisions += int(obs.collided)
-        return self._strip(obs)
-
-    def stop(self) -> None:
-        self.robot.stop()
-
-
-class TimedPolicy:
-    """A predict function with the interface the daemon expects, timing every call."""
-
-    def __init__(self, predict: Callable[[np.ndarray, np.ndarray], np.ndarray], image_shape: tuple[int, int],
-                 log: RunLog, meta: Any = None) -> None:  # fmt: skip
-        self._predict, self.image_shape, self._log, self.meta = predict, image_shape, log, meta
-        self.nonfinite_count = 0
-
-    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
-        t0 = time.perf_counter()
-        out = self._predict(current, subgoal)
-        self._log.policy_ms.append((time.perf_counter() - t0) * 1e3)
-        return out
-
-
 class PoseOracle:
     """Diagnostic upper bound, not a visual method: steers to the subgoal's taught pose using true poses.
 
-    It runs inside the same daemon and controller as VelocityNet, so the subgoal switching (e_m on images)
-    is identical; its errors are the floor that switching rule leaves, and VelocityNet's distance above it is
-    what the network costs. It reads the robot's true pose and finds the subgoal's index from the image
-    array the controller hands over.
+    It runs inside the same Repeater and controller as VelocityNet, so the subgoal switching (e_m on
+    images) is identical; its errors are the floor that switching rule leaves, and VelocityNet's distance
+    above it is what the network costs. ``bind`` hands it the robot (true poses) and the controller (the
+    subgoal index it steers to).
     """
 
-    def __init__(self, v_max: float, w_max: float, horizon: int, dt: float) -> None:
+    def __init__(
+        self, v_max: float, w_max: float, horizon: int, dt: float, image_shape: tuple[int, int]
+    ) -> None:
         self.v_max, self.w_max, self.horizon, self.dt = v_max, w_max, horizon, dt
+        self.image_shape = image_shape
         self.position_tolerance = 0.01  # m: closer than this, only the heading is corrected
-        self.robot: RecordingRobot | None = None
+        self.robot: Any = None
+        self.controller: Any = None
         self.route: Any = None
 
-    def bind(self, robot: RecordingRobot, route: Any) -> None:
-        self.robot, self.route = robot, route
+    def bind(self, robot: Any, controller: Any, route: Any) -> None:
+        self.robot, self.controller, self.route = robot, controller, route
 
     def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
-        assert self.robot is not None and self.robot.last_pose is not None
-        images = self.route.images
-        index = (
-            subgoal.__array_interface__["data"][0] - images.__array_interface__["data"][0]
-        ) // images.strides[0]
-        gx, gy, gyaw = self.route.poses[int(np.clip(index, 0, len(images) - 1))]
-        x, y, yaw = self.robot.last_pose
+        assert self.robot is not None and self.controller is not None
+        index = min(self.controller.index, len(self.route) - 1)
+        gx, gy, gyaw = self.route.poses[index]
+        x, y, yaw = self.robot.last.pose
         c, s = math.cos(yaw), math.sin(yaw)
         ex, ey = c * (gx - x) + s * (gy - y), -s * (gx - x) + c * (gy - y)  # goal in the robot frame
         eyaw = float(metrics.wrap_angle(gyaw - yaw))
@@ -260,44 +217,39 @@ class PoseOracle:
 
 
 def repeat_closed_loop(
-    robot: Any,
-    predict: Callable[[np.ndarray, np.ndarray], np.ndarray],
-    route: Any,
-    start: tuple[float, float, float],
-    cfg: EvalConfig,
-    seed: int,
+    robot: Any, policy: Policy, route: Any, start: tuple[float, float, float], cfg: EvalConfig, seed: int
 ) -> RunLog:
-    """The runtime's repeat daemon (Algorithm 1 + controller) on images only; poses kept for scoring."""
-    from vtr.runtime.controller import ControllerConfig
-    from vtr.runtime.daemon import RepeatConfig, repeat
+    """The runtime's Repeater (Algorithm 1 + controller) on images; poses are kept for scoring only."""
+    from vtr.runtime.controller import Controller, ControllerConfig
+    from vtr.runtime.repeater import RepeatConfig, Repeater, StepRecord
 
     log = RunLog()
     first = robot.reset(pose=start, seed=seed)
     log.poses.append(first.pose)
-    rec = RecordingRobot(robot, log)
-    if isinstance(getattr(predict, "__self__", None), PoseOracle):
-        predict.__self__.bind(rec, route)
     ccfg = ControllerConfig() if cfg.e_m is None else ControllerConfig(e_m_mode="fixed", e_m=cfg.e_m)
     rcfg = RepeatConfig(controller=ccfg, dt=cfg.dt, max_steps=int(cfg.max_steps_factor * len(route) + 50))
-    policy = TimedPolicy(predict, route.image_shape, log)
-    pose_before: list[tuple[float, float, float]] = [first.pose]
+    controller = Controller(route.images, ccfg)
+    if isinstance(policy, PoseOracle):
+        policy.bind(robot, controller, route)
 
-    def on_record(record: dict[str, Any]) -> None:
-        if "summary" in record:
-            return
-        # the decisions of this record were taken on the image seen at the pose before its step
-        pose = pose_before[record["step"]]
-        for k in range(record["subgoal"] - record["advanced"], record["subgoal"]):
-            log.switch_poses.setdefault(k, pose)
-        pose_before.append(log.poses[-1])
+    def on_step(record: StepRecord) -> None:
+        # the subgoals reached on this image were reached at the pose it was taken from
+        for event in record.events:
+            if event.action is Action.ADVANCE:
+                log.switch_poses.setdefault(event.index - 1, record.pose)
+        if record.commanded:
+            log.commands.append((record.v, record.w))
+            log.policy_ms.append(record.latency_ms["policy"])
+            log.poses.append(robot.last.pose)
+            log.collisions += int(robot.last.collided)
 
-    summary = repeat(rec, policy, route, rcfg, log=on_record)
+    summary = Repeater(robot, policy, route, controller, config=rcfg, on_step=on_step).run()
     if summary.completed:
         for k in range(len(route)):
             log.switch_poses.setdefault(k, log.poses[-1])
     log.subgoals_reached = summary.subgoals_reached
     log.steps = summary.steps
-    log.outcome = summary.reason
+    log.outcome = summary.status.value
     log.e_m = summary.e_m
     log.sim_time = float(summary.sim_time_s)
     return log
@@ -364,13 +316,6 @@ def score(route: Any, log: RunLog, open_loop: bool = False) -> dict[str, Any]:
 # ---------------------------------------------------------------- policies
 
 
-def onnx_predict(path: Path, threads: int) -> Callable[[np.ndarray, np.ndarray], np.ndarray]:
-    from vtr.runtime.policy import OnnxPolicy
-
-    policy = OnnxPolicy(path, threads=threads)
-    return policy.predict
-
-
 class ViewNetMPC:
     """Online MPC: at every step, search (v, w) sequences by rolling ViewNet forward (cross-entropy method).
 
@@ -391,6 +336,7 @@ class ViewNetMPC:
         if kind != "viewnet":
             raise ValueError(f"{checkpoint} holds a {kind}, not a viewnet")
         self.torch = torch
+        self.image_shape = (int(self.net.cfg.image_size), int(self.net.cfg.image_size))
         self.horizon, self.samples, self.iterations = horizon, samples, iterations
         self.v_max, self.w_max = float(self.net.cfg.v_max), float(self.net.cfg.w_max)
         self.rng = np.random.default_rng(seed)
@@ -455,19 +401,19 @@ def evaluate_route(script_path: Path, cfg: EvalConfig) -> dict[str, Any]:
     image_size = fp32.image_shape
     route, script = teach(script_path, image_size, cfg.dt)
     start = tuple(float(v) for v in route.poses[0])
-    methods: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray] | None] = {"velocitynet": fp32.predict}
+    methods: dict[str, Policy | None] = {"velocitynet": fp32}
     if cfg.int8_model is not None:
-        methods["velocitynet_int8"] = onnx_predict(cfg.int8_model, cfg.threads)
+        methods["velocitynet_int8"] = OnnxPolicy(cfg.int8_model, threads=cfg.threads)
     if cfg.ablation_model is not None:
-        methods["ablation_w2_0"] = onnx_predict(cfg.ablation_model, cfg.threads)
+        methods["ablation_w2_0"] = OnnxPolicy(cfg.ablation_model, threads=cfg.threads)
     if cfg.viewnet is not None and not cfg.quick and script_path.stem in cfg.mpc_routes:
         mpc = ViewNetMPC(
             cfg.viewnet, fp32.meta.horizon, cfg.mpc_samples, cfg.mpc_iterations, cfg.threads, cfg.seed
         )
-        methods["online_mpc"] = mpc.predict
+        methods["online_mpc"] = mpc
     if cfg.oracle:
         meta = fp32.meta
-        methods["pose_oracle"] = PoseOracle(meta.v_max, meta.w_max, meta.horizon, cfg.dt).predict
+        methods["pose_oracle"] = PoseOracle(meta.v_max, meta.w_max, meta.horizon, cfg.dt, image_size)
     if cfg.open_loop:
         methods["open_loop"] = None
 
@@ -477,15 +423,15 @@ def evaluate_route(script_path: Path, cfg: EvalConfig) -> dict[str, Any]:
     results: dict[str, Any] = {}
     for scen, (pose, noise) in scenarios.items():
         results[scen] = {}
-        for name, predict in methods.items():
+        for name, policy in methods.items():
             if name in ("online_mpc", "pose_oracle") and scen != "noise":
                 continue
             robot = make_robot(noise, image_size)
-            if predict is None:
+            if policy is None:
                 log = repeat_open_loop(robot, script, pose, cfg.seed, cfg.dt)
             else:
-                log = repeat_closed_loop(robot, predict, route, pose, cfg, cfg.seed)
-            results[scen][name] = score(route, log, open_loop=predict is None)
+                log = repeat_closed_loop(robot, policy, route, pose, cfg, cfg.seed)
+            results[scen][name] = score(route, log, open_loop=policy is None)
     return {
         "name": script_path.stem,
         "file": str(script_path),

@@ -19,7 +19,6 @@ import json
 import os
 import subprocess
 import sys
-import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -27,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from vtr.benchmarks.timing import time_call, time_interleaved
 from vtr.runtime.atomic import write_text_atomic
 
 REPO_ROOT = Path(__file__).resolve().parent.parent
@@ -90,42 +90,6 @@ class LatencyConfig:
 
 def all_cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-
-
-def _summary(samples_ns: np.ndarray) -> dict[str, float]:
-    ms = samples_ns / 1e6
-    return {
-        "p50_ms": float(np.percentile(ms, 50)),
-        "p99_ms": float(np.percentile(ms, 99)),
-        "mean_ms": float(ms.mean()),
-        "min_ms": float(ms.min()),
-        "n": int(ms.size),
-    }
-
-
-def time_call(fn: Callable[[], Any], steps: int, warmup: int) -> dict[str, float]:
-    """p50 / p99 / mean / min wall time of fn() in milliseconds."""
-    return time_interleaved({"fn": fn}, steps, warmup)["fn"]
-
-
-def time_interleaved(
-    fns: dict[str, Callable[[], Any]], steps: int, warmup: int
-) -> dict[str, dict[str, float]]:
-    """Time several callables round-robin, so load from other processes hits all of them alike.
-
-    Ratios between them (whole step vs inference, int8 vs fp32) are then far steadier than from
-    back-to-back runs on a shared machine.
-    """
-    for _ in range(warmup):
-        for fn in fns.values():
-            fn()
-    samples = {name: np.empty(steps, dtype=np.float64) for name in fns}
-    for i in range(steps):
-        for name, fn in fns.items():
-            t0 = time.perf_counter_ns()
-            fn()
-            samples[name][i] = time.perf_counter_ns() - t0
-    return {name: _summary(s) for name, s in samples.items()}
 
 
 # ---------------------------------------------------------------- inputs
@@ -338,36 +302,35 @@ def bench_backends(cfg: LatencyConfig, x: np.ndarray, y: np.ndarray, gflop: floa
 
 
 def bench_stages(cfg: LatencyConfig, current: np.ndarray, subgoal: np.ndarray) -> dict[str, Any]:
-    """The runtime's own stages at cfg.threads, and the whole step built from the same pieces."""
-    from vtr.benchmarks import runtime_adapter as ra
+    """The runtime's own stages at cfg.threads, and the whole step: the real ``Repeater.step``."""
+    from vtr.benchmarks.step_bench import BenchStep
+    from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
     from vtr.runtime.preprocess import image_error, to_nchw
 
-    codec = ra.frame_codec()
-    step = ra.control_step(cfg.model, cfg.threads, subgoal, codec)
-    frames = codec.encode_observation(current)
-    x, y = to_nchw(current), to_nchw(subgoal)
-    infer = step.infer
+    step = BenchStep(cfg.model, cfg.threads, current, subgoal)
+    robot, policy = step.robot, step.policy
+    feeds = {INPUT_CURRENT: to_nchw(current), INPUT_SUBGOAL: to_nchw(subgoal)}
 
     stages = time_interleaved(
         {
-            "frame_decode": lambda: codec.decode_observation(frames),
+            "frame_decode": robot.decode,
             "preprocess": lambda: to_nchw(current),
-            "inference": lambda: infer(x, y),
+            "inference": lambda: policy.infer(feeds),
             "image_error": lambda: image_error(current, subgoal),
-            "command_encode": lambda: codec.encode_command(0.1, -0.2),
-            "whole_step": lambda: step(frames),
+            "command_encode": lambda: robot.encode_command(0.1, -0.2),
+            "whole_step": step,
         },
         cfg.steps,
         cfg.warmup,
     )
-    return {"threads": cfg.threads, "codec": codec.name, "step": step.name, "stages": stages}
+    return {"threads": cfg.threads, "codec": "vtr.runtime.protocol", "step": step.name, "stages": stages}
 
 
 def bench_zmq(cfg: LatencyConfig) -> dict[str, Any]:
-    from vtr.benchmarks import runtime_adapter as ra
+    from vtr.benchmarks.zmq_bench import zmq_round_trip
 
     try:
-        return ra.zmq_round_trip(cfg.steps, cfg.warmup, _model_io(cfg.model)[:2])
+        return zmq_round_trip(cfg.steps, cfg.warmup, _model_io(cfg.model)[:2])
     except Exception as err:  # simulator server not installed or not reachable
         return {"skipped": f"{type(err).__name__}: {err}"}
 
@@ -403,18 +366,16 @@ def hwm_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-from vtr.benchmarks import runtime_adapter as ra
+from vtr.benchmarks.step_bench import BenchStep
 import numpy as np
 model, steps, h, w = sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5])
 before = hwm_mb()
 rng = np.random.default_rng(0)
 subgoal = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
 current = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
-codec = ra.frame_codec()
-step = ra.control_step(model, 1, subgoal, codec)
-frames = codec.encode_observation(current)
+step = BenchStep(model, 1, current, subgoal)
 for _ in range(steps):
-    step(frames)
+    step()
 heavy = sorted(m for m in ("torch", "cv2", "pymunk", "matplotlib", "onnx") if sys.modules.get(m) is not None)
 print(json.dumps({"peak_rss_mb": hwm_mb(), "rss_after_imports_mb": before, "steps": steps,
                   "ru_maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from vtr.runtime.contracts import CONTROL_DT
+
 
 @dataclass
 class ExportConfig:
@@ -58,7 +60,7 @@ def run(cfg: ExportConfig) -> dict[str, Any]:
         raise ValueError(
             f"{cfg.checkpoint} holds a {kind}; `vtr export` exports VelocityNet (use --viewnet for ViewNet)"
         )
-    dt = float(ckpt.get("data_meta", {}).get("dt", 0.1))
+    dt = float(ckpt.get("data_meta", {}).get("dt", CONTROL_DT))
     meta = velocitynet_meta(model.cfg, dt=dt)
     real = None
     data = None

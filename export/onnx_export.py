@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from vtr.runtime.contracts import CONTROL_DT
 from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
 
 DEFAULT_OPSET = 17  # >= 16 for ViewNet's GridSample; onnxruntime and cv2.dnn both read it
@@ -155,7 +156,7 @@ def check_parity(
     return err
 
 
-def velocitynet_meta(cfg: Any, dt: float = 0.1) -> ModelMeta:
+def velocitynet_meta(cfg: Any, dt: float = CONTROL_DT) -> ModelMeta:
     """ModelMeta for a VelocityNetConfig."""
     return ModelMeta(
         image_height=cfg.image_size,

@@ -73,6 +73,34 @@ class Decision:
     note: str = ""
 
 
+#: Decisions the controller takes without moving the robot: it acts on them itself and judges again.
+SWITCHES = (Action.ADVANCE, Action.JUMP)
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Everything the controller decided on one image (:meth:`Controller.judge`).
+
+    ``decision`` is the one the repeat loop acts on: COMMAND, FINISHED or STALLED. ``events`` are the
+    ADVANCE and JUMP decisions the controller took and acted on before it, in order (empty when the
+    subgoal did not change); ``from_index`` is the subgoal index before this image was judged.
+    """
+
+    decision: Decision
+    events: tuple[Decision, ...]
+    from_index: int
+
+    @property
+    def advanced(self) -> int:
+        """Subgoals reached on this image."""
+        return sum(1 for e in self.events if e.action is Action.ADVANCE)
+
+    @property
+    def jumped_to(self) -> list[int]:
+        """Subgoal indices the stall guard or localisation jumped to on this image."""
+        return [e.index for e in self.events if e.action is Action.JUMP]
+
+
 @dataclass
 class ControllerConfig:
     """Subgoal-switching settings (see the module docstring for each rule)."""
@@ -235,6 +263,16 @@ class Controller:
             if self._no_progress >= self.cfg.stall_steps:
                 return self._unstall(image, error)
         return Decision(Action.COMMAND, self.index, error, then_stop=not self.cfg.continuous)
+
+    def judge(self, image: np.ndarray) -> Verdict:
+        """Decide on ``image`` until a decision needs the robot: subgoal switches (ADVANCE, JUMP) are
+        applied here and reported as events, so the caller handles only COMMAND, FINISHED and STALLED."""
+        from_index, events = self.index, []
+        decision = self.decide(image)
+        while decision.action in SWITCHES:
+            events.append(decision)
+            decision = self.decide(image)
+        return Verdict(decision, tuple(events), from_index)
 
     def _localise(self, image: np.ndarray) -> Decision | None:
         errors = np.array([image_error(image, s) for s in self.subgoals])

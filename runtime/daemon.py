@@ -1,16 +1,8 @@
-"""`vtr repeat`: follow a taught route from camera images alone. The daemon does I/O, timing and logging;
-the decisions are the controller's (runtime.controller) and the velocities the policy's (runtime.policy).
+"""`vtr repeat`: the robot daemon. It loads the model and the route, connects to the robot, runs the
+repeat loop (``runtime.repeater.Repeater``: its docstring has the safety rules) and writes the log; the
+loop itself, its decisions and its safety handling live in the Repeater.
 
-Safety rules, in order of precedence:
-
-- zero velocity is commanded when the loop ends for any reason: finished, stalled, step limit,
-  SIGINT/SIGTERM (``stop_event``), an exception (re-raised after the stop), or no valid frame;
-- a frame that fails validation (``BadFrameError`` from the client, or a wrong shape/dtype from any
-  Robot) is counted and never reaches the network: the robot is stopped and re-polled with ``observe``
-  until a valid frame arrives, or ``frame_timeout_s`` passes without one (then the run ends);
-- the step limit ends a run whose robot is lost.
-
-The log has one JSON object per control step (a command sent), then ``{"summary": {...}}``:
+The log (``--log``) has one JSON object per control step (a command sent), then ``{"summary": {...}}``:
 
 - ``step``: control step number; ``stamp``/``pose``: the robot's clock and pose (null when unknown) of
   the image the decisions were taken on;
@@ -18,9 +10,7 @@ The log has one JSON object per control step (a command sent), then ``{"summary"
   (error <= e_m); ``jumped_to``: indices the stall guard or localisation jumped to; ``subgoal``: the
   subgoal steered to; ``error``: that subgoal's image error (0..255); ``e_m``: the threshold in force;
 - ``v``, ``w``: the command applied for dt (the first of VelocityNet's N);
-- ``latency_ms``: ``error`` (controller), ``preprocess`` and ``inference`` (policy), ``compute``
-  (image in to command ready), ``robot`` (step round trip plus the zero command), ``receive`` and
-  ``decode`` (SimClient: the step's reply wait and its validation), ``total``.
+- ``latency_ms``: see ``runtime.repeater.StepRecord``.
 
 Subgoals reached on the last image (the run finishing) appear only in the summary.
 """
@@ -29,257 +19,29 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import signal
 import sys
 import threading
-import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
-from typing import IO, Any
+from dataclasses import dataclass, field, replace
+from typing import IO
 
 import numpy as np
 
-from vtr.runtime.controller import Action, Controller, ControllerConfig
-from vtr.runtime.protocol import BadFrameError
-from vtr.runtime.robot import Observation, Robot, RobotError
+from vtr.runtime.controller import ControllerConfig
+from vtr.runtime.repeater import RepeatConfig, Repeater, StepRecord, Summary
+from vtr.runtime.robot import RobotError
 
 
-@dataclass
-class RepeatConfig:
-    """Daemon settings."""
+def log_writer(stream: IO[str]) -> Callable[[StepRecord], None]:
+    """An ``on_step`` callback writing one JSON line per command sent."""
 
-    #: Subgoal switching (Algorithm 1 and its extensions).
-    controller: ControllerConfig = field(default_factory=ControllerConfig)
-    #: Seconds each command is applied for; None takes the model's metadata dt (the paper's 0.1 s).
-    dt: float | None = None
-    #: Control steps (commands sent) before giving up: a lost robot must stop.
-    max_steps: int = 2000
-    #: Seconds without a valid frame before the run ends.
-    frame_timeout_s: float = 5.0
-    #: Pause between re-polls after a bad frame, in seconds.
-    bad_frame_backoff_s: float = 0.05
+    def write(record: StepRecord) -> None:
+        if record.commanded:
+            stream.write(json.dumps(record.to_log(), allow_nan=False, default=float) + "\n")
+            stream.flush()
 
-    def __post_init__(self) -> None:
-        if self.dt is not None and not (math.isfinite(self.dt) and self.dt > 0):
-            raise ValueError(f"dt must be a positive number of seconds, got {self.dt!r}")
-        if self.max_steps < 1:
-            raise ValueError(f"max_steps must be >= 1, got {self.max_steps}")
-        if not self.frame_timeout_s > 0:
-            raise ValueError(f"frame_timeout_s must be > 0, got {self.frame_timeout_s}")
-        if self.bad_frame_backoff_s < 0:
-            raise ValueError(f"bad_frame_backoff_s must be >= 0, got {self.bad_frame_backoff_s}")
-
-
-@dataclass
-class RepeatSummary:
-    """How a repeat ended. ``reason``: finished | stalled | step_limit | interrupted | no_valid_frame |
-    robot_error."""
-
-    completed: bool
-    reason: str
-    steps: int
-    subgoals_reached: int
-    subgoals_total: int
-    e_m: float
-    sim_time_s: float
-    wall_time_s: float
-    bad_frames: int
-    nonfinite_outputs: int
-    jumps: int
-    localised_to: int | None
-    plateaus: int = 0  # subgoals the stall guard accepted next to, at error <= jump_factor * e_m
-    detail: str = ""
-    mean_latency_ms: dict[str, float] = field(default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-
-class _NoValidFrame(Exception):
-    pass
-
-
-def _safe_stop(robot: Robot) -> bool:
-    """Command zero velocity; never raises (the robot may be the thing that failed)."""
-    try:
-        robot.stop()
-        return True
-    except Exception:
-        return False
-
-
-def _emit(log: IO[str] | Callable[[dict[str, Any]], None] | None, record: dict[str, Any]) -> None:
-    if log is None:
-        return
-    if callable(log):
-        log(record)
-        return
-    log.write(json.dumps(record, allow_nan=False, default=float) + "\n")
-    log.flush()
-
-
-def repeat(
-    robot: Robot,
-    policy: Any,
-    route: Any,
-    cfg: RepeatConfig | None = None,
-    log: IO[str] | Callable[[dict[str, Any]], None] | None = None,
-    stop_event: threading.Event | None = None,
-) -> RepeatSummary:
-    """Follow ``route`` with ``policy`` on ``robot``; returns how it ended. See the module docstring.
-
-    ``policy`` needs ``predict(current, subgoal) -> (2, N)``, ``image_shape`` and ``nonfinite_count``
-    (``OnnxPolicy``); its ``last_timing_ms`` is logged when present. ``log`` is a text file (one JSON
-    object per line) or a callable taking each record.
-    """
-    cfg = cfg or RepeatConfig()
-    if hasattr(policy, "check_route"):
-        policy.check_route(route)
-    dt = cfg.dt if cfg.dt is not None else float(getattr(getattr(policy, "meta", None), "dt", 0.1))
-    controller = Controller(route.images, cfg.controller)
-    expect = (*route.images.shape[1:3], 3)
-    stop_event = stop_event or threading.Event()
-    bad_frames = 0
-    steps = 0
-    first_stamp: float | None = None
-    last_stamp: float | None = None
-    totals: dict[str, float] = {}
-    t_start = time.perf_counter()
-    last_valid = time.monotonic()
-    reason, detail, last_rejected = "", "", ""
-
-    def valid(obs: Observation) -> bool:
-        nonlocal bad_frames, last_rejected
-        image = obs.image
-        if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.shape != expect:
-            shape = getattr(image, "shape", None)
-            last_rejected = (
-                f"image {shape} {getattr(image, 'dtype', type(image).__name__)}, expected {expect} uint8"
-            )
-        elif not math.isfinite(obs.stamp):
-            last_rejected = f"non-finite stamp {obs.stamp}"
-        else:
-            return True
-        bad_frames += 1
-        return False
-
-    def fetch(call: Callable[[], Observation]) -> Observation:
-        """A valid frame from ``call``, else stop the robot and re-poll observe() until the deadline."""
-        nonlocal bad_frames, last_valid, last_rejected
-        while True:
-            try:
-                obs = call()
-                if valid(obs):
-                    last_valid = time.monotonic()
-                    return obs
-            except BadFrameError as exc:
-                bad_frames += 1
-                last_rejected = str(exc)
-            _safe_stop(robot)
-            if time.monotonic() - last_valid > cfg.frame_timeout_s or stop_event.is_set():
-                raise _NoValidFrame()
-            time.sleep(cfg.bad_frame_backoff_s)
-            call = robot.observe
-
-    try:
-        obs = fetch(robot.observe)
-        first_stamp = last_stamp = obs.stamp
-        while True:
-            if stop_event.is_set():
-                reason = "interrupted"
-                break
-            t0 = time.perf_counter()
-            from_subgoal, advances, jumps = controller.index, 0, []
-            while True:
-                decision = controller.decide(obs.image)
-                if decision.action is Action.ADVANCE:
-                    advances += 1
-                    continue
-                if decision.action is Action.JUMP:
-                    jumps.append(decision.index)
-                    continue
-                break
-            t_error = time.perf_counter() - t0
-            if decision.action is Action.FINISHED:
-                reason = "finished"
-                break
-            if decision.action is Action.STALLED:
-                reason, detail = "stalled", decision.note
-                break
-            if steps >= cfg.max_steps:
-                reason = "step_limit"
-                break
-            velocities = policy.predict(obs.image, controller.subgoal)
-            v, w = float(velocities[0, 0]), float(velocities[1, 0])
-            t_policy = time.perf_counter()
-            stage = dict(getattr(policy, "last_timing_ms", {}) or {})
-            stage["error"] = t_error * 1e3
-            stage["compute"] = (t_policy - t0) * 1e3
-            record = {
-                "step": steps,
-                "subgoal": decision.index,
-                "from_subgoal": from_subgoal,
-                "advanced": advances,
-                "jumped_to": jumps,
-                "error": round(decision.error, 4),
-                "e_m": round(controller.e_m, 4),
-                "v": v,
-                "w": w,
-                "stamp": obs.stamp,
-                "pose": list(obs.pose) if obs.pose is not None else None,
-            }
-            new_obs = fetch(lambda v=v, w=w: robot.step(v, w, dt))
-            # the robot's own breakdown of the step round trip (SimClient: receive, decode)
-            robot_stage = {k: float(x) for k, x in (getattr(robot, "last_timing_ms", {}) or {}).items()}
-            if decision.then_stop:
-                robot.stop()
-            t_end = time.perf_counter()
-            stage["robot"] = (t_end - t_policy) * 1e3
-            stage.update(robot_stage)
-            stage["total"] = (t_end - t0) * 1e3
-            record["latency_ms"] = {k: round(x, 4) for k, x in stage.items()}
-            for k, x in stage.items():
-                totals[k] = totals.get(k, 0.0) + x
-            _emit(log, record)
-            steps += 1
-            obs = new_obs
-            last_stamp = obs.stamp
-    except _NoValidFrame:
-        if stop_event.is_set():
-            reason = "interrupted"
-        else:
-            reason, detail = (
-                "no_valid_frame",
-                f"no valid frame for {cfg.frame_timeout_s} s; last rejected: {last_rejected}",
-            )
-    except RobotError as exc:
-        reason, detail = "robot_error", str(exc)
-    except KeyboardInterrupt:
-        reason = "interrupted"
-    finally:
-        _safe_stop(robot)
-
-    reached = min(controller.index, len(controller))
-    summary = RepeatSummary(
-        completed=reason == "finished",
-        reason=reason,
-        steps=steps,
-        subgoals_reached=reached,
-        subgoals_total=len(controller),
-        e_m=controller.e_m,
-        sim_time_s=(last_stamp - first_stamp) if first_stamp is not None and last_stamp is not None else 0.0,
-        wall_time_s=time.perf_counter() - t_start,
-        bad_frames=bad_frames,
-        nonfinite_outputs=int(getattr(policy, "nonfinite_count", 0)),
-        jumps=controller.jumps,
-        localised_to=controller.localised_to,
-        plateaus=controller.plateaus,
-        detail=detail,
-        mean_latency_ms={k: round(x / steps, 4) for k, x in totals.items()} if steps else {},
-    )
-    _emit(log, {"summary": summary.to_dict()})
-    return summary
+    return write
 
 
 # ------------------------------------------------------------------------------------------------- CLI
@@ -362,7 +124,7 @@ class RepeatRunConfig:
             raise ValueError(f"retries must be >= 1, got {self.retries}")
 
 
-def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> RepeatSummary:
+def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summary:
     from vtr.runtime.client import SimClient
     from vtr.runtime.policy import OnnxPolicy
     from vtr.runtime.route import Route
@@ -378,7 +140,14 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Repe
                 if not np.all(np.isfinite(pose)):
                     raise ValueError("the route's first pose is unknown; use --start here")
                 client.reset(pose=(float(pose[0]), float(pose[1]), float(pose[2])), seed=cfg.seed)
-            return repeat(client, policy, route, cfg.repeat, log_file, stop_event)
+            on_step = log_writer(log_file) if log_file is not None else None
+            repeater = Repeater(
+                client, policy, route, config=cfg.repeat, on_step=on_step, stop_event=stop_event
+            )
+            summary = repeater.run()
+            if log_file is not None:
+                log_file.write(json.dumps({"summary": summary.to_dict()}, default=float) + "\n")
+            return summary
     finally:
         if log_file is not None:
             log_file.close()
@@ -426,7 +195,7 @@ def run_cli(args: argparse.Namespace) -> int:
     else:
         s = summary
         print(
-            f"vtr repeat: {s.reason}{' (' + s.detail + ')' if s.detail else ''}; {s.subgoals_reached}/{s.subgoals_total} "
+            f"vtr repeat: {s.status.value}{' (' + s.detail + ')' if s.detail else ''}; {s.subgoals_reached}/{s.subgoals_total} "
             f"subgoals, {s.steps} steps, e_m={s.e_m:.2f}, simulated {s.sim_time_s:.1f} s, wall {s.wall_time_s:.1f} s, "
             f"bad frames {s.bad_frames}, non-finite outputs {s.nonfinite_outputs}"
         )

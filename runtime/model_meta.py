@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+from vtr.runtime.contracts import CAMERA, CONTROL_DT, V_MAX, W_MAX
 from vtr.runtime.preprocess import PREPROCESSING
 
 #: Metadata key prefix in the ONNX file's metadata_props.
@@ -19,12 +20,12 @@ OUTPUT_VELOCITIES = "velocities"  # (B, 2, N): row 0 = v (m/s), row 1 = w (rad/s
 class ModelMeta:
     """The model's constants. Every field is stored as a string under ``vtr.<field>``."""
 
-    image_height: int = 128
-    image_width: int = 128
+    image_height: int = CAMERA.height
+    image_width: int = CAMERA.width
     horizon: int = 2  # N velocity steps predicted per call
-    v_max: float = 0.5  # m/s, |v| <= v_max by the tanh head
-    w_max: float = 1.0  # rad/s
-    dt: float = 0.1  # s each predicted command is meant to be applied for
+    v_max: float = V_MAX  # m/s, |v| <= v_max by the tanh head
+    w_max: float = W_MAX  # rad/s
+    dt: float = CONTROL_DT  # s each predicted command is meant to be applied for
     e_m_default: float = 17.0  # subgoal switch threshold, mean abs pixel difference (0..255)
     preprocessing: str = PREPROCESSING
     format_version: int = FORMAT_VERSION

@@ -47,15 +47,17 @@ from typing import Any
 
 import numpy as np
 
+from vtr.runtime import contracts as _contracts
+
 PROTO = "vtr-sim"
 VERSION = 1
 COMMANDS = ("hello", "reset", "observe", "step", "stop")
 IMAGE_COMMANDS = ("reset", "observe", "step")
 ENCODING = "rgb8"
 
-#: Default limits (the paper's robot): |v| <= 0.5 m/s, |w| <= 1.0 rad/s, one step lasts at most 10 s.
-V_MAX = 0.5
-W_MAX = 1.0
+#: Default limits (the paper's robot, from runtime.contracts); one step lasts at most 10 s.
+V_MAX = _contracts.V_MAX
+W_MAX = _contracts.W_MAX
 MAX_DURATION = 10.0
 #: A header larger than this is refused before parsing.
 MAX_HEADER_BYTES = 64 * 1024

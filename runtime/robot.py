@@ -1,56 +1,23 @@
-"""What the daemon needs from a robot: an image with a stamp, and a way to move for a while and to stop.
+"""What the repeat loop needs from a robot, and the error a robot raises.
 
-``runtime.client.SimClient`` implements it over ZeroMQ; ``sim2d.local_robot.LocalRobot`` wraps an
-in-process simulator for fast evaluation; a real robot bridge implements it on the robot's side.
+The protocols and the observation live in ``runtime.contracts`` (one source); they are re-exported
+here for the robot-side code that imports them by this name. ``runtime.client.SimClient`` implements
+``Robot`` over ZeroMQ; ``sim2d.local_robot.LocalRobot`` wraps an in-process simulator for fast
+evaluation; a real robot bridge implements it on the robot's side.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from vtr.runtime.contracts import Observation, ResettableRobot, Robot
 
-import numpy as np
+__all__ = ["Observation", "ResettableRobot", "Robot", "RobotError"]
 
 
 class RobotError(RuntimeError):
-    """The robot cannot be reached or refused a command; the message says which and why."""
+    """The robot cannot be reached or refused a command; the message says which and why.
 
-
-@dataclass(frozen=True)
-class Observation:
-    """One camera frame.
-
-    image: (H, W, 3) uint8 RGB. stamp: the robot's clock in seconds (simulated time for the simulator).
-    pose: ground-truth (x, y, yaw) in metres/radians when the other side knows it, else None.
+    ``status`` is how a repeat that meets this error ends (a ``runtime.repeater.RepeatStatus`` value):
+    a subclass for a lost link or a restarted robot sets ``"link_lost"`` or ``"robot_restarted"``.
     """
 
-    image: np.ndarray
-    stamp: float
-    pose: tuple[float, float, float] | None = None
-    collided: bool = False
-
-
-@runtime_checkable
-class Robot(Protocol):
-    """A differential-drive robot with a forward camera. Velocities follow REP-103 (Twist linear.x, angular.z)."""
-
-    def observe(self) -> Observation:
-        """The current camera frame, without moving."""
-        ...
-
-    def step(self, v: float, w: float, duration: float) -> Observation:
-        """Apply (v m/s, w rad/s) for ``duration`` seconds, then return the new frame."""
-        ...
-
-    def stop(self) -> None:
-        """Command zero velocity."""
-        ...
-
-
-@runtime_checkable
-class ResettableRobot(Robot, Protocol):
-    """A robot that can be placed at a pose (a simulator); used by `vtr teach`."""
-
-    def reset(self, pose: tuple[float, float, float] | None = None, seed: int | None = None) -> Observation:
-        """Place the robot at ``pose`` (None: the map's default start) and return the first frame."""
-        ...
+    status: str = "robot_error"

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from vtr.runtime.atomic import atomic_path
+from vtr.runtime.contracts import CONTROL_DT
 
 ROUTE_FORMAT_VERSION = 1
 
@@ -48,7 +49,7 @@ class Route:
     camera: dict[str, Any] = field(default_factory=dict)
     spacing: dict[str, Any] = field(default_factory=dict)
     map: str | None = None
-    dt: float = 0.1
+    dt: float = CONTROL_DT
     created: str = field(default_factory=_utc_now)
     format_version: int = ROUTE_FORMAT_VERSION
 
@@ -150,7 +151,7 @@ class Route:
                 camera=dict(meta.get("camera") or {}),
                 spacing=dict(meta.get("spacing") or {}),
                 map=meta.get("map"),
-                dt=meta.get("dt", 0.1),
+                dt=meta.get("dt", CONTROL_DT),
                 created=str(meta.get("created", "")),
                 format_version=version,
             )

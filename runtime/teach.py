@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from vtr.runtime.contracts import CONTROL_DT
 from vtr.runtime.preprocess import image_error
 from vtr.runtime.protocol import jsonable
 from vtr.runtime.robot import Observation, ResettableRobot, RobotError
@@ -39,7 +40,7 @@ class TeachConfig:
     """How a route is driven and how subgoals are spaced (rules in the module docstring)."""
 
     #: Control step in seconds (the repeat applies each command for the same time).
-    dt: float = 0.1
+    dt: float = CONTROL_DT
     #: Subgoal spacing rule: "steps", "distance" or "image".
     spacing: str = "steps"
     #: "steps": record every k-th control step.
@@ -188,7 +189,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sim", default=None, help="robot endpoint, e.g. tcp://127.0.0.1:5555 (or --bag)")
     parser.add_argument("--route", default=None, help="ROUTE.json: start pose and (v, w, duration) segments")
     parser.add_argument("--out", required=True, help="where to write the route (.npz)")
-    parser.add_argument("--dt", type=float, default=0.1, help="control step in seconds")
+    parser.add_argument("--dt", type=float, default=CONTROL_DT, help="control step in seconds")
     parser.add_argument("--spacing", choices=SPACING_RULES, default="steps", help="subgoal spacing rule")
     parser.add_argument("--every", type=int, default=2, help="'steps': a subgoal every k control steps")
     parser.add_argument(

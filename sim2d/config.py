@@ -4,18 +4,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import NamedTuple
 
-V_MAX = 0.5  # m/s, the paper's limit on linear.x
-W_MAX = 1.0  # rad/s, the paper's limit on angular.z
+from vtr.runtime.contracts import CAMERA, V_MAX, W_MAX, Pose
 
-
-class Pose(NamedTuple):
-    """Planar pose in the house frame (REP-103): metres, radians, yaw counter-clockwise from +x."""
-
-    x: float
-    y: float
-    yaw: float
+__all__ = ["V_MAX", "W_MAX", "CameraConfig", "Pose", "SimConfig"]
 
 
 def _finite_positive(name: str, value: float) -> None:
@@ -27,13 +19,13 @@ def _finite_positive(name: str, value: float) -> None:
 class CameraConfig:
     """Forward-looking pinhole camera rendered by raycasting the 2D house."""
 
-    width: int = 128
+    width: int = CAMERA.width
     """Image width in pixels (the paper's network input is 128)."""
-    height: int = 128
+    height: int = CAMERA.height
     """Image height in pixels."""
-    fov_deg: float = 90.0
+    fov_deg: float = CAMERA.fov_deg
     """Horizontal field of view in degrees; square pixels, so the vertical fov follows from the aspect ratio."""
-    camera_height: float = 0.3
+    camera_height: float = CAMERA.height_m
     """Height of the optical centre above the floor (m); must stay below every furniture height."""
     wall_height: float = 2.5
     """Height of the walls (m); the ceiling is drawn above it."""

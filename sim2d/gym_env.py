@@ -15,6 +15,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from vtr.runtime.contracts import CONTROL_DT
 from vtr.sim2d.config import SimConfig
 from vtr.sim2d.simulator import Simulator
 
@@ -25,7 +26,7 @@ class GymEnvConfig:
 
     sim: SimConfig = field(default_factory=SimConfig)
     """The simulator underneath."""
-    control_dt: float = 0.1
+    control_dt: float = CONTROL_DT
     """Seconds of simulated time per env step (the paper's control step)."""
     max_steps: int = 500
     """Steps before the episode is truncated."""

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from vtr.runtime.robot import Observation
-from vtr.sim2d.server import make_pose
+from vtr.runtime.contracts import Observation, Pose, Simulator
 
 
 def _pose_tuple(pose: Any) -> tuple[float, float, float]:
@@ -19,20 +18,23 @@ class LocalRobot:
     between steps. ``commands`` keeps every (v, w, duration) applied, zero commands included.
     """
 
-    def __init__(self, simulator: Any) -> None:
+    def __init__(self, simulator: Simulator) -> None:
         self.sim = simulator
         self.commands: list[tuple[float, float, float]] = []
+        #: The last observation handed out (evaluation scores with its true pose).
+        self.last: Observation | None = None
 
     def _obs(self, image: Any) -> Observation:
-        return Observation(
+        self.last = Observation(
             image=image,
             stamp=float(self.sim.time),
             pose=_pose_tuple(self.sim.pose),
             collided=bool(self.sim.collided),
         )
+        return self.last
 
     def reset(self, pose: tuple[float, float, float] | None = None, seed: int | None = None) -> Observation:
-        return self._obs(self.sim.reset(pose=None if pose is None else make_pose(*pose), seed=seed))
+        return self._obs(self.sim.reset(pose=None if pose is None else Pose(*pose), seed=seed))
 
     def observe(self) -> Observation:
         return self._obs(self.sim.observe())

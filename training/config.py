@@ -10,6 +10,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
+from vtr.runtime.contracts import CAMERA, CONTROL_DT, V_MAX, W_MAX
+
 
 def _check_positive(obj: object, *names: str) -> None:
     for name in names:
@@ -35,8 +37,8 @@ class CollectConfig:
     frames: int = 7024  # total frames recorded (the paper's dataset size)
     seed: int = 0  # seeds start poses, command choice and the simulator's actuation noise
     noise: float = 0.0  # actuation noise passed to SimConfig(noise=...); 0 = noiseless
-    dt: float = 0.1  # s between recorded frames; each command is applied for dt
-    image_size: int = 128  # camera width = height in pixels
+    dt: float = CONTROL_DT  # s between recorded frames; each command is applied for dt
+    image_size: int = CAMERA.width  # camera width = height in pixels
     episode_min: int = 30  # shortest episode in frames before a new random start pose
     episode_max: int = 120  # longest episode in frames
     segment_min: int = 3  # a command is held for between segment_min and segment_max frames
@@ -46,8 +48,8 @@ class CollectConfig:
     # episodes hug the walls and others stay in the open middle of the rooms.
     far_clearance: float = 0.9
     lookahead: float = 0.3  # s of look-ahead beyond the next step used to refuse a command
-    v_max: float = 0.5  # m/s, command limits (the runtime's limits)
-    w_max: float = 1.0  # rad/s
+    v_max: float = V_MAX  # m/s, command limits (the runtime's limits)
+    w_max: float = W_MAX  # rad/s
     reverse_fraction: float = 0.1  # share of translation segments driven backwards
     progress: bool = True  # show a tqdm progress bar
 
@@ -74,7 +76,7 @@ class CollectConfig:
 class ViewNetConfig:
     """ViewNet: image + (v, w) -> predicted next image, through a flow field and grid_sample."""
 
-    image_size: int = 128  # input/output height = width
+    image_size: int = CAMERA.width  # input/output height = width
     # Output channels of the 8 encoder convs; the last one is the feature size (512 in the paper).
     encoder_channels: tuple[int, ...] = (32, 64, 64, 128, 128, 256, 256, 512)
     # Channels of the decoder's upsampling stages, from 4x4 upwards (one entry per doubling).
@@ -82,8 +84,8 @@ class ViewNetConfig:
     # The decoder predicts the flow at this resolution; it is bilinearly upsampled to image_size.
     flow_resolution: int = 128
     leaky_slope: float = 0.2  # LeakyReLU negative slope
-    v_max: float = 0.5  # velocities are divided by these before entering the decoder
-    w_max: float = 1.0
+    v_max: float = V_MAX  # velocities are divided by these before entering the decoder
+    w_max: float = W_MAX
 
     def __post_init__(self) -> None:
         _check_channels(self, "encoder_channels", 8)
@@ -104,12 +106,12 @@ class ViewNetConfig:
 class VelocityNetConfig:
     """VelocityNet: (current, subgoal) -> N steps of (v, w)."""
 
-    image_size: int = 128  # input height = width
+    image_size: int = CAMERA.width  # input height = width
     # Output channels of the first 7 convs (BN + LeakyReLU, stride 2); the 8th conv outputs 2N.
     channels: tuple[int, ...] = (32, 64, 128, 128, 256, 256, 512)
     horizon: int = 2  # N, velocity steps predicted per call
-    v_max: float = 0.5  # m/s, v = v_max * tanh(.)
-    w_max: float = 1.0  # rad/s, w = w_max * tanh(.)
+    v_max: float = V_MAX  # m/s, v = v_max * tanh(.)
+    w_max: float = W_MAX  # rad/s, w = w_max * tanh(.)
     leaky_slope: float = 0.2  # LeakyReLU negative slope
 
     def __post_init__(self) -> None:

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from vtr.runtime.atomic import atomic_path
+from vtr.runtime.contracts import CONTROL_DT
 
 FORMAT_VERSION = 1
 _KEYS = ("images", "commands", "poses", "episodes", "meta")
@@ -185,10 +186,10 @@ def synthetic_dataset(frames: int = 64, size: int = 32, episodes: int = 4, seed:
         v, w = float(rng.uniform(-0.5, 0.5)), float(rng.uniform(-1.0, 1.0))
         last = t == frames - 1 or ids[t + 1] != ids[t]
         commands[t] = (0.0, 0.0) if last else (v, w)
-        x, yaw = x + v * 0.1, yaw + w * 0.1
+        x, yaw = x + v * CONTROL_DT, yaw + w * CONTROL_DT
     meta = {
         "source": "synthetic",
-        "dt": 0.1,
+        "dt": CONTROL_DT,
         "seed": seed,
         "map": "synthetic",
         "camera": {"width": size, "height": size},

@@ -16,7 +16,7 @@ sim2d = pytest.importorskip("vtr.sim2d")
 if not hasattr(sim2d, "Simulator"):
     pytest.skip("sim2d.Simulator has not landed yet", allow_module_level=True)
 pytest.importorskip("vtr.sim2d.local_robot")
-pytest.importorskip("vtr.runtime.daemon")
+
 
 SHORT_ROUTE = {
     "name": "short",

@@ -157,3 +157,14 @@ def corridor_route(length_m: float = 0.4, spacing_m: float = 0.05, h: int = H, w
     commands = np.zeros((len(xs), 2))
     commands[:-1, 0] = 0.25
     return Route(images=images, poses=poses, commands=commands, name="corridor", dt=0.1)
+
+
+def run_repeat(robot, policy, route, cfg=None, log=None, stop_event=None):
+    """Run a whole repeat with ``runtime.repeater.Repeater``; ``log`` receives each command's log dict."""
+    from vtr.runtime.repeater import Repeater
+
+    def on_step(record) -> None:
+        if log is not None and record.commanded:
+            log(record.to_log())
+
+    return Repeater(robot, policy, route, config=cfg, on_step=on_step, stop_event=stop_event).run()

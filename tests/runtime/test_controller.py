@@ -6,9 +6,10 @@ import math
 
 import numpy as np
 import pytest
+from runtime_fakes import run_repeat
 
 from vtr.runtime.controller import Action, Controller, ControllerConfig, calibrate_e_m, consecutive_errors
-from vtr.runtime.daemon import RepeatConfig, repeat
+from vtr.runtime.repeater import RepeatConfig
 from vtr.runtime.robot import Observation
 from vtr.runtime.route import Route
 
@@ -202,7 +203,7 @@ def test_loop_contract_command_then_zero_switch_at_e_m_finish_after_l_subgoals()
     robot = ScriptedRobot([flat(50), flat(17), flat(117), flat(195)])
     policy = SpyPolicy()
     records: list[dict] = []
-    summary = repeat(robot, policy, route, RepeatConfig(controller=PAPER), log=records.append)
+    summary = run_repeat(robot, policy, route, RepeatConfig(controller=PAPER), log=records.append)
     # the first predicted (v, w) for 0.1 s, then zero; one command per image above e_m
     assert robot.calls == [
         ("observe",),
@@ -223,9 +224,8 @@ def test_loop_contract_command_then_zero_switch_at_e_m_finish_after_l_subgoals()
         (0, 1, 1, 83),
         (1, 2, 1, 83),
     ]
-    assert summary.completed and summary.reason == "finished"
+    assert summary.completed and summary.status == "finished"
     assert summary.steps == 3 and summary.subgoals_reached == 3 == summary.subgoals_total
-    assert records[-1]["summary"]["reason"] == "finished"
 
 
 def test_continuous_loop_sends_no_zero_between_steps():
@@ -236,7 +236,7 @@ def test_continuous_loop_sends_no_zero_between_steps():
             e_m_mode="fixed", e_m=17.0, stall_steps=0, settle_steps=0, continuous=True
         )
     )
-    summary = repeat(robot, SpyPolicy(), route, cfg)
+    summary = run_repeat(robot, SpyPolicy(), route, cfg)
     names = [c[0] for c in robot.calls]
     assert names == ["observe", "step", "step", "step", "stop"] and summary.completed
 
@@ -244,8 +244,8 @@ def test_continuous_loop_sends_no_zero_between_steps():
 def test_step_limit_stops_a_lost_robot():
     route = flat_route(0, 100)
     robot = ScriptedRobot([flat(250)] * 10)
-    summary = repeat(robot, SpyPolicy(), route, RepeatConfig(controller=PAPER, max_steps=4))
-    assert summary.reason == "step_limit" and summary.steps == 4 and not summary.completed
+    summary = run_repeat(robot, SpyPolicy(), route, RepeatConfig(controller=PAPER, max_steps=4))
+    assert summary.status == "step_limit" and summary.steps == 4 and not summary.completed
     assert robot.calls[-1] == ("stop",)
 
 
@@ -253,7 +253,7 @@ def test_stall_in_the_loop_stops_with_a_reason():
     route = flat_route(0, 100)
     robot = ScriptedRobot([flat(250)] * 10)
     cfg = RepeatConfig(controller=ControllerConfig(e_m_mode="fixed", e_m=5.0, stall_steps=3))
-    summary = repeat(robot, SpyPolicy(), route, cfg)
+    summary = run_repeat(robot, SpyPolicy(), route, cfg)
     assert (
-        summary.reason == "stalled" and "stopped falling" in summary.detail and robot.calls[-1] == ("stop",)
+        summary.status == "stalled" and "stopped falling" in summary.detail and robot.calls[-1] == ("stop",)
     )

@@ -8,13 +8,13 @@ import time
 
 import numpy as np
 import pytest
-from runtime_fakes import FakeSim, FakeSimAt, build_velocitynet_onnx, corridor_route, render
+from runtime_fakes import FakeSim, FakeSimAt, build_velocitynet_onnx, corridor_route, render, run_repeat
 
 from vtr.runtime.client import SimClient
 from vtr.runtime.controller import ControllerConfig
-from vtr.runtime.daemon import RepeatConfig, repeat
 from vtr.runtime.policy import OnnxPolicy
 from vtr.runtime.protocol import BadFrameError
+from vtr.runtime.repeater import RepeatConfig
 from vtr.runtime.robot import Observation
 from vtr.sim2d.local_robot import LocalRobot
 from vtr.sim2d.server import ServerConfig, ServerThread, start_server_process
@@ -43,7 +43,7 @@ def policy_path(tmp_path_factory):
 def test_repeat_in_process_completes_the_route_and_logs_every_step(policy_path):
     sim = FakeSim()
     records: list[dict] = []
-    summary = repeat(LocalRobot(sim), OnnxPolicy(policy_path), corridor_route(), log=records.append)
+    summary = run_repeat(LocalRobot(sim), OnnxPolicy(policy_path), corridor_route(), log=records.append)
     assert summary.completed and summary.subgoals_reached == 9 == summary.subgoals_total
     assert summary.e_m == pytest.approx(7.5)  # calibrated: 3/4 of the 10-level step between subgoals
     assert sim.pose.x == pytest.approx(0.4, abs=0.04)  # |error| <= e_m = 7.5 levels = 0.0375 m
@@ -106,7 +106,7 @@ def test_bad_frames_are_counted_never_fed_to_the_network_and_the_robot_keeps_sti
     sim = FakeSim()
     robot = FlakyRobot(LocalRobot(sim), bad_calls={1, 3, 4}, mode=mode)
     policy = SpyPolicy(OnnxPolicy(policy_path))
-    summary = repeat(robot, policy, corridor_route(), RepeatConfig(bad_frame_backoff_s=0.0))
+    summary = run_repeat(robot, policy, corridor_route(), RepeatConfig(bad_frame_backoff_s=0.0))
     assert summary.completed and summary.bad_frames == 3
     # each bad frame is followed by a zero command before the robot is polled again
     frame_calls = 0
@@ -120,13 +120,13 @@ def test_bad_frames_are_counted_never_fed_to_the_network_and_the_robot_keeps_sti
 
 def test_no_valid_frame_within_the_timeout_stops_the_run(policy_path):
     robot = FlakyRobot(LocalRobot(FakeSim()), bad_calls=set(range(2, 10_000)), mode="raise")
-    summary = repeat(
+    summary = run_repeat(
         robot,
         OnnxPolicy(policy_path),
         corridor_route(),
         RepeatConfig(frame_timeout_s=0.2, bad_frame_backoff_s=0.01),
     )
-    assert summary.reason == "no_valid_frame" and not summary.completed and summary.steps == 0
+    assert summary.status == "link_lost" and not summary.completed and summary.steps == 0
     assert "last rejected: truncated pixel frame" in summary.detail
     assert robot.log[-1] == "stop"
 
@@ -141,7 +141,7 @@ def test_an_exception_commands_zero_velocity_and_propagates(policy_path):
 
     robot = LocalRobot(FakeSim())
     with pytest.raises(RuntimeError, match="exploded"):
-        repeat(robot, Broken(), corridor_route())
+        run_repeat(robot, Broken(), corridor_route())
     assert robot.commands[-1] == (0.0, 0.0, 0.0)
 
 
@@ -153,8 +153,8 @@ def test_stop_event_interrupts_with_a_zero_command(policy_path):
         if record.get("step") == 2:
             event.set()
 
-    summary = repeat(robot, OnnxPolicy(policy_path), corridor_route(), log=log, stop_event=event)
-    assert summary.reason == "interrupted" and summary.steps == 3 and robot.commands[-1] == (0.0, 0.0, 0.0)
+    summary = run_repeat(robot, OnnxPolicy(policy_path), corridor_route(), log=log, stop_event=event)
+    assert summary.status == "interrupted" and summary.steps == 3 and robot.commands[-1] == (0.0, 0.0, 0.0)
 
 
 class KillingRobot:
@@ -203,7 +203,7 @@ def test_server_killed_mid_route_and_restarted_the_repeat_recovers(policy_path):
     client = SimClient(cfg.bind, timeout_s=0.25, retries=60)  # restart takes longer than one timeout
     robot = KillingRobot(client, handle, cfg, kill_after=4, restart=True)
     try:
-        summary = repeat(robot, OnnxPolicy(policy_path), corridor_route())
+        summary = run_repeat(robot, OnnxPolicy(policy_path), corridor_route())
     finally:
         client.close()
         if robot.restarter is not None:
@@ -219,11 +219,11 @@ def test_server_killed_for_good_the_repeat_stops_cleanly(policy_path):
     client = SimClient(cfg.bind, timeout_s=0.2, retries=2)
     robot = KillingRobot(client, handle, cfg, kill_after=3, restart=False)
     try:
-        summary = repeat(robot, OnnxPolicy(policy_path), corridor_route())
+        summary = run_repeat(robot, OnnxPolicy(policy_path), corridor_route())
     finally:
         client.close()
         handle.terminate()
-    assert summary.reason == "robot_error" and "no reply" in summary.detail and not summary.completed
+    assert summary.status == "robot_error" and "no reply" in summary.detail and not summary.completed
     assert summary.steps == 2  # step 3 reached the server, then its zero command found nobody
 
 
@@ -298,7 +298,7 @@ def test_localise_option_starts_mid_route(policy_path):
     sim = FakeSim(x=0.2)
     cfg = RepeatConfig(controller=ControllerConfig(localise=True))
     records: list[dict] = []
-    summary = repeat(LocalRobot(sim), OnnxPolicy(policy_path), corridor_route(), cfg, log=records.append)
+    summary = run_repeat(LocalRobot(sim), OnnxPolicy(policy_path), corridor_route(), cfg, log=records.append)
     assert summary.completed and summary.localised_to == 4
     assert records[0]["from_subgoal"] == 0 and records[0]["jumped_to"] == [4]
 
@@ -310,9 +310,9 @@ def test_camera_at_the_wrong_resolution_never_reaches_the_network(policy_path):
         SimClient(server.endpoint, 2.0, expect_shape=(16, 16)) as client,
     ):
         cfg = RepeatConfig(frame_timeout_s=0.3, bad_frame_backoff_s=0.02)
-        summary = repeat(client, policy, corridor_route(), cfg)
+        summary = run_repeat(client, policy, corridor_route(), cfg)
         assert server.server.last_cmd == "stop"
-    assert summary.reason == "no_valid_frame" and "image is 8x8, expected 16x16" in summary.detail
+    assert summary.status == "link_lost" and "image is 8x8, expected 16x16" in summary.detail
     assert policy.seen == 0 and summary.bad_frames >= 2 and client.bad_frames == summary.bad_frames
 
 

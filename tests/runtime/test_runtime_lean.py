@@ -120,6 +120,6 @@ def test_signal_commands_zero_velocity_and_exits_with_a_summary(files, sig):
         assert server.server.last_cmd == "stop" and server.server.twist == (0.0, 0.0)
     assert proc.returncode == 1, err
     summary = json.loads(out)
-    assert summary["reason"] == "interrupted" and summary["steps"] >= 3
+    assert summary["status"] == "interrupted" and summary["steps"] >= 3
     steps = [call for call in sim.calls if call[0] == "step"]
     assert steps and all(call[1] > 0.1 for call in steps)  # it was driving (no zero between steps)

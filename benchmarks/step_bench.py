@@ -1,0 +1,102 @@
+"""The control step as the latency benchmark times it: the runtime's own ``Repeater.step`` on a robot
+whose link is a loopback.
+
+``LoopbackRobot`` does what ``runtime.client.SimClient`` does for each call minus the socket: encode the
+request (``protocol.encode_request``) and validate a real encoded image reply (``protocol.decode_reply``
+with the expected command, sequence number and shape). So one timed ``Repeater.step`` is the whole step
+the daemon runs (decode, image error, preprocess, inference, postprocess, encode of the command and of
+the zero command), without the simulator. Imports no torch, OpenCV or pymunk: the runtime-only memory
+probe runs it with those blocked.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from vtr.runtime import protocol
+from vtr.runtime.contracts import CONTROL_DT, Observation
+
+SESSION = "bench"
+
+
+class LoopbackRobot:
+    """A ``Robot`` answering every request with the same encoded frame (see the module docstring)."""
+
+    def __init__(self, image: np.ndarray) -> None:
+        self.shape = image.shape[:2]
+        self._seq = 0
+        self._replies = {
+            cmd: protocol.encode_image_reply(cmd, 1, SESSION, 1.0, image, pose=None)
+            for cmd in ("observe", "step")
+        }
+
+    def _exchange(self, cmd: str, **fields: Any) -> Observation:
+        self._seq += 1
+        protocol.encode_request(cmd, self._seq, stamp=time.time(), **fields)
+        reply = protocol.decode_reply(
+            self._replies[cmd], expect_cmd=cmd, expect_seq=1, expect_shape=self.shape
+        )
+        assert reply.image is not None and reply.stamp is not None
+        return Observation(image=reply.image, stamp=reply.stamp, pose=reply.pose, collided=reply.collided)
+
+    def decode(self) -> np.ndarray:
+        """Only the reply validation (the ``frame_decode`` stage)."""
+        reply = protocol.decode_reply(
+            self._replies["step"], expect_cmd="step", expect_seq=1, expect_shape=self.shape
+        )
+        assert reply.image is not None
+        return reply.image
+
+    def encode_command(self, v: float, w: float) -> list[bytes]:
+        """Only the command encode (the ``command_encode`` stage)."""
+        return protocol.encode_request("step", 2, stamp=time.time(), v=v, w=w, duration=CONTROL_DT)
+
+    def observe(self) -> Observation:
+        return self._exchange("observe")
+
+    def step(self, v: float, w: float, duration: float) -> Observation:
+        return self._exchange("step", v=float(v), w=float(w), duration=float(duration))
+
+    def stop(self) -> None:
+        self._seq += 1
+        protocol.encode_request("stop", self._seq, stamp=time.time())
+
+
+class BenchStep:
+    """``Repeater.step`` on a ``LoopbackRobot`` showing ``current`` while steering to ``subgoal``.
+
+    The controller never switches (fixed e_m below any error, no stall guard, no settling): every step
+    commands, the worst case. The zero command after each step is sent, as the daemon does.
+    """
+
+    name = "runtime.repeater.Repeater.step on a loopback link (protocol decode/encode, no socket)"
+
+    def __init__(self, model: str | Path, threads: int, current: np.ndarray, subgoal: np.ndarray) -> None:
+        from vtr.runtime.controller import ControllerConfig
+        from vtr.runtime.policy import OnnxPolicy
+        from vtr.runtime.repeater import RepeatConfig, Repeater
+        from vtr.runtime.route import Route
+
+        self.policy = OnnxPolicy(model, threads=threads)
+        self.robot = LoopbackRobot(current)
+        route = Route(
+            images=np.ascontiguousarray(subgoal[None]),
+            poses=np.zeros((1, 3)),
+            commands=np.zeros((1, 2)),
+            name="bench",
+            dt=self.policy.meta.dt,
+        )
+        controller = ControllerConfig(e_m_mode="fixed", e_m=1e-3, stall_steps=0, settle_steps=0)
+        self.repeater = Repeater(
+            self.robot, self.policy, route, config=RepeatConfig(controller=controller, max_steps=10**12)
+        )
+
+    def __call__(self) -> Any:
+        record = self.repeater.step()
+        if not record.commanded:  # the identical frame matched the subgoal: cannot happen, say so
+            raise RuntimeError(f"the benchmark's repeat ended: {record.status}")
+        return record

@@ -1,0 +1,46 @@
+"""Wall-clock timing of callables: p50 / p99 / mean / min in milliseconds, interleaved so that load from
+other processes hits every measured callable alike."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+
+def summarise(samples_ns: np.ndarray) -> dict[str, float]:
+    ms = samples_ns / 1e6
+    return {
+        "p50_ms": float(np.percentile(ms, 50)),
+        "p99_ms": float(np.percentile(ms, 99)),
+        "mean_ms": float(ms.mean()),
+        "min_ms": float(ms.min()),
+        "n": int(ms.size),
+    }
+
+
+def time_call(fn: Callable[[], Any], steps: int, warmup: int) -> dict[str, float]:
+    """p50 / p99 / mean / min wall time of fn() in milliseconds."""
+    return time_interleaved({"fn": fn}, steps, warmup)["fn"]
+
+
+def time_interleaved(
+    fns: dict[str, Callable[[], Any]], steps: int, warmup: int
+) -> dict[str, dict[str, float]]:
+    """Time several callables round-robin, so load from other processes hits all of them alike.
+
+    Ratios between them (whole step vs inference, int8 vs fp32) are then far steadier than from
+    back-to-back runs on a shared machine.
+    """
+    for _ in range(warmup):
+        for fn in fns.values():
+            fn()
+    samples = {name: np.empty(steps, dtype=np.float64) for name in fns}
+    for i in range(steps):
+        for name, fn in fns.items():
+            t0 = time.perf_counter_ns()
+            fn()
+            samples[name][i] = time.perf_counter_ns() - t0
+    return {name: summarise(s) for name, s in samples.items()}

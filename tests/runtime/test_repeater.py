@@ -1,0 +1,144 @@
+"""The Repeater step by step: records, events, how a run ends, and the checks made before it starts."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vtr.runtime.contracts import Observation, Policy, Robot
+from vtr.runtime.controller import Action, Controller, ControllerConfig
+from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus, StepRecord
+from vtr.runtime.robot import RobotError
+from vtr.runtime.route import Route
+
+PAPER = ControllerConfig.paper()
+
+
+def flat(value: int) -> np.ndarray:
+    return np.full((4, 4, 3), value, dtype=np.uint8)
+
+
+def flat_route(*values: int, dt: float = 0.1) -> Route:
+    n = len(values)
+    images = np.stack([flat(v) for v in values])
+    return Route(images=images, poses=np.zeros((n, 3)), commands=np.zeros((n, 2)), dt=dt)
+
+
+class Frames:
+    """observe() shows frame 0; each step() the next; ``fail_at`` raises that error on that step."""
+
+    def __init__(self, values: list[int], fail_at: int | None = None, error: Exception | None = None) -> None:
+        self.values, self.i, self.fail_at, self.error = values, 0, fail_at, error
+        self.calls: list[str] = []
+
+    def _obs(self) -> Observation:
+        return Observation(flat(self.values[self.i]), float(self.i), pose=(float(self.i), 0.0, 0.0))
+
+    def observe(self) -> Observation:
+        self.calls.append("observe")
+        return self._obs()
+
+    def step(self, v: float, w: float, duration: float) -> Observation:
+        self.calls.append("step")
+        self.i += 1
+        if self.i == self.fail_at:
+            raise self.error  # type: ignore[misc]
+        return self._obs()
+
+    def stop(self) -> None:
+        self.calls.append("stop")
+
+
+class Constant:
+    image_shape = (4, 4)
+
+    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+        return np.array([[0.2, 0.0], [0.1, 0.0]], dtype=np.float32)
+
+
+def test_fakes_satisfy_the_protocols():
+    assert isinstance(Frames([0]), Robot) and isinstance(Constant(), Policy)
+
+
+def test_step_by_step_records_commands_events_and_the_terminal_record():
+    seen: list[StepRecord] = []
+    robot = Frames([50, 17, 117, 195])
+    rep = Repeater(
+        robot, Constant(), flat_route(0, 100, 200), config=RepeatConfig(PAPER), on_step=seen.append
+    )
+    first = rep.step()
+    assert first.commanded and first.action is Action.COMMAND and first.events == ()
+    assert (first.step, first.from_subgoal, first.subgoal, first.error) == (0, 0, 0, 50)
+    assert (first.v, first.w) == pytest.approx((0.2, 0.1)) and first.pose == (0.0, 0.0, 0.0)
+    assert {"error", "policy", "compute", "robot", "total"} <= set(first.latency_ms)
+    second = rep.step()  # 17 is within e_m of subgoal 0: the controller advances by itself
+    assert [(e.action, e.index) for e in second.events] == [(Action.ADVANCE, 1)]
+    assert (second.from_subgoal, second.subgoal, second.advanced) == (0, 1, 1)
+    summary = rep.run()
+    last = seen[-1]
+    assert last.status is RepeatStatus.FINISHED and not last.commanded and (last.v, last.w) == (0.0, 0.0)
+    assert [e.index for e in last.events] == [3] and last.pose == (3.0, 0.0, 0.0)
+    assert summary.completed and summary.steps == 3 and len(seen) == 4
+    assert robot.calls[-1] == "stop" and summary.to_dict()["status"] == "finished"
+    with pytest.raises(RuntimeError, match="ended"):
+        rep.step()
+
+
+def test_a_robot_error_names_how_the_run_ended_and_stops_the_robot():
+    class Restarted(RobotError):
+        status = "robot_restarted"
+
+    for error, status in (
+        (RobotError("no reply"), "robot_error"),
+        (Restarted("new session"), "robot_restarted"),
+    ):
+        robot = Frames([250] * 5, fail_at=2, error=error)
+        summary = Repeater(robot, Constant(), flat_route(0, 100), config=RepeatConfig(PAPER)).run()
+        assert summary.status == status and summary.detail == str(error) and summary.steps == 1
+        assert robot.calls[-1] == "stop"
+
+
+def test_run_takes_a_step_limit():
+    rep = Repeater(Frames([250] * 10), Constant(), flat_route(0, 100), config=RepeatConfig(PAPER))
+    summary = rep.run(max_steps=3)
+    assert summary.status is RepeatStatus.STEP_LIMIT and summary.steps == 3
+    with pytest.raises(ValueError, match="max_steps"):
+        Repeater(Frames([0]), Constant(), flat_route(0)).run(max_steps=-1)
+
+
+def test_a_controller_can_be_handed_in_and_is_the_one_used():
+    route = flat_route(0, 100)
+    controller = Controller(route.images, ControllerConfig(e_m_mode="fixed", e_m=60.0, settle_steps=0))
+    rep = Repeater(Frames([80, 30, 100]), Constant(), route, controller)
+    summary = rep.run()
+    assert rep.controller is controller and summary.completed and controller.finished and summary.steps == 2
+
+
+def test_route_and_model_must_agree_on_dt_and_image_size():
+    class WithMeta(Constant):
+        class meta:  # noqa: N801 - stands in for ModelMeta
+            dt = 0.2
+
+    with pytest.raises(ValueError, match="dt = 0.1 s but the model was trained for dt = 0.2 s"):
+        Repeater(Frames([0]), WithMeta(), flat_route(0, 100))
+    assert Repeater(Frames([0]), WithMeta(), flat_route(0, 100, dt=0.2)).dt == 0.2
+
+    class Larger(Constant):
+        image_shape = (8, 8)
+
+    with pytest.raises(ValueError, match="route images"):
+        Repeater(Frames([0]), Larger(), flat_route(0))
+
+
+def test_an_unexpected_exception_stops_the_robot_and_propagates():
+    robot = Frames([250] * 5, fail_at=1, error=ZeroDivisionError("bug"))
+    rep = Repeater(robot, Constant(), flat_route(0, 100), config=RepeatConfig(PAPER))
+    with pytest.raises(ZeroDivisionError):
+        rep.run()
+    assert robot.calls[-1] == "stop" and rep.done
+
+
+def test_every_status_has_a_distinct_value():
+    values = [s.value for s in RepeatStatus]
+    assert len(set(values)) == len(values) == 9
+    assert RepeatStatus("link_lost") is RepeatStatus.LINK_LOST
