@@ -46,6 +46,7 @@ _EXTRA_OF_MODULE = {
     "onnxscript": "train",
     "tqdm": "train",
     "gymnasium": "dev",
+    "rosbags": "ros",
 }
 
 

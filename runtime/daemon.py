@@ -52,6 +52,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--model", required=True, help="VelocityNet ONNX file")
     parser.add_argument("--route", required=True, help="taught route (.npz from `vtr teach`)")
     parser.add_argument("--log", default=None, help="write one JSON line per control step here")
+    parser.add_argument(
+        "--mcap",
+        default=None,
+        metavar="PATH",
+        help="also write the run as a ROS 2 MCAP bag for Foxglove / ros2 bag play (PATH.mcap: one file; "
+        "else a bag folder); needs pip install 'vtr-mpc[ros]'",
+    )
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     parser.add_argument(
         "--e-m",
@@ -101,6 +108,7 @@ class RepeatRunConfig:
     model: str  # ONNX path
     route: str  # route .npz path
     log: str | None = None  # JSON-lines log path
+    mcap: str | None = None  # MCAP run path (runtime.mcap_log)
     threads: int = 1  # onnxruntime intra-op threads
     timeout_s: float = 2.0  # per-reply timeout
     retries: int = 3  # tries per request
@@ -132,6 +140,11 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
     policy = OnnxPolicy(cfg.model, threads=cfg.threads)
     route = Route.load(cfg.route)
     policy.check_route(route)
+    mcap = None
+    if cfg.mcap:
+        from vtr.runtime.mcap_log import McapRunWriter, step_recorder
+
+        mcap = McapRunWriter(cfg.mcap)
     log_file = open(cfg.log, "w", encoding="utf-8") if cfg.log else None  # noqa: SIM115
     try:
         with SimClient(cfg.sim, cfg.timeout_s, cfg.retries, expect_shape=policy.image_shape) as client:
@@ -140,17 +153,24 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
                 if not np.all(np.isfinite(pose)):
                     raise ValueError("the route's first pose is unknown; use --start here")
                 client.reset(pose=(float(pose[0]), float(pose[1]), float(pose[2])), seed=cfg.seed)
-            on_step = log_writer(log_file) if log_file is not None else None
+            callbacks = [log_writer(log_file)] if log_file is not None else []
+            if mcap is not None:
+                callbacks.append(step_recorder(mcap, route.images))
+            on_step = (lambda rec: [cb(rec) for cb in callbacks]) if callbacks else None
             repeater = Repeater(
                 client, policy, route, config=cfg.repeat, on_step=on_step, stop_event=stop_event
             )
             summary = repeater.run()
             if log_file is not None:
                 log_file.write(json.dumps({"summary": summary.to_dict()}, default=float) + "\n")
+            if mcap is not None:
+                mcap.record_summary(summary.to_dict())
             return summary
     finally:
         if log_file is not None:
             log_file.close()
+        if mcap is not None:
+            mcap.close()
 
 
 def run_cli(args: argparse.Namespace) -> int:
@@ -169,6 +189,7 @@ def run_cli(args: argparse.Namespace) -> int:
         model=args.model,
         route=args.route,
         log=args.log,
+        mcap=args.mcap,
         threads=args.threads,
         timeout_s=args.timeout,
         retries=args.retries,

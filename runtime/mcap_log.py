@@ -47,6 +47,7 @@ TOPICS = {
     "/vtr/image_error": "std_msgs/msg/Float64",
     "/vtr/step": "std_msgs/msg/String",
 }
+_MISSING = "MCAP runs need the package rosbags: pip install 'vtr-mpc[ros]'"
 #: Fields of a step copied into the JSON channel when present.
 STEP_FIELDS = (
     "step",
@@ -66,9 +67,7 @@ def _rosbags() -> tuple[Any, Any]:
     try:
         from rosbags import rosbag2, typesys
     except ModuleNotFoundError:
-        raise RuntimeError(
-            "writing runs as MCAP needs the package rosbags: pip install 'vtr-mpc[ros]'"
-        ) from None
+        raise ModuleNotFoundError(_MISSING, name="rosbags") from None
     return rosbag2, typesys
 
 
@@ -231,9 +230,7 @@ def read_run(path: str | os.PathLike[str]) -> RecordedRun:
     try:
         from rosbags.highlevel import AnyReader
     except ModuleNotFoundError:
-        raise RuntimeError(
-            "reading MCAP runs needs the package rosbags: pip install 'vtr-mpc[ros]'"
-        ) from None
+        raise ModuleNotFoundError(_MISSING, name="rosbags") from None
     rows: dict[int, dict[str, Any]] = {}
     steps: list[dict[str, Any]] = []
     summary, images = None, 0
@@ -272,3 +269,36 @@ def read_run(path: str | os.PathLike[str]) -> RecordedRun:
         summary=summary,
         image_count=images,
     )
+
+
+def step_recorder(writer: McapRunWriter, route_images: np.ndarray) -> Any:
+    """An ``on_step`` callback for ``runtime.repeater.Repeater``: each record (the terminal one included, with
+    its status as the decision) goes to ``writer``, with the image of the subgoal it steered to."""
+
+    def record(rec: Any) -> None:
+        if rec.image is None:  # the run ended before any valid frame: nothing was seen
+            return
+        status = getattr(rec, "status", None)
+        action = getattr(rec, "action", None)
+        decision = status.value if status is not None else getattr(action, "value", action)
+        subgoal = min(int(rec.subgoal), len(route_images) - 1)
+        writer.record(
+            {
+                "stamp": rec.stamp if rec.stamp is not None else 0.0,
+                "image": rec.image,
+                "subgoal_image": route_images[subgoal],
+                "v": rec.v,
+                "w": rec.w,
+                "pose": rec.pose,
+                "error": rec.error if math.isfinite(rec.error) else None,
+                "subgoal": rec.subgoal,
+                "from_subgoal": rec.from_subgoal,
+                "e_m": rec.e_m,
+                "decision": decision,
+                "advanced": rec.advanced,
+                "jumped_to": rec.jumped_to,
+                "step": rec.step,
+            }
+        )
+
+    return record

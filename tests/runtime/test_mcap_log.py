@@ -13,8 +13,11 @@ import pytest
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
+from runtime_fakes import FakeSim, build_velocitynet_onnx, corridor_route
 
+from vtr.runtime import cli
 from vtr.runtime.mcap_log import TOPICS, McapRunWriter, read_run
+from vtr.sim2d.server import ServerThread
 
 
 def steps(n: int = 6) -> list[dict]:
@@ -116,5 +119,34 @@ def test_an_unfinished_run_is_never_at_the_final_path(tmp_path: Path) -> None:
 
 def test_without_rosbags_the_error_names_the_extra(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "rosbags", None)
-    with pytest.raises(RuntimeError, match=r"pip install 'vtr-mpc\[ros\]'"):
+    with pytest.raises(ModuleNotFoundError, match=r"pip install 'vtr-mpc\[ros\]'"):
         McapRunWriter(tmp_path / "run.mcap")
+
+
+def test_vtr_repeat_mcap_writes_the_whole_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    model = build_velocitynet_onnx(str(tmp_path / "tiny.onnx"))
+    route_path = tmp_path / "route.npz"
+    route = corridor_route()
+    route.save(route_path)
+    out = tmp_path / "run.mcap"
+    with ServerThread(FakeSim()) as server:
+        argv = ["repeat", "--sim", server.endpoint, "--model", model, "--route", str(route_path), "--json"]
+        assert cli.main([*argv, "--mcap", str(out)]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    run = read_run(out)
+    assert len(run.commands) == summary["steps"] + 1  # every command, and the record that ended the run
+    assert run.summary is not None and run.summary["status"] == "finished"
+    assert run.steps[-1]["decision"] == "finished" and tuple(run.commands[-1]) == (0.0, 0.0)
+    assert run.steps[0]["decision"] == "command" and run.commands[:, 0].max() > 0
+    assert np.isfinite(run.poses).all() and run.poses[-1, 0] > run.poses[0, 0]  # it drove along the corridor
+    np.testing.assert_allclose(run.times[1], 0.1, atol=1e-6)  # the robot's clock
+    with AnyReader([out]) as reader:
+        goals = [
+            reader.deserialize(r, c.msgtype)
+            for c, _, r in reader.messages()
+            if c.topic == "/vtr/subgoal/image"
+        ]
+    first = run.steps[0]["subgoal"]
+    np.testing.assert_array_equal(
+        np.asarray(goals[0].data).reshape(route.images.shape[1:]), route.images[first]
+    )
