@@ -816,6 +816,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--threads", type=int, default=1, help="inference threads per worker")
     parser.add_argument("--workers", type=int, default=2, help="processes over routes")
     parser.add_argument("--quick", action="store_true", help="one short route, noise scenario only, no MPC")
+    parser.add_argument("--run", type=Path, default=None, help="score a run recorded by `vtr repeat --mcap`")
+    parser.add_argument(
+        "--taught", type=Path, default=None, help="--run: the taught route (.npz) it repeated"
+    )
 
 
 def config_from_args(args: argparse.Namespace) -> EvalConfig:
@@ -842,6 +846,10 @@ def config_from_args(args: argparse.Namespace) -> EvalConfig:
 
 
 def run_cli(args: argparse.Namespace) -> int:
+    if args.run is not None:  # a recorded run from any robot instead of simulated runs
+        from vtr.benchmarks.recorded_runs import run_cli as score_run_cli
+
+        return score_run_cli(args)
     try:
         cfg = config_from_args(args)
     except ValueError as err:
