@@ -47,6 +47,7 @@ _EXTRA_OF_MODULE = {
     "tqdm": "train",
     "gymnasium": "dev",
     "rosbags": "ros",
+    "foxglove": "foxglove",
 }
 
 

@@ -29,6 +29,7 @@ from typing import IO
 import numpy as np
 
 from vtr.runtime.controller import ControllerConfig
+from vtr.runtime.mcap_log import step_recorder
 from vtr.runtime.repeater import RepeatConfig, Repeater, StepRecord, Summary
 from vtr.runtime.robot import RobotError
 
@@ -58,6 +59,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="PATH",
         help="also write the run as a ROS 2 MCAP bag for Foxglove / ros2 bag play (PATH.mcap: one file; "
         "else a bag folder); needs pip install 'vtr-mpc[ros]'",
+    )
+    parser.add_argument(
+        "--foxglove",
+        nargs="?",
+        type=int,
+        const=8765,
+        default=None,
+        metavar="PORT",
+        help="serve the run live to Foxglove on ws://127.0.0.1:PORT (default port 8765); "
+        "needs pip install 'vtr-mpc[foxglove]'",
     )
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     parser.add_argument(
@@ -109,6 +120,7 @@ class RepeatRunConfig:
     route: str  # route .npz path
     log: str | None = None  # JSON-lines log path
     mcap: str | None = None  # MCAP run path (runtime.mcap_log)
+    foxglove_port: int | None = None  # live view on 127.0.0.1 (runtime.foxglove_live)
     threads: int = 1  # onnxruntime intra-op threads
     timeout_s: float = 2.0  # per-reply timeout
     retries: int = 3  # tries per request
@@ -142,9 +154,17 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
     policy.check_route(route)
     mcap = None
     if cfg.mcap:
-        from vtr.runtime.mcap_log import McapRunWriter, step_recorder
+        from vtr.runtime.mcap_log import McapRunWriter
 
         mcap = McapRunWriter(cfg.mcap)
+    live = None
+    if cfg.foxglove_port is not None:
+        from vtr.runtime.foxglove_live import FoxgloveLive
+
+        live = FoxgloveLive(cfg.foxglove_port)
+        print(
+            f"vtr repeat: live view for Foxglove on ws://127.0.0.1:{live.port}", file=sys.stderr, flush=True
+        )
     log_file = open(cfg.log, "w", encoding="utf-8") if cfg.log else None  # noqa: SIM115
     try:
         with SimClient(cfg.sim, cfg.timeout_s, cfg.retries, expect_shape=policy.image_shape) as client:
@@ -156,6 +176,8 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
             callbacks = [log_writer(log_file)] if log_file is not None else []
             if mcap is not None:
                 callbacks.append(step_recorder(mcap, route.images))
+            if live is not None:
+                callbacks.append(step_recorder(live, route.images))
             on_step = (lambda rec: [cb(rec) for cb in callbacks]) if callbacks else None
             repeater = Repeater(
                 client, policy, route, config=cfg.repeat, on_step=on_step, stop_event=stop_event
@@ -171,6 +193,8 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
             log_file.close()
         if mcap is not None:
             mcap.close()
+        if live is not None:
+            live.close()
 
 
 def run_cli(args: argparse.Namespace) -> int:
@@ -190,6 +214,7 @@ def run_cli(args: argparse.Namespace) -> int:
         route=args.route,
         log=args.log,
         mcap=args.mcap,
+        foxglove_port=args.foxglove,
         threads=args.threads,
         timeout_s=args.timeout,
         retries=args.retries,

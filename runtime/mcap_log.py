@@ -271,34 +271,39 @@ def read_run(path: str | os.PathLike[str]) -> RecordedRun:
     )
 
 
-def step_recorder(writer: McapRunWriter, route_images: np.ndarray) -> Any:
-    """An ``on_step`` callback for ``runtime.repeater.Repeater``: each record (the terminal one included, with
-    its status as the decision) goes to ``writer``, with the image of the subgoal it steered to."""
+def step_fields(rec: Any, route_images: np.ndarray) -> dict[str, Any] | None:
+    """A ``runtime.repeater.StepRecord`` as the mapping the run sinks take (:meth:`McapRunWriter.record`,
+    ``runtime.foxglove_live``): the terminal record carries its status as the decision; None when the run ended
+    before any valid frame (nothing was seen)."""
+    if rec.image is None:
+        return None
+    status = getattr(rec, "status", None)
+    action = getattr(rec, "action", None)
+    decision = status.value if status is not None else getattr(action, "value", action)
+    return {
+        "stamp": rec.stamp if rec.stamp is not None else 0.0,
+        "image": rec.image,
+        "subgoal_image": route_images[min(int(rec.subgoal), len(route_images) - 1)],
+        "v": rec.v,
+        "w": rec.w,
+        "pose": rec.pose,
+        "error": rec.error if math.isfinite(rec.error) else None,
+        "subgoal": rec.subgoal,
+        "from_subgoal": rec.from_subgoal,
+        "e_m": rec.e_m,
+        "decision": decision,
+        "advanced": rec.advanced,
+        "jumped_to": rec.jumped_to,
+        "step": rec.step,
+    }
+
+
+def step_recorder(sink: Any, route_images: np.ndarray) -> Any:
+    """An ``on_step`` callback for ``runtime.repeater.Repeater`` that hands each record to ``sink.record``."""
 
     def record(rec: Any) -> None:
-        if rec.image is None:  # the run ended before any valid frame: nothing was seen
-            return
-        status = getattr(rec, "status", None)
-        action = getattr(rec, "action", None)
-        decision = status.value if status is not None else getattr(action, "value", action)
-        subgoal = min(int(rec.subgoal), len(route_images) - 1)
-        writer.record(
-            {
-                "stamp": rec.stamp if rec.stamp is not None else 0.0,
-                "image": rec.image,
-                "subgoal_image": route_images[subgoal],
-                "v": rec.v,
-                "w": rec.w,
-                "pose": rec.pose,
-                "error": rec.error if math.isfinite(rec.error) else None,
-                "subgoal": rec.subgoal,
-                "from_subgoal": rec.from_subgoal,
-                "e_m": rec.e_m,
-                "decision": decision,
-                "advanced": rec.advanced,
-                "jumped_to": rec.jumped_to,
-                "step": rec.step,
-            }
-        )
+        fields = step_fields(rec, route_images)
+        if fields is not None:
+            sink.record(fields)
 
     return record
