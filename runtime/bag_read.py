@@ -70,6 +70,17 @@ class BagDrive:
     def __len__(self) -> int:
         return int(self.images.shape[0])
 
+    def camera(self, fov_deg: float | None = None, height_m: float | None = None) -> dict[str, Any]:
+        """The camera of the resampled images (docs/PROTOCOL.md's hello camera): the square crop narrows the
+        horizontal field of view of a wide camera, so ``fov_deg`` (the native one) is converted."""
+        size = int(self.images.shape[2]) if len(self) else 0
+        native = self.source.get("camera") or {}
+        fov = None
+        if fov_deg is not None and native:
+            ratio = min(native["width"], native["height"]) / native["width"]
+            fov = math.degrees(2 * math.atan(math.tan(math.radians(fov_deg) / 2) * ratio))
+        return {"width": size, "height": size, "fov_deg": fov, "height_m": height_m, "native": native}
+
     def report(self) -> str:
         lines = [
             f"{self.source.get('images', 0)} camera frames and {self.source.get('commands', 0)} commands over "
@@ -319,6 +330,12 @@ def add_arguments(parser: Any, what: str) -> None:
         type=float,
         default=0.5,
         help="a command older than this counts as zero, s (default 0.5)",
+    )
+    group.add_argument(
+        "--camera-fov", type=float, default=None, help="the camera's horizontal field of view, deg"
+    )
+    group.add_argument(
+        "--camera-height", type=float, default=None, help="the camera's height above the floor, m"
     )
 
 

@@ -21,7 +21,11 @@ from vtr.runtime.teach import TeachConfig, _due
 
 
 def route_from_drive(
-    drive: BagDrive, cfg: TeachConfig, segment: int | None = None, name: str = "bag"
+    drive: BagDrive,
+    cfg: TeachConfig,
+    segment: int | None = None,
+    name: str = "bag",
+    camera: dict[str, Any] | None = None,
 ) -> Route:
     """Subgoals from one segment of ``drive`` by ``cfg``'s spacing rule; the first and last frames always."""
     if len(drive) == 0:
@@ -52,14 +56,12 @@ def route_from_drive(
         chosen.append(len(frames) - 1)
     commands = drive.commands[frames[chosen]].copy()
     commands[-1] = 0.0
-    size = drive.images.shape[1]
-    camera = {"width": size, "height": size, "source": "bag", "native": drive.source.get("camera", {})}
     return Route(
         images=drive.images[frames[chosen]],
         poses=poses[chosen],
         commands=commands,
         name=name,
-        camera=camera,
+        camera=camera if camera is not None else drive.camera(),
         spacing=cfg.rule(),
         map=None,
         dt=drive.dt,
@@ -84,9 +86,9 @@ def run_cli(args: Any, cfg: TeachConfig) -> int:
     try:
         drive = read_bag_args(args, cfg.dt, getattr(args, "image_size", 128))
         print(drive.report())
-        route = route_from_drive(
-            drive, cfg, args.segment, name=os.path.splitext(os.path.basename(args.out))[0]
-        )
+        name = os.path.splitext(os.path.basename(args.out))[0]
+        camera = drive.camera(args.camera_fov, args.camera_height)
+        route = route_from_drive(drive, cfg, args.segment, name=name, camera=camera)
         route.save(args.out)
     except (BagError, OSError) as exc:
         print(f"vtr teach: {exc}", file=sys.stderr)

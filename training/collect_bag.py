@@ -19,7 +19,7 @@ from vtr.training.dataset import FORMAT_VERSION, FrameData, save_dataset
 MIN_EPISODE = 3
 
 
-def dataset_from_drive(drive: BagDrive) -> FrameData:
+def dataset_from_drive(drive: BagDrive, camera: dict[str, Any] | None = None) -> FrameData:
     """The drive as FrameData (episodes = segments); BagError when nothing is left."""
     keep = np.zeros(len(drive), bool)
     ids, counts = np.unique(drive.segments, return_counts=True)
@@ -43,11 +43,7 @@ def dataset_from_drive(drive: BagDrive) -> FrameData:
         "format_version": FORMAT_VERSION,
         "dt": drive.dt,
         "map": "bag",
-        "camera": {
-            "width": drive.images.shape[2],
-            "height": drive.images.shape[1],
-            "native": drive.source.get("camera", {}),
-        },
+        "camera": camera if camera is not None else drive.camera(),
         "bag": drive.source,
         "skipped": drive.skipped,
         "poses_known": known,
@@ -59,7 +55,7 @@ def run_cli(args: Any) -> int:
     """`vtr collect --bag PATH --image-topic T --cmd-topic T [--odom-topic T] --out data.npz`."""
     try:
         drive = read_bag_args(args, 0.1, args.image_size)
-        data = dataset_from_drive(drive)
+        data = dataset_from_drive(drive, drive.camera(args.camera_fov, args.camera_height))
         save_dataset(args.out, data)
     except (BagError, OSError) as exc:
         print(f"vtr collect: {exc}", file=sys.stderr)

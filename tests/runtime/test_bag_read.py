@@ -98,8 +98,10 @@ def test_vtr_teach_bag_writes_a_route(tmp_path: Path) -> None:
     bag = write_drive_bag(tmp_path / "bag")
     out = tmp_path / "route.npz"
     args = ["teach", "--bag", str(bag), "--image-topic", "/camera/image", "--cmd-topic", "/cmd_vel"]
-    assert cli.main([*args, "--odom-topic", "/odom", "--out", str(out)]) == 0
+    assert cli.main([*args, "--odom-topic", "/odom", "--out", str(out), "--camera-fov", "90"]) == 0
     route = Route.load(out)
+    # the 32x24 frames are cropped to 24x24: a 90 degree camera keeps 2 atan(0.75) of its view
+    assert route.camera["fov_deg"] == pytest.approx(73.74, abs=0.01) and route.camera["height_m"] is None
     assert len(route) == 16 and route.images.shape[1:] == (128, 128, 3)  # frames 0, 2, ..., 28 and the last
     assert route.commands[0, 0] == pytest.approx(0.2) and tuple(route.commands[-1]) == (0.0, 0.0)
     assert route.poses[1, 0] == pytest.approx(0.04) and route.dt == 0.1
