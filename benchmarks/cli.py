@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import importlib
 
+from vtr.runtime.cliargs import OneLineParser
+
 # subcommand -> (module, summary); modules load only when their subcommand runs
 SUBCOMMANDS = {
     "latency": (
@@ -23,6 +25,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run_cli(args: argparse.Namespace) -> int:
     module_name, summary = SUBCOMMANDS[args.subcommand]
     module = importlib.import_module(module_name)
-    sub = argparse.ArgumentParser(prog=f"vtr bench {args.subcommand}", description=summary)
+    sub = OneLineParser(prog=f"vtr bench {args.subcommand}", description=summary)
     module.add_arguments(sub)
     return int(module.run_cli(sub.parse_args(args.rest)) or 0)

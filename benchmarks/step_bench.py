@@ -70,12 +70,20 @@ class BenchStep:
     """``Repeater.step`` on a ``LoopbackRobot`` showing ``current`` while steering to ``subgoal``.
 
     The controller never switches (fixed e_m below any error, no stall guard, no settling): every step
-    commands, the worst case. The zero command after each step is sent, as the daemon does.
+    commands, the worst case. The zero command after each step is sent, as the daemon does by default
+    (stop-and-go); ``continuous=True`` leaves it out (`vtr repeat --continuous`).
     """
 
     name = "runtime.repeater.Repeater.step on a loopback link (protocol decode/encode, no socket)"
 
-    def __init__(self, model: str | Path, threads: int, current: np.ndarray, subgoal: np.ndarray) -> None:
+    def __init__(
+        self,
+        model: str | Path,
+        threads: int,
+        current: np.ndarray,
+        subgoal: np.ndarray,
+        continuous: bool = False,
+    ) -> None:
         from vtr.runtime.controller import ControllerConfig
         from vtr.runtime.policy import OnnxPolicy
         from vtr.runtime.repeater import RepeatConfig, Repeater
@@ -90,7 +98,9 @@ class BenchStep:
             name="bench",
             dt=self.policy.meta.dt,
         )
-        controller = ControllerConfig(e_m_mode="fixed", e_m=1e-3, stall_steps=0, settle_steps=0)
+        controller = ControllerConfig(
+            e_m_mode="fixed", e_m=1e-3, stall_steps=0, settle_steps=0, continuous=continuous
+        )
         self.repeater = Repeater(
             self.robot, self.policy, route, config=RepeatConfig(controller=controller, max_steps=10**12)
         )

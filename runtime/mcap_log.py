@@ -296,14 +296,3 @@ def step_fields(rec: Any, route_images: np.ndarray) -> dict[str, Any] | None:
         "jumped_to": rec.jumped_to,
         "step": rec.step,
     }
-
-
-def step_recorder(sink: Any, route_images: np.ndarray) -> Any:
-    """An ``on_step`` callback for ``runtime.repeater.Repeater`` that hands each record to ``sink.record``."""
-
-    def record(rec: Any) -> None:
-        fields = step_fields(rec, route_images)
-        if fields is not None:
-            sink.record(fields)
-
-    return record

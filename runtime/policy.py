@@ -52,6 +52,13 @@ class OnnxPolicy:
         self.nonfinite_count = 0
         #: Durations of the last predict() stages, in milliseconds.
         self.last_timing_ms: dict[str, float] = {}
+        # The subgoal changes every few steps, the current image every step: the subgoal's tensor is kept
+        # while the same array object comes back (the Repeater passes one view per subgoal).
+        self._subgoal_src: np.ndarray | None = None
+        self._subgoal_feed: np.ndarray | None = None
+        self._high = np.array([[self.meta.v_max], [self.meta.w_max]], dtype=np.float32)
+        self._low = -self._high
+        self._expect = (self.meta.image_height, self.meta.image_width, 3)
 
     def _check_signature(self) -> None:
         meta = self.meta
@@ -104,13 +111,18 @@ class OnnxPolicy:
 
     # ------------------------------------------------------------------ stages
     def preprocess(self, current: np.ndarray, subgoal: np.ndarray) -> dict[str, np.ndarray]:
-        """uint8 (H, W, 3) images -> the session's feeds (float32 (1, 3, H, W) each)."""
-        for name, image in ((INPUT_CURRENT, current), (INPUT_SUBGOAL, subgoal)):
-            if image.shape != (*self.image_shape, 3):
-                raise ValueError(
-                    f"{name} image has shape {image.shape}, the model takes {(*self.image_shape, 3)}"
-                )
-        return {INPUT_CURRENT: to_nchw(current), INPUT_SUBGOAL: to_nchw(subgoal)}
+        """uint8 (H, W, 3) images -> the session's feeds (float32 (1, 3, H, W) each).
+
+        The subgoal's tensor is reused while ``subgoal`` is the same array object as last time, so a
+        subgoal image must not be changed in place while it is being steered to."""
+        if current.shape != self._expect or subgoal.shape != self._expect:
+            which, image = (
+                (INPUT_CURRENT, current) if current.shape != self._expect else (INPUT_SUBGOAL, subgoal)
+            )
+            raise ValueError(f"{which} image has shape {image.shape}, the model takes {self._expect}")
+        if subgoal is not self._subgoal_src or self._subgoal_feed is None:
+            self._subgoal_feed, self._subgoal_src = to_nchw(subgoal), subgoal
+        return {INPUT_CURRENT: to_nchw(current), INPUT_SUBGOAL: self._subgoal_feed}
 
     def infer(self, feeds: dict[str, np.ndarray]) -> np.ndarray:
         """Run the network; returns the raw (2, N) output of the first batch item."""
@@ -120,11 +132,10 @@ class OnnxPolicy:
     def postprocess(self, raw: np.ndarray) -> np.ndarray:
         """Non-finite -> zero command (counted); finite values clipped to the model's v/w limits."""
         raw = np.asarray(raw, dtype=np.float32).reshape(2, self.meta.horizon)
-        if not np.all(np.isfinite(raw)):
+        if not np.isfinite(raw).all():
             self.nonfinite_count += 1
             return np.zeros((2, self.meta.horizon), dtype=np.float32)
-        limits = np.array([[self.meta.v_max], [self.meta.w_max]], dtype=np.float32)
-        return np.clip(raw, -limits, limits)
+        return raw.clip(self._low, self._high)  # the method: half the call overhead of np.clip
 
     def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
         """(H, W, 3) uint8 current and subgoal images -> (2, N): row 0 v (m/s), row 1 w (rad/s)."""

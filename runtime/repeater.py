@@ -40,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from vtr.runtime.cliargs import opt
 from vtr.runtime.contracts import CONTROL_DT, Observation, Policy, Robot
 from vtr.runtime.controller import Action, Controller, ControllerConfig, Decision, Verdict
 from vtr.runtime.protocol import BadFrameError
@@ -70,9 +71,9 @@ class RepeatConfig:
     #: Seconds each command is applied for; None takes the model's metadata dt (the paper's 0.1 s).
     dt: float | None = None
     #: Control steps (commands sent) before giving up: a lost robot must stop.
-    max_steps: int = 2000
+    max_steps: int = opt(2000, "stop after this many control steps (a lost robot must stop)")
     #: Seconds without a valid frame before the run ends.
-    frame_timeout_s: float = 5.0
+    frame_timeout_s: float = opt(5.0, "seconds without a valid frame before stopping", flag="--frame-timeout")
     #: Pause between re-polls after a bad frame, in seconds.
     bad_frame_backoff_s: float = 0.05
 
@@ -80,9 +81,9 @@ class RepeatConfig:
         if self.dt is not None and not (math.isfinite(self.dt) and self.dt > 0):
             raise ValueError(f"dt must be a positive number of seconds, got {self.dt!r}")
         if self.max_steps < 1:
-            raise ValueError(f"max_steps must be >= 1, got {self.max_steps}")
+            raise ValueError(f"--max-steps must be >= 1, got {self.max_steps}")
         if not self.frame_timeout_s > 0:
-            raise ValueError(f"frame_timeout_s must be > 0, got {self.frame_timeout_s}")
+            raise ValueError(f"--frame-timeout must be > 0 seconds, got {self.frame_timeout_s}")
         if self.bad_frame_backoff_s < 0:
             raise ValueError(f"bad_frame_backoff_s must be >= 0, got {self.bad_frame_backoff_s}")
 
@@ -232,6 +233,9 @@ class Repeater:
             )
         self.dt = float(self.config.dt if self.config.dt is not None else (model_dt or CONTROL_DT))
         self.controller = controller or Controller(route.images, self.config.controller)
+        # one view object per subgoal, passed again while it is steered to (OnnxPolicy keeps its tensor)
+        self._views = list(self.controller.subgoals)
+        self._last = len(self._views) - 1
         self.on_step = on_step
         self.stop_event = stop_event or threading.Event()
         self.max_steps = self.config.max_steps
@@ -327,7 +331,7 @@ class Repeater:
             return self._end(status, decision.note if status is not RepeatStatus.FINISHED else "", verdict)
         if self.steps >= self.max_steps:
             return self._end(RepeatStatus.STEP_LIMIT, "", verdict)
-        velocities = self.policy.predict(obs.image, self.controller.subgoal)
+        velocities = self.policy.predict(obs.image, self._views[min(self.controller.index, self._last)])
         v, w = float(velocities[0, 0]), float(velocities[1, 0])
         t_policy = time.perf_counter()
         stage = dict(getattr(self.policy, "last_timing_ms", None) or {})

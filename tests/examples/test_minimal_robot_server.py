@@ -55,7 +55,7 @@ def test_the_example_can_be_taught_a_route(endpoint: str) -> None:
 def test_collect_repeat_and_eval_work_on_the_example_unchanged(
     endpoint: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from vtr.runtime import cli
+    from vtr import cli
     from vtr.training.dataset import load_dataset
 
     data = tmp_path / "room.npz"

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from bag_fixtures import picture, write_drive_bag
 
-from vtr.runtime import cli
+from vtr import cli
 from vtr.runtime.bag_read import BagError, read_bag
 from vtr.runtime.route import Route
 from vtr.training.dataset import load_dataset

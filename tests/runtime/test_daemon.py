@@ -228,7 +228,7 @@ def test_server_killed_for_good_the_repeat_stops_cleanly(policy_path):
 
 
 def test_teach_then_repeat_over_zeromq_through_the_cli(policy_path, tmp_path, capsys):
-    from vtr.runtime.cli import main
+    from vtr.cli import main
     from vtr.runtime.route import Route
 
     script = tmp_path / "corridor.json"
@@ -286,11 +286,11 @@ def test_teach_spacing_rules(tmp_path):
 
 
 def test_repeat_config_validation():
-    with pytest.raises(ValueError, match="max_steps"):
+    with pytest.raises(ValueError, match="max-steps"):
         RepeatConfig(max_steps=0)
     with pytest.raises(ValueError, match="dt"):
         RepeatConfig(dt=-0.1)
-    with pytest.raises(ValueError, match="frame_timeout_s"):
+    with pytest.raises(ValueError, match="frame-timeout"):
         RepeatConfig(frame_timeout_s=0)
 
 
@@ -317,7 +317,7 @@ def test_camera_at_the_wrong_resolution_never_reaches_the_network(policy_path):
 
 
 def test_cli_reports_bad_inputs_without_a_traceback(policy_path, tmp_path, capsys):
-    from vtr.runtime.cli import main
+    from vtr.cli import main
 
     route = tmp_path / "route.npz"
     corridor_route(h=8, w=8).save(route)

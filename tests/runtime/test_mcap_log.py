@@ -15,7 +15,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 from runtime_fakes import FakeSim, build_velocitynet_onnx, corridor_route
 
-from vtr.runtime import cli
+from vtr import cli
 from vtr.runtime.mcap_log import TOPICS, McapRunWriter, read_run
 from vtr.sim2d.server import ServerThread
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vtr.runtime import cli
+from vtr import cli
 from vtr.runtime.robot import Observation, RobotError
 from vtr.sim2d import SimConfig, Simulator
 from vtr.sim2d.server import ServerThread

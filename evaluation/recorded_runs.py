@@ -1,7 +1,7 @@
 """`vtr eval --run RUN.mcap --taught ROUTE.npz`: score a run recorded with `vtr repeat --mcap` on any robot.
 
 The run's poses (where the robot reported them) are compared with the taught route's poses by the same metrics
-as the simulator evaluation (benchmarks.metrics.route_metrics); completion comes from the run's summary.
+as the simulator evaluation (evaluation.metrics.route_metrics); completion comes from the run's summary.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from vtr.benchmarks import metrics
+from vtr.evaluation import metrics
 from vtr.runtime.mcap_log import RecordedRun, read_run
 from vtr.runtime.route import Route
 
@@ -49,9 +49,9 @@ def run_cli(args: Any) -> int:
         print(f"vtr eval: {exc}", file=sys.stderr)
         return 2
     text = json.dumps(result, indent=2, default=float)
-    if args.json is not None:
+    if args.json_path is not None:
         from vtr.runtime.atomic import write_text_atomic
 
-        write_text_atomic(Path(args.json), text)
+        write_text_atomic(Path(args.json_path), text)
     print(text)
     return 0

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vtr.runtime import cli
+from vtr import cli
 from vtr.runtime.mcap_log import McapRunWriter
 from vtr.runtime.route import Route
 
