@@ -232,6 +232,11 @@ def collect(cfg: RobotCollectConfig, client: Any, log: Any = sys.stdout) -> dict
     except Exception as exc:  # a robot that cannot be reset drives continuously from where it stands
         print(f"collect: no reset ({exc}); driving continuously from here", file=log)
         obs, can_reset = client.observe(), False
+    h, w = obs.image.shape[:2]
+    if h != w:  # found now, not after an hour of driving when the dataset is written
+        raise DatasetError(
+            f"the robot's images are {w}x{h}; datasets hold square images: crop them in the bridge"
+        )
     episode_len = int(rng.integers(cfg.episode_min, cfg.episode_max + 1))
     in_episode, recent_hits, last_save, t0, last_print = 0, [], start_frames, time.monotonic(), 0.0
     episodes_done = 0

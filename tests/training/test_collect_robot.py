@@ -150,3 +150,11 @@ def test_driver_respects_limits_and_backs_off() -> None:
     assert all(kind == "escape" and v < 0 for kind, v, _ in escape)
     turn = [driver.next() for _ in range(round(math.pi / (0.8 * 0.7 * cfg.dt)))]
     assert all(v == 0 and w != 0 for _, v, w in turn)
+
+
+def test_a_camera_that_is_not_square_is_refused_before_driving(tmp_path: Path) -> None:
+    robot = CorridorRobot()
+    robot._obs = lambda collided=False: Observation(np.zeros((6, 8, 3), np.uint8), 0.0)  # type: ignore[method-assign]
+    with pytest.raises(ValueError, match="images are 8x6; datasets hold square images"):
+        collect(config(tmp_path, 50), robot)
+    assert robot.steps == [] and not (tmp_path / "d.npz").exists()
