@@ -1,4 +1,4 @@
-"""`vtr bench`: `latency` (per control step, per backend) and `sim` (simulator throughput)."""
+"""`vtr bench`: `latency` (per control step, per backend), `sim` (simulator throughput), `link` (faults)."""
 
 from __future__ import annotations
 
@@ -14,6 +14,10 @@ SUBCOMMANDS = {
         "CPU latency of one control step, stage by stage and backend by backend",
     ),
     "sim": ("vtr.benchmarks.sim_throughput", "simulator steps per second (in-process and over ZeroMQ)"),
+    "link": (
+        "vtr.benchmarks.link_faults",
+        "the robot link under fuzzed messages, silence, reboots and SIGKILL",
+    ),
 }
 
 

@@ -66,7 +66,7 @@ class LatencyConfig:
     json_path: Path | None = opt(None, "write every number here", flag="--json")
 
     def __post_init__(self) -> None:
-        from vtr.models import find_model
+        from vtr.models import find_int8, find_model
         from vtr.runtime.policy import OnnxPolicy
 
         self.model = find_model(self.model)
@@ -88,11 +88,7 @@ class LatencyConfig:
             raise ValueError(f"unknown backends: {sorted(unknown)}")
         if self.matmul_size < 16:
             raise ValueError(f"matmul_size must be >= 16, got {self.matmul_size}")
-        if self.int8_model is None:
-            sibling = self.model.with_name(self.model.stem + "-int8" + self.model.suffix)
-            self.int8_model = sibling if sibling.is_file() else None
-        elif not Path(self.int8_model).is_file():
-            raise ValueError(f"int8 model file not found: {self.int8_model}")
+        self.int8_model = find_int8(self.model, self.int8_model)
 
 
 def sample_frames(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:

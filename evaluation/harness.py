@@ -33,7 +33,7 @@ from vtr.evaluation.plots import write_plots
 from vtr.evaluation.runs import PoseOracle, repeat_closed_loop, repeat_open_loop
 from vtr.evaluation.scoring import PAPER, PAPER_ROUTES, aggregate, bar_checks, score
 from vtr.evaluation.tables import markdown_report
-from vtr.models import find_model
+from vtr.models import find_int8, find_model
 from vtr.runtime.atomic import write_text_atomic
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT, Policy
@@ -91,11 +91,7 @@ class EvalConfig:
             value = getattr(self, name)
             if value is not None and not Path(value).is_file():
                 raise ValueError(f"{name} not found: {value}")
-        if self.int8_model is None:
-            sibling = self.model.with_name(self.model.stem + "-int8" + self.model.suffix)
-            self.int8_model = sibling if sibling.is_file() else None
-        elif not Path(self.int8_model).is_file():
-            raise ValueError(f"int8 model not found: {self.int8_model}")
+        self.int8_model = find_int8(self.model, self.int8_model)
         if self.mpc_samples < 2 or self.mpc_iterations < 1:
             raise ValueError(f"mpc_samples must be >= 2 and mpc_iterations >= 1, got {self.mpc_samples}, "
                              f"{self.mpc_iterations}")  # fmt: skip

@@ -19,8 +19,9 @@ import numpy as np
 import zmq
 
 PROTO, VERSION = "vtr-sim", 1
+COMMANDS = ("hello", "reset", "observe", "step", "stop")
 LIMITS = {"v_max": 0.5, "w_max": 1.0, "max_duration": 10.0}
-CAMERA = {"width": 128, "height": 128, "fov_deg": 90.0, "camera_height": 0.3}
+CAMERA = {"width": 128, "height": 128, "fov_deg": 90.0, "height_m": 0.3}
 HALF, RADIUS = 2.0, 0.2  # half the room's side and the robot's radius, metres
 WALL_COLOURS = np.array([[200, 60, 50], [60, 160, 70], [50, 90, 200], [220, 190, 60]], np.float64)
 
@@ -70,6 +71,14 @@ def _reject(token: str) -> float:
     raise ValueError(f"non-finite number {token}")
 
 
+class Refused(ValueError):
+    """A request this robot will not execute; ``code`` goes into the error reply."""
+
+    def __init__(self, message: str, code: str = "bad_request") -> None:
+        super().__init__(message)
+        self.code = code
+
+
 def handle(world: World, session: str, frames: list[bytes]) -> list[bytes]:
     """One request -> one reply. Every reply echoes proto, version, cmd and seq, and carries session and stamp."""
     reply = {"proto": PROTO, "version": VERSION, "cmd": None, "seq": None, "ok": True, "session": session}
@@ -78,16 +87,20 @@ def handle(world: World, session: str, frames: list[bytes]) -> list[bytes]:
         if not isinstance(req, dict):
             raise ValueError("the header must be a JSON object")
         cmd, seq = req.get("cmd"), req.get("seq")
-        reply.update(cmd=cmd if isinstance(cmd, str) else None, seq=seq if type(seq) is int else None)
+        reply.update(cmd=cmd if cmd in COMMANDS else None, seq=seq if type(seq) is int else None)
         if req.get("proto") != PROTO or req.get("version") != VERSION:
             raise ValueError(f"expected proto {PROTO!r} version {VERSION}")
         if type(seq) is not int or len(frames) != 1:
             raise ValueError("a request is one JSON frame with an integer 'seq'")
+        if (
+            cmd in ("reset", "step") and req.get("session", session) != session
+        ):  # meant for us before a reboot
+            raise Refused(f"session {req['session']!r} is not this robot's {session!r}", "session_mismatch")
         if cmd == "hello":
             reply.update(protocol_version=VERSION, camera=CAMERA, limits=LIMITS, dt=0.1, mode="lockstep")
         elif cmd == "reset":
             pose = req.get("pose") or {}
-            world.reset(*(float(pose.get(k, 0.0)) for k in ("x", "y", "yaw")))
+            world.reset(*(float(pose.get(k, 0.0)) for k in ("x", "y", "yaw")))  # our start pose: the centre
         elif cmd == "step":
             v, w, duration = (req.get(k) for k in ("v", "w", "duration"))
             if not all(type(a) in (int, float) for a in (v, w, duration)):
@@ -97,10 +110,10 @@ def handle(world: World, session: str, frames: list[bytes]) -> list[bytes]:
             if not 0 < duration <= LIMITS["max_duration"]:
                 raise ValueError(f"duration must be in (0, {LIMITS['max_duration']}] s")
             world.step(v, w, duration)
-        elif cmd not in ("observe", "stop"):
-            raise ValueError(f"unknown command {cmd!r}")
+        elif cmd not in COMMANDS:
+            raise ValueError(f"unknown command {cmd!r}; known: {', '.join(COMMANDS)}")
     except (ValueError, TypeError, AttributeError) as exc:  # json errors are ValueErrors
-        reply.update(ok=False, error=str(exc), stamp=world.time)
+        reply.update(ok=False, error=str(exc), code=getattr(exc, "code", "bad_request"), stamp=world.time)
         return [json.dumps(reply).encode()]
     reply["stamp"] = world.time
     if reply["cmd"] in ("hello", "stop"):

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from vtr.models import int8_path
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT
 
@@ -40,11 +41,6 @@ class ExportConfig:
             )
         if self.calibration_pairs < 1:
             raise ValueError(f"ExportConfig.calibration_pairs must be >= 1, got {self.calibration_pairs}")
-
-
-def int8_path(out: str | Path) -> Path:
-    out = Path(out)
-    return out.with_name(out.stem + "-int8" + out.suffix)
 
 
 def run(cfg: ExportConfig, data: Any = None) -> dict[str, Any]:

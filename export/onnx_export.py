@@ -15,7 +15,6 @@ and fails to down-convert to an explicit lower opset, and it writes ReduceMean f
 from __future__ import annotations
 
 import os
-import tempfile
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -24,6 +23,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from vtr.runtime.atomic import temp_dir
 from vtr.runtime.contracts import CONTROL_DT
 from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, PREFIX, ModelMeta
 from vtr.runtime.preprocess import PREPROCESSING
@@ -90,7 +90,7 @@ def export_onnx(
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     dynamic = {name: {0: "batch"} for name in (*input_names, *output_names)}
-    with tempfile.TemporaryDirectory(dir=out_path.parent) as tmpdir:
+    with temp_dir(out_path.parent) as tmpdir:  # removed on exit; a kill -9 leftover goes on the next run
         raw = os.path.join(tmpdir, "raw.onnx")
         kwargs: dict[str, Any] = {"dynamo": dynamo}
         if dynamo:

@@ -23,3 +23,19 @@ def find_model(explicit: str | Path | None = None, name: str = VELOCITYNET) -> P
     raise FileNotFoundError(
         f"no models/{name} here or in {MODELS_DIR}; pass --model, or train and export one (`vtr train all`)"
     )
+
+
+def int8_path(model: str | Path) -> Path:
+    """Where a model's int8 twin lives: ``<stem>-int8<suffix>`` beside it."""
+    model = Path(model)
+    return model.with_name(model.stem + "-int8" + model.suffix)
+
+
+def find_int8(model: Path, explicit: str | Path | None = None) -> Path | None:
+    """``explicit`` if given (it must exist), else the int8 twin beside ``model`` if there is one, else None."""
+    if explicit is not None:
+        if not Path(explicit).is_file():
+            raise FileNotFoundError(f"int8 model not found: {explicit}")
+        return Path(explicit)
+    twin = int8_path(model)
+    return twin if twin.is_file() else None

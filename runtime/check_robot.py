@@ -25,6 +25,8 @@ import zmq
 
 from vtr.runtime import protocol
 from vtr.runtime.check_link import CheckFailed, Link, image_diff, percentile_ms
+from vtr.runtime.contracts import CONTROL_DT
+from vtr.runtime.hello import Hello, parse_hello
 
 PASS, WARN, FAIL, SKIP = "PASS", "WARN", "FAIL", "SKIP"
 #: Image size the shipped model takes.
@@ -45,10 +47,10 @@ class Context:
     """What the checks learn from the robot, shared between them in order."""
 
     link: Link
-    hello: dict[str, Any] | None = None
+    hello: Hello | None = None
     camera: tuple[int, int] | None = None  # (height, width) announced
     limits: protocol.Limits | None = None
-    dt: float = 0.1
+    dt: float = CONTROL_DT  # step duration used by the checks
     resets: bool = False
     image: np.ndarray | None = None  # the last image seen
     noise_floor: float = 0.0  # mean abs difference between two frames of a robot at rest
@@ -97,50 +99,45 @@ def check_hello(ctx: Context) -> tuple[str, str]:
     if not reply.ok:
         raise CheckFailed(f"hello was refused: {reply.error}; hello must always succeed")
     ctx.note_stamp(reply)
-    ctx.hello = dict(reply.header)
-    if not reply.session:
-        return WARN, "no 'session' token: send a string that changes when the bridge restarts"
-    return PASS, f"session {reply.session}, mode {ctx.hello.get('mode', 'not announced')}"
-
-
-def check_hello_limits(ctx: Context) -> tuple[str, str]:
-    assert ctx.hello is not None
-    raw = ctx.hello.get("limits")
-    if not isinstance(raw, dict):
-        raise CheckFailed('hello must announce "limits": {"v_max": m/s, "w_max": rad/s, "max_duration": s}')
     try:
-        ctx.limits = protocol.Limits(**{k: float(raw[k]) for k in ("v_max", "w_max", "max_duration")})
-    except (KeyError, TypeError, ValueError) as exc:
-        raise CheckFailed(f"hello limits {raw!r} are incomplete or invalid: {exc}") from None
-    dt = ctx.hello.get("dt")
-    if isinstance(dt, int | float) and not isinstance(dt, bool) and 0 < dt <= ctx.limits.max_duration:
-        ctx.dt = float(dt)
-    lim = ctx.limits
-    return PASS, f"v_max {lim.v_max} m/s, w_max {lim.w_max} rad/s, max_duration {lim.max_duration} s"
+        ctx.hello = parse_hello(reply)
+    except protocol.BadFrameError as exc:
+        raise CheckFailed(f"hello: {exc} (docs/PROTOCOL.md, 'hello', lists what to announce)") from None
+    hello = ctx.hello
+    ctx.camera, ctx.limits = (hello.camera.height, hello.camera.width), hello.limits
+    ctx.dt = min(max(CONTROL_DT, hello.dt), hello.limits.max_duration)
+    lim = hello.limits
+    return PASS, (
+        f"session {hello.session}; limits v_max {lim.v_max} m/s, w_max {lim.w_max} rad/s, "
+        f"max_duration {lim.max_duration} s"
+    )
 
 
 def check_hello_camera(ctx: Context) -> tuple[str, str]:
     assert ctx.hello is not None
-    camera, where = ctx.hello.get("camera"), "camera"
-    if not isinstance(camera, dict):
-        info = ctx.hello.get("info")
-        camera, where = (info.get("camera"), "info.camera") if isinstance(info, dict) else (None, "")
-    if not isinstance(camera, dict):
-        raise CheckFailed('hello must announce "camera": {"width": px, "height": px, "fov_deg": deg, ...}')
-    width, height = camera.get("width"), camera.get("height")
-    if not all(isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in (width, height)):
-        raise CheckFailed(f"{where} needs integer 'width' and 'height' in pixels, got {camera!r}")
-    ctx.camera = (int(height), int(width))
-    missing = [k for k in ("fov_deg", "camera_height") if not isinstance(camera.get(k), int | float)]
-    text = f"{width}x{height} ({where})"
+    cam = ctx.hello.camera
+    text = f"{cam.width}x{cam.height}"
+    missing = [k for k in ("fov_deg", "height_m") if getattr(cam, k) is None]
     if missing:
         return (
             WARN,
-            f"{text}; announce {', '.join(missing)} so the runtime can compare the camera with the model's",
+            f"{text}; announce camera.{' and camera.'.join(missing)} so the runtime can compare the camera",
         )
-    if where != "camera":
-        return WARN, f"{text}; announce it at the top level as hello's 'camera'"
-    return PASS, f"{text}, fov {camera['fov_deg']} deg, height {camera['camera_height']} m"
+    return PASS, f"{text}, fov {cam.fov_deg} deg, height {cam.height_m} m"
+
+
+def check_hello_clock(ctx: Context) -> tuple[str, str]:
+    assert ctx.hello is not None
+    h = ctx.hello
+    text = f"mode {h.mode}, dt {h.dt} s"
+    if h.mode == "realtime":
+        if not h.cmd_vel_timeout:
+            return (
+                WARN,
+                f"{text}: announce and enforce cmd_vel_timeout (0.5 s) so a lost client leaves the robot at rest",
+            )
+        text += f", cmd_vel_timeout {h.cmd_vel_timeout} s"
+    return PASS, text
 
 
 def check_reset(ctx: Context) -> tuple[str, str]:
@@ -298,10 +295,63 @@ def check_errors(ctx: Context) -> tuple[str, str]:
             sent = json.loads(frames[0])
             if reply.seq != sent["seq"] or reply.cmd != sent["cmd"]:
                 warnings.append(f"{what}: cmd/seq not echoed")
+        if reply.code not in protocol.ERROR_CODES:
+            warnings.append(f"{what}: no error 'code' ({', '.join(protocol.ERROR_CODES)})")
     ctx.ask("observe")  # still serving
     if warnings:
-        return WARN, "; ".join(warnings) + " (echo them when they could be read)"
+        return WARN, "; ".join(warnings[:3]) + (
+            f" (and {len(warnings) - 3} more)" if len(warnings) > 3 else ""
+        )
     return PASS, f"{len(BAD_REQUESTS)} bad requests answered with ok: false, then served again"
+
+
+def check_session_guard(ctx: Context) -> tuple[str, str]:
+    """A motion command meant for another session (the robot rebooted under the client) must be refused."""
+    assert ctx.hello is not None and ctx.limits is not None
+    before = ctx.ask("observe")
+    stale = "x" + ctx.hello.session[:-1] if len(ctx.hello.session) > 1 else "stale"
+    try:
+        reply = ctx.link.ask("step", v=0.0, w=0.5 * ctx.limits.w_max, duration=ctx.dt, session=stale)
+    finally:
+        ctx.link.ask("stop")
+    after = ctx.ask("observe")
+    if reply.ok:
+        raise CheckFailed(
+            "a step naming another session was executed: refuse reset/step whose 'session' is not yours "
+            "(code session_mismatch), they were meant for the robot before a reboot"
+        )
+    assert before.image is not None and after.image is not None
+    if image_diff(before.image, after.image) > max(2.0, 2 * ctx.noise_floor + 1):
+        raise CheckFailed("a step naming another session was refused but the robot moved anyway")
+    if reply.code != "session_mismatch":
+        return WARN, f"refused with code {reply.code!r}; use 'session_mismatch'"
+    return PASS, "a step for another session refused (session_mismatch), the robot did not move"
+
+
+def check_watchdog(ctx: Context) -> tuple[str, str]:
+    """Realtime: with no new command the robot must come to rest within cmd_vel_timeout."""
+    assert ctx.hello is not None and ctx.limits is not None
+    if ctx.hello.mode != "realtime":
+        return PASS, "lockstep: the robot never moves between requests"
+    timeout = ctx.hello.cmd_vel_timeout or 0.0
+    if timeout <= 0 or timeout > 5.0:
+        return WARN, f"cmd_vel_timeout {timeout} s: not checked (announce 0.5 s and enforce it)"
+    try:
+        ctx.step(0.0, 0.5 * ctx.limits.w_max)  # the twist keeps driving after the reply...
+        time.sleep(max(timeout, ctx.dt) + 0.3)  # ...until the watchdog stops it
+        first = ctx.ask("observe")
+        time.sleep(0.3)
+        second = ctx.ask("observe")
+    finally:
+        ctx.link.ask("stop")
+    assert first.image is not None and second.image is not None
+    diff = image_diff(first.image, second.image)
+    if diff > max(2.0, 2 * ctx.noise_floor + 1):
+        raise CheckFailed(
+            f"still turning {timeout + 0.3:.1f} s after the last step (image change {diff:.1f}/255): "
+            "stop the robot when no command arrived within cmd_vel_timeout"
+        )
+    return PASS, f"at rest {timeout + 0.3:.1f} s after the last step (cmd_vel_timeout {timeout} s)"
 
 
 def check_latency(ctx: Context, count: int = 30) -> tuple[str, str]:
@@ -322,17 +372,19 @@ def check_latency(ctx: Context, count: int = 30) -> tuple[str, str]:
 # (name, function, needs): a check is skipped when a check it needs did not pass or warn.
 CHECKS: list[tuple[str, Check, tuple[str, ...]]] = [
     ("hello", check_hello, ()),
-    ("hello.limits", check_hello_limits, ("hello",)),
     ("hello.camera", check_hello_camera, ("hello",)),
-    ("reset", check_reset, ("hello.camera",)),
-    ("observe", check_observe, ("hello.camera",)),
+    ("hello.clock", check_hello_clock, ("hello",)),
+    ("reset", check_reset, ("hello",)),
+    ("observe", check_observe, ("hello",)),
     ("image", check_image, ("observe",)),
     ("stop", check_stop, ("hello",)),
-    ("step.zero", check_zero_step, ("observe", "hello.limits")),
-    ("step.turn", check_turn, ("observe", "hello.limits")),
+    ("step.zero", check_zero_step, ("observe",)),
+    ("step.turn", check_turn, ("observe",)),
     ("stamps", check_stamps, ("observe",)),
-    ("limits.enforced", check_limits_enforced, ("hello.limits",)),
+    ("limits.enforced", check_limits_enforced, ("hello",)),
     ("errors", check_errors, ("hello",)),
+    ("session.guard", check_session_guard, ("observe",)),
+    ("watchdog", check_watchdog, ("observe",)),
     ("latency", check_latency, ("hello",)),
 ]
 

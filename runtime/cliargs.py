@@ -67,6 +67,8 @@ def add_config_arguments(
             kwargs["choices"] = f.metadata["choices"]
         if f.metadata.get("metavar"):
             kwargs["metavar"] = f.metadata["metavar"]
+        elif tp is not bool and not f.metadata.get("choices"):
+            kwargs["metavar"] = flag_of(f).lstrip("-").replace("-", "_").upper()
         if tp is bool:
             kwargs["action"] = argparse.BooleanOptionalAction if default else "store_true"
             if default:

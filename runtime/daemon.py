@@ -31,6 +31,7 @@ import numpy as np
 from vtr.runtime.address import EXAMPLE, check_endpoint
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.controller import ControllerConfig
+from vtr.runtime.hello import check_robot_fits
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus, StepRecord, Summary
 from vtr.runtime.robot import RobotError
 from vtr.runtime.run_outputs import RunOutputs
@@ -59,7 +60,11 @@ class RepeatRunConfig:
     route: str = opt(help="taught route (.npz from `vtr teach`)")
     log: str | None = opt(None, "write one JSON line per control step here, then the summary")
     threads: int = opt(1, "onnxruntime intra-op threads")
-    timeout_s: float = opt(2.0, "seconds to wait for each reply", flag="--timeout")
+    timeout_s: float = opt(
+        0.3,
+        "seconds to wait for a reply beyond the step's own duration; then a stop is sent",
+        flag="--timeout",
+    )
     retries: int = opt(3, "tries per request before giving up")
     #: "route": reset the simulator to the route's first pose before repeating; "here": start where it is
     #: (a real robot placed by hand, or a bridge that does not implement reset).
@@ -101,7 +106,12 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
     policy = OnnxPolicy(cfg.model, threads=cfg.threads)
     route = Route.load(cfg.route)
     policy.check_route(route)
-    with SimClient(cfg.sim, cfg.timeout_s, cfg.retries, expect_shape=policy.image_shape) as client:
+    with SimClient(
+        cfg.sim, cfg.timeout_s, cfg.retries, expect_shape=policy.image_shape, cancel=stop_event
+    ) as client:
+        # what the robot announces: its limits check every step, its camera must match route and model
+        for note in check_robot_fits(client.handshake(), route.camera, policy.meta):
+            print(f"vtr repeat: note: {note}", file=sys.stderr)
         if cfg.start == "route":
             pose = route.poses[0]
             if not np.all(np.isfinite(pose)):
@@ -191,6 +201,7 @@ def run_cli(args: argparse.Namespace) -> int:
             f"vtr repeat: {s.status.value}{' (' + s.detail + ')' if s.detail else ''}; {s.subgoals_reached}/{s.subgoals_total} "
             f"subgoals, {s.steps} steps, e_m={s.e_m:.2f}, simulated {s.sim_time_s:.1f} s, wall {s.wall_time_s:.1f} s, "
             f"bad frames {s.bad_frames}, non-finite outputs {s.nonfinite_outputs}"
+            + (f", re-localised after {s.robot_restarts} robot restart(s)" if s.robot_restarts else "")
         )
     if summary.status is RepeatStatus.INTERRUPTED:
         return 130

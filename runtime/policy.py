@@ -16,6 +16,9 @@ import onnxruntime as ort
 from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
 from vtr.runtime.preprocess import PREPROCESSING, to_nchw
 
+#: A VelocityNet is a few MB; a file past this is refused before onnxruntime reads it.
+MAX_MODEL_BYTES = 256 * 1024 * 1024
+
 
 class ModelMismatchError(ValueError):
     """The ONNX model (or a route used with it) does not match what the runtime expects."""
@@ -29,12 +32,19 @@ def _dim_ok(dim: Any, expected: int) -> bool:
 class OnnxPolicy:
     """One onnxruntime session, created once. ``threads`` sets intra-op threads (default 1, a small board)."""
 
-    def __init__(self, path: str | os.PathLike[str], threads: int = 1) -> None:
+    def __init__(
+        self, path: str | os.PathLike[str], threads: int = 1, max_bytes: int = MAX_MODEL_BYTES
+    ) -> None:
         if threads < 1:
             raise ValueError(f"threads must be >= 1, got {threads}")
         self.path = os.fspath(path)
         if not os.path.isfile(self.path):
             raise FileNotFoundError(f"model file {self.path!r} does not exist")
+        size = os.path.getsize(self.path)
+        if size > max_bytes:
+            raise ModelMismatchError(
+                f"{self.path}: {size / 2**20:.0f} MiB is larger than the {max_bytes / 2**20:.0f} MiB a model may be"
+            )
         options = ort.SessionOptions()
         options.intra_op_num_threads = threads
         options.inter_op_num_threads = 1

@@ -71,7 +71,14 @@ def run_snapshot(cfg: SnapshotConfig) -> int:
     return 0
 
 
-def run_serve(bind: str, noise: float, house: str, brightness: float, mode: str = "lockstep") -> int:
+def run_serve(
+    bind: str,
+    noise: float,
+    house: str,
+    brightness: float,
+    mode: str = "lockstep",
+    cmd_vel_timeout: float = 0.5,
+) -> int:
     from vtr.sim2d.config import CameraConfig, SimConfig
 
     try:
@@ -86,7 +93,9 @@ def run_serve(bind: str, noise: float, house: str, brightness: float, mode: str 
     check_endpoint(bind, bind=True)
     sim_cfg = SimConfig(house=house, noise=noise, camera=CameraConfig(brightness=brightness))
     try:
-        return int(serve(ServerConfig(bind=bind, sim=sim_cfg, mode=mode)) or 0)
+        return int(
+            serve(ServerConfig(bind=bind, sim=sim_cfg, mode=mode, cmd_vel_timeout=cmd_vel_timeout)) or 0
+        )
     except zmq.ZMQError as err:  # the port is taken, or the interface does not exist
         print(f"vtr sim serve: cannot bind {bind}: {err}; choose another --bind", file=sys.stderr)
         return 2
@@ -122,13 +131,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="lockstep: time advances only in step requests (deterministic); realtime: follows the wall clock "
         "(default: lockstep)",
     )
+    serve.add_argument(
+        "--cmd-vel-timeout",
+        type=float,
+        default=0.5,
+        help="realtime: stop the robot when no step arrived for this many seconds; 0 disables (default: 0.5)",
+    )
 
 
 def run_cli(args: argparse.Namespace) -> int:
     try:
         if args.sim_command == "snapshot":
             return run_snapshot(config_from_args(SnapshotConfig, args))
-        return run_serve(args.bind, args.noise, args.house, args.brightness, args.mode)
+        return run_serve(args.bind, args.noise, args.house, args.brightness, args.mode, args.cmd_vel_timeout)
     except ValueError as err:  # bad configuration values or a bad map file
         print(f"vtr sim {args.sim_command}: {err}", file=sys.stderr)
         return 2

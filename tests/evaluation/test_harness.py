@@ -119,3 +119,14 @@ def test_vtr_eval_quick_cli(small_model: Path, short_route: Path, tmp_path: Path
     )
     assert json.loads(out.read_text())["routes"][0]["name"] == "short"
     assert main(["eval", "--model", str(small_model), "--noise", "2"]) == 2
+
+
+def test_demo_exit_code_says_whether_the_repeat_finished(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    from vtr.cli import main
+    from vtr.evaluation import demo
+
+    for completed, code in ((True, 0), (False, 1)):
+        monkeypatch.setattr(demo, "run", lambda cfg, c=completed: {"summary": {"completed": c}})
+        assert main(["demo", "--out", str(tmp_path / "d")]) == code

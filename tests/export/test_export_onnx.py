@@ -189,6 +189,13 @@ def test_export_cli_writes_fp32_int8_and_viewnet(tmp_path: Path, capsys: pytest.
     assert cli.main(args) == 0
     report = json.loads(capsys.readouterr().out)
     assert out.exists() and int8_path(out).exists() and (out.parent / "viewnet.onnx").exists()
+    # ViewNet's ONNX says what it is and does not pass for a policy
+    vprops = {p.key: p.value for p in onnx.load(out.parent / "viewnet.onnx").metadata_props}
+    assert vprops["vtr.kind"] == "viewnet" and "vtr.horizon" not in vprops
+    from vtr.runtime.policy import ModelMismatchError, OnnxPolicy
+
+    with pytest.raises(ModelMismatchError, match="horizon"):
+        OnnxPolicy(out.parent / "viewnet.onnx")
     assert report["fp32"]["max_abs_err_real"] <= 1e-4
     assert "speedup" in report["int8"]
     # int8 without calibration frames, or a ViewNet given as the policy, are clear errors

@@ -28,7 +28,9 @@ FAULTS = (
     "clockwise",  # pose yaw grows clockwise
     "stamp_back",  # step replies go back in time
     "silent_on_bad",  # a bad request gets no reply at all
-    "slow",  # every reply takes 60 ms
+    "slow",  # every observe takes 40 ms
+    "ignores_session",  # executes a step meant for another session
+    "no_watchdog",  # realtime, announces cmd_vel_timeout 0.5 s but keeps driving
 )
 
 
@@ -48,8 +50,11 @@ class FaultyRobot:
             raise ValueError(f"unknown fault {fault!r}")
         self.fault = fault
         loose = fault == "accepts_over_limit"
+        realtime = fault == "no_watchdog"
         cfg = ServerConfig(
             bind="tcp://127.0.0.1:*",
+            mode="realtime" if realtime else "lockstep",
+            cmd_vel_timeout=0.0 if realtime else 0.5,
             v_max=50.0 if loose else 0.5,
             w_max=100.0 if loose else 1.0,
             max_step_duration=1000.0 if loose else 10.0,
@@ -71,6 +76,13 @@ class FaultyRobot:
         self._thread.join(5)
 
     def _request(self, frames: list[bytes]) -> list[bytes]:
+        if self.fault == "ignores_session":
+            try:
+                header = _header(frames)
+            except ValueError:
+                return frames
+            if isinstance(header, dict) and header.pop("session", None) is not None:
+                return _frames(header, [])
         if self.fault == "zero_step_moves":
             try:
                 header = _header(frames)
@@ -99,6 +111,8 @@ class FaultyRobot:
             header.pop("limits")
             if fault == "accepts_over_limit":
                 header["limits"] = {"v_max": 0.5, "w_max": 1.0, "max_duration": 10.0}
+        if cmd == "hello" and fault == "no_watchdog":
+            header["cmd_vel_timeout"] = 0.5
         if cmd == "hello" and fault == "no_camera":
             header.pop("camera")
             header.pop("info")
@@ -130,8 +144,12 @@ class FaultyRobot:
                     continue
                 identity, empty, *frames = sock.recv_multipart()
                 reply = self._reply(self.server.handle(self._request(frames)))
-                if self.fault == "slow":
-                    time.sleep(0.06)
+                if (
+                    self.fault == "slow"
+                    and reply is not None
+                    and b'"cmd":"observe"' in reply[0].replace(b" ", b"")
+                ):
+                    time.sleep(0.04)
                 if reply is not None:
                     sock.send_multipart([identity, empty, *reply])
         finally:

@@ -197,7 +197,7 @@ def _free_endpoint() -> str:
         return probe.endpoint
 
 
-def test_server_killed_mid_route_and_restarted_the_repeat_recovers(policy_path):
+def test_server_killed_mid_route_and_restarted_the_repeat_stops_saying_so(policy_path):
     cfg = ServerConfig(bind=_free_endpoint(), poll_ms=20)
     handle = start_server_process(cfg, FakeSim)
     client = SimClient(cfg.bind, timeout_s=0.25, retries=60)  # restart takes longer than one timeout
@@ -209,7 +209,8 @@ def test_server_killed_mid_route_and_restarted_the_repeat_recovers(policy_path):
         if robot.restarter is not None:
             robot.restarter.join(30)
         robot.handle.terminate()
-    assert summary.completed and summary.subgoals_reached == 9
+    # the rebooted robot is somewhere else: the run ends rather than steering it from a stale view
+    assert summary.status == "robot_restarted" and "robot restarted" in summary.detail
     assert client.timeouts >= 1 and client.session_changes == 1
 
 
@@ -223,7 +224,7 @@ def test_server_killed_for_good_the_repeat_stops_cleanly(policy_path):
     finally:
         client.close()
         handle.terminate()
-    assert summary.status == "robot_error" and "no reply" in summary.detail and not summary.completed
+    assert summary.status == "link_lost" and "no reply" in summary.detail and not summary.completed
     assert summary.steps == 2  # step 3 reached the server, then its zero command found nobody
 
 

@@ -145,8 +145,19 @@ def test_torchrun_two_cpu_processes(data: Path, tmp_path: Path) -> None:
     assert steps == [1, 2]  # rank 0 alone writes the log
 
 
-def test_train_all_collects_trains_and_exports(tmp_path: Path) -> None:
-    pytest.importorskip("pymunk")
+def test_train_all_collects_trains_and_exports(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import vtr.training.dataset as dataset_mod
+    import vtr.training.train as train_mod
+
+    loads: list[str] = []
+    real_load = dataset_mod.load_dataset
+
+    def counting_load(path, *args, **kwargs):
+        loads.append(str(path))
+        return real_load(path, *args, **kwargs)
+
+    monkeypatch.setattr(dataset_mod, "load_dataset", counting_load)
+    monkeypatch.setattr(train_mod, "load_dataset", counting_load)
     out, models, data = tmp_path / "run", tmp_path / "models", tmp_path / "data" / "house.npz"
     args = [
         "train",
@@ -163,6 +174,7 @@ def test_train_all_collects_trains_and_exports(tmp_path: Path) -> None:
     assert cli.main(args) == 0
     assert data.exists()  # there was no dataset: `all` recorded one first
     assert not models.exists()  # never installed without --install-models
+    assert len(loads) == 1  # one load serves both stages and the export
     for name in ("velocitynet.onnx", "velocitynet-int8.onnx", "viewnet.pt"):
         assert (out / "export" / name).exists(), name
     args.append("--install-models")

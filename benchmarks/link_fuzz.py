@@ -1,0 +1,156 @@
+"""Fuzzed traffic for the link benchmarks: hostile requests for a server, hostile replies for a client.
+
+Everything is drawn from one seeded ``random.Random``, so a run can be replayed exactly.
+"""
+
+from __future__ import annotations
+
+import json
+import random
+from typing import Any
+
+import numpy as np
+
+from vtr.runtime import protocol
+
+FIELDS = ("proto", "version", "cmd", "seq", "stamp", "v", "w", "duration", "pose", "seed", "session")
+REPLY_FIELDS = (
+    "ok",
+    "cmd",
+    "seq",
+    "session",
+    "stamp",
+    "encoding",
+    "height",
+    "width",
+    "pose",
+    "collided",
+    "error",
+)
+
+
+def hostile_value(rng: random.Random) -> Any:
+    """A JSON value chosen to break careless decoders (as a raw JSON text fragment)."""
+    kind = rng.randrange(12)
+    if kind == 0:
+        return "9" * rng.randint(20, 5000)  # an integer beyond any float
+    if kind == 1:
+        n = rng.randint(17, 20000)  # deeper than any sane header
+        return "[" * n + "]" * n
+    if kind == 2:
+        return rng.choice(["NaN", "Infinity", "-Infinity", "1e999", "-1e400", "1e16"])
+    if kind == 3:
+        return rng.choice(["1.0", "5.0", "true", "false", "null", "-1", "0"])
+    if kind == 4:
+        return json.dumps("".join(chr(rng.randint(0, 0x2FFF)) for _ in range(rng.randint(0, 40))))
+    if kind == 5:
+        return json.dumps({"x": rng.random(), "y": "a", "yaw": [1]})
+    if kind == 6:
+        return json.dumps([rng.random() for _ in range(rng.randint(0, 50))])
+    if kind == 7:
+        return str(rng.uniform(-1e6, 1e6))
+    if kind == 8:
+        return json.dumps("x" * rng.randint(0, 70000))  # may push the header past its cap
+    if kind == 9:
+        return str(rng.randint(-(2**70), 2**70))
+    if kind == 10:
+        return json.dumps({str(i): {"a": [i]} for i in range(rng.randint(0, 300))})
+    return json.dumps(rng.choice([0.1, -0.3, 0.0, 10.0, 1e-9]))
+
+
+def with_fields(header: dict[str, Any], names: tuple[str, ...], rng: random.Random) -> bytes:
+    """``header`` as JSON text with one to three fields replaced by hostile raw fragments."""
+    text = json.dumps(header)[:-1]
+    for name in rng.sample(names, rng.randint(1, 3)):
+        text += f',"{name}":{hostile_value(rng)}'
+    return (text + "}").encode()
+
+
+def fuzz_request(rng: random.Random, seq: int) -> tuple[list[bytes], bool]:
+    """(frames, whether ZeroMQ itself will cut the peer off for size: then no reply comes)."""
+    cmd = rng.choice(protocol.COMMANDS)
+    base: dict[str, Any] = {"proto": "vtr-sim", "version": 1, "cmd": cmd, "seq": seq, "stamp": 1.0}
+    if cmd == "step":
+        base.update(v=rng.uniform(-0.5, 0.5), w=rng.uniform(-1, 1), duration=0.1)
+    kind = rng.randrange(10)
+    if kind == 0:
+        return [rng.randbytes(rng.randint(0, 200))], False
+    if kind == 1:
+        return [json.dumps(base).encode()], False  # valid: the server keeps doing real work
+    if kind == 2:
+        raw = json.dumps(base).encode()
+        return [raw[: rng.randint(0, len(raw))]], False
+    if kind == 3:
+        extra = [rng.randbytes(rng.randint(0, 100_000)) for _ in range(rng.randint(1, 3))]
+        return [json.dumps(base).encode(), *extra], False
+    if kind == 4 and rng.random() < 0.05:
+        return [json.dumps(base).encode(), bytes(5 * 1024 * 1024)], True  # past ZMQ_MAXMSGSIZE
+    if kind == 5:
+        return [b"\xff\xfe" + json.dumps(base).encode()], False
+    return [with_fields(base, FIELDS, rng)], False
+
+
+def fuzz_reply(
+    rng: random.Random, good: list[bytes], previous: list[bytes] | None
+) -> tuple[str, list[list[bytes]]]:
+    """A fault and the replies that carry it, built from the correct reply ``good``.
+
+    Kinds: garbage, mutated, truncated, wrong_shape, future_stamp, stale_stamp, future_seq, duplicate,
+    stale_then_good, empty (a message of one empty frame), silent, oversized, late (sent with the
+    next request's reply).
+    """
+    header = json.loads(good[0])
+    kind = rng.choice(
+        [
+            "garbage",
+            "mutated",
+            "mutated",
+            "mutated",
+            "truncated",
+            "wrong_shape",
+            "future_stamp",
+            "stale_stamp",
+            "future_seq",
+            "duplicate",
+            "stale_then_good",
+            "empty",
+            "silent",
+            "oversized",
+            "late",
+        ]
+    )
+    if kind == "garbage":
+        return kind, [[rng.randbytes(rng.randint(0, 300))]]
+    if kind == "mutated":
+        return kind, [[with_fields(header, REPLY_FIELDS, rng), *good[1:]]]
+    if kind == "truncated" and len(good) == 2:
+        return kind, [[good[0], good[1][: rng.randint(0, len(good[1]) - 1)]]]
+    if kind == "wrong_shape" and len(good) == 2:
+        header.update(height=header["height"] * 2)
+        return kind, [[json.dumps(header).encode(), good[1] * 2]]
+    if kind == "future_stamp":
+        header.update(stamp=header["stamp"] + rng.choice([1e3, 1e6, 1e9]))
+        return kind, [[json.dumps(header).encode(), *good[1:]]]
+    if kind == "stale_stamp":
+        header.update(stamp=-1.0)
+        return kind, [[json.dumps(header).encode(), *good[1:]]]
+    if kind == "future_seq":
+        header.update(seq=header["seq"] + rng.randint(1, 5))
+        return kind, [[json.dumps(header).encode(), *good[1:]]]
+    if kind == "duplicate":
+        return kind, [good, good]
+    if kind == "stale_then_good" and previous is not None:
+        return kind, [previous, good]
+    if kind == "empty":
+        return kind, [[], good]
+    if kind == "silent":
+        return kind, []
+    if kind == "oversized":
+        return kind, [[good[0], bytes(5 * 1024 * 1024)]]
+    if kind == "late":
+        return kind, []
+    return "mutated", [[with_fields(header, REPLY_FIELDS, rng), *good[1:]]]
+
+
+def rgb(shape: tuple[int, int]) -> np.ndarray:
+    return np.full((*shape, 3), 128, dtype=np.uint8)
