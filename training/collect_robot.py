@@ -16,6 +16,7 @@ is rewritten atomically every ``--save-every`` frames and on Ctrl-C, so a crash 
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 import time
@@ -25,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from vtr.runtime import protocol
+from vtr.runtime.hello import Hello
 from vtr.runtime.robot import Observation
 from vtr.training.dataset import DatasetError, FrameData, load_dataset, save_dataset
 
@@ -174,22 +176,6 @@ def load_existing(path: str) -> Recording:
     return rec
 
 
-def _hello_camera(hello: dict[str, Any]) -> dict[str, Any]:
-    camera = hello.get("camera")
-    info = hello.get("info")
-    if not isinstance(camera, dict) and isinstance(info, dict):
-        camera = info.get("camera")
-    return dict(camera) if isinstance(camera, dict) else {}
-
-
-def _limits(hello: dict[str, Any]) -> tuple[float, float]:
-    """The robot's announced limits, capped at the model's (what VelocityNet can output)."""
-    raw = hello.get("limits") if isinstance(hello.get("limits"), dict) else {}
-    v = float(raw.get("v_max", protocol.V_MAX))
-    w = float(raw.get("w_max", protocol.W_MAX))
-    return min(v, protocol.V_MAX), min(w, protocol.W_MAX)
-
-
 def _check_resumable(rec: Recording, camera: dict[str, Any], dt: float, out: str) -> None:
     if not rec.images:
         return
@@ -203,10 +189,11 @@ def _check_resumable(rec: Recording, camera: dict[str, Any], dt: float, out: str
 
 
 def collect(cfg: RobotCollectConfig, client: Any, log: Any = sys.stdout) -> dict[str, Any]:
-    """Drive ``client`` (a SimClient or any Robot with hello/reset) and write ``cfg.out``; returns a summary."""
-    hello = client.hello()
-    camera = _hello_camera(hello)
-    v_max, w_max = _limits(hello)
+    """Drive ``client`` (a SimClient, or any Robot with handshake/reset) and write ``cfg.out``; returns a summary."""
+    hello: Hello = client.handshake()  # validated (runtime.hello); the client then holds steps to its limits
+    camera = dataclasses.asdict(hello.camera)
+    # the robot's limits capped at the model's: VelocityNet cannot output more, so such pairs would be useless
+    v_max, w_max = min(hello.limits.v_max, protocol.V_MAX), min(hello.limits.w_max, protocol.W_MAX)
     rec = load_existing(cfg.out)
     _check_resumable(rec, camera, cfg.dt, cfg.out)
     start_frames = len(rec.images)
@@ -216,13 +203,12 @@ def collect(cfg: RobotCollectConfig, client: Any, log: Any = sys.stdout) -> dict
             file=log,
         )
         return {"out": cfg.out, "frames": start_frames, "added": 0}
-    info = hello.get("info") if isinstance(hello.get("info"), dict) else {}
     rec.meta.update(
         source="vtr collect --sim",
         dt=cfg.dt,
         seed=cfg.seed,
         camera=camera,
-        map=str(info.get("map", "robot")),
+        map=hello.map or hello.robot or "robot",
         limits={"v_max": v_max, "w_max": w_max},
     )
     rng = np.random.default_rng([cfg.seed, start_frames])  # a resumed run does not replay the same commands

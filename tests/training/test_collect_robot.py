@@ -9,6 +9,9 @@ import numpy as np
 import pytest
 
 from vtr import cli
+from vtr.runtime.contracts import CameraSpec
+from vtr.runtime.hello import Hello
+from vtr.runtime.protocol import Limits
 from vtr.runtime.robot import Observation, RobotError
 from vtr.sim2d import SimConfig, Simulator
 from vtr.sim2d.server import ServerThread
@@ -29,11 +32,11 @@ class CorridorRobot:
         image = np.full((8, 8, 3), int(self.x * 200) + int(self.yaw * 10) % 50, np.uint8)
         return Observation(image, self.t, (self.x, 0.0, self.yaw), collided)
 
-    def hello(self) -> dict:
-        return {
-            "camera": {"width": 8, "height": 8},
-            "limits": {"v_max": 2.0, "w_max": 0.6, "max_duration": 10},
-        }
+    def handshake(self, width: int = 8) -> Hello:
+        camera = CameraSpec(width=width, height=width, fov_deg=None, height_m=None)
+        return Hello(
+            "s1", 0.0, 1, camera, Limits(v_max=2.0, w_max=0.6), dt=0.1, mode="lockstep", map="corridor"
+        )
 
     def reset(self, pose: tuple | None = None, seed: int | None = None) -> Observation:
         if not self.can_reset:
@@ -135,7 +138,7 @@ def test_a_robot_lost_mid_run_leaves_what_was_recorded(tmp_path: Path) -> None:
 def test_resume_refuses_another_camera(tmp_path: Path) -> None:
     collect(config(tmp_path, 50), CorridorRobot())
     robot = CorridorRobot()
-    robot.hello = lambda: {"camera": {"width": 16, "height": 16}}  # type: ignore[method-assign]
+    robot.handshake = lambda: CorridorRobot.handshake(robot, width=16)  # type: ignore[method-assign]
     with pytest.raises(ValueError, match="8x8 images, the robot's are 16x16"):
         collect(config(tmp_path, 100), robot)
 
