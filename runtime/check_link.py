@@ -1,4 +1,5 @@
-"""The raw request/reply link `vtr check-robot` uses: one request at a time, a timeout on each, never a hang.
+"""What the checks of `vtr check-robot` share: the raw request/reply link (one request at a time, a timeout on
+each, never a hang) and the :class:`Context` the checks fill in order.
 
 Unlike runtime.client.SimClient it sends requests as given (no client-side validation, so a step beyond the
 default limits or a malformed header can be sent on purpose) and it never resends: a lost reply is a finding.
@@ -8,13 +9,19 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import zmq
 
 from vtr.runtime import protocol
+from vtr.runtime.contracts import CONTROL_DT
+from vtr.runtime.hello import Hello
 from vtr.runtime.preprocess import image_error
+
+PASS, WARN, FAIL, SKIP = "PASS", "WARN", "FAIL", "SKIP"
 
 _ECHO_HINT = " (every reply, an error reply too, carries proto, version, cmd, seq, ok and stamp)"
 
@@ -122,3 +129,55 @@ def image_diff(a: np.ndarray, b: np.ndarray) -> float:
 
 def percentile_ms(times_s: list[float], q: float) -> float:
     return float(np.percentile(np.asarray(times_s) * 1e3, q)) if times_s else float("nan")
+
+
+@dataclass
+class Context:
+    """What the checks learn from the robot, shared between them in order."""
+
+    link: Link
+    hello: Hello | None = None
+    camera: tuple[int, int] | None = None  # (height, width) announced
+    limits: protocol.Limits | None = None
+    dt: float = CONTROL_DT  # step duration used by the checks
+    resets: bool = False
+    image: np.ndarray | None = None  # the last image seen
+    noise_floor: float = 0.0  # mean abs difference between two frames of a robot at rest
+    stamps: list[tuple[str, float]] = field(default_factory=list)  # (cmd, stamp) since the last reset
+    stamp_problems: list[str] = field(default_factory=list)
+
+    def note_stamp(self, reply: protocol.Reply) -> None:
+        if reply.stamp is None:
+            return
+        if reply.cmd == "reset":
+            self.stamps.clear()
+        elif self.stamps:
+            cmd0, before = self.stamps[-1]
+            if reply.stamp < before:
+                self.stamp_problems.append(f"{reply.cmd!r} stamp {reply.stamp} < previous {cmd0!r} {before}")
+            elif reply.cmd == "step" and reply.stamp <= before:
+                self.stamp_problems.append(f"a step did not advance the stamp ({before} -> {reply.stamp})")
+        self.stamps.append((str(reply.cmd), reply.stamp))
+
+    def ask(self, cmd: str, **fields: Any) -> protocol.Reply:
+        """A well-formed request whose ok reply must decode; CheckFailed otherwise."""
+        reply = self.link.ask(cmd, **fields)
+        if not reply.ok:
+            raise CheckFailed(f"{cmd!r} was refused: {reply.error}")
+        self.note_stamp(reply)
+        if reply.image is not None:
+            self._check_shape(reply.image)
+            self.image = reply.image
+        return reply
+
+    def _check_shape(self, image: np.ndarray) -> None:
+        if self.camera is not None and image.shape[:2] != self.camera:
+            raise CheckFailed(
+                f"image is {image.shape[0]}x{image.shape[1]} but hello announced {self.camera[0]}x{self.camera[1]}"
+            )
+
+    def step(self, v: float, w: float) -> protocol.Reply:
+        return self.ask("step", v=v, w=w, duration=self.dt)
+
+
+Check = Callable[[Context], tuple[str, str]]
