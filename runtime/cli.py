@@ -13,7 +13,6 @@ that did not finish), 2 a usage or input error (one line on stderr naming the pr
 from __future__ import annotations
 
 import importlib
-import importlib.util
 import sys
 from collections.abc import Mapping
 from typing import NamedTuple
@@ -35,13 +34,10 @@ ROBOT_COMMANDS: dict[str, Command] = {
     "repeat": Command(
         "vtr.runtime.daemon", "follow a taught route from camera images alone (the robot daemon)", None
     ),
+    "check-robot": Command(
+        "vtr.runtime.check_robot", "check that a robot bridge speaks the protocol correctly", None
+    ),
 }
-# Registration point for `check-robot` (issue 10: runtime/check_robot.py exposing add_arguments/run_cli):
-# listed as soon as the module exists, so this entry needs no edit when it lands.
-if importlib.util.find_spec("vtr.runtime.check_robot") is not None:
-    ROBOT_COMMANDS["check-robot"] = Command(
-        "vtr.runtime.check_robot", "check that a robot bridge speaks the protocol and streams frames", None
-    )
 
 #: Third-party module -> the extra that installs it (for the "not installed" message).
 EXTRA_OF_MODULE = {
@@ -53,6 +49,8 @@ EXTRA_OF_MODULE = {
     "onnxscript": "train",
     "tqdm": "train",
     "gymnasium": "dev",
+    "rosbags": "ros",
+    "foxglove": "foxglove",
 }
 
 

@@ -180,10 +180,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--image-size", type=int, default=128, help="camera width = height (default 128)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    from vtr.training import collect_robot
+
+    collect_robot.add_arguments(parser)
+    from vtr.runtime import bag_read
+
+    bag_read.add_arguments(parser, "a dataset from teleoperated drives")
 
 
 def run_cli(args: argparse.Namespace) -> int:
     import json
+
+    if args.sim is not None:  # a protocol robot instead of the in-process simulator
+        from vtr.training import collect_robot
+
+        return collect_robot.run_cli(args)
+    if args.bag:  # teleoperated drives recorded in ROS bags
+        from vtr.training import collect_bag
+
+        return collect_bag.run_cli(args)
 
     cfg = CollectConfig(
         out=args.out,
