@@ -16,8 +16,9 @@ topic                  type                            content
 Times: the robot's stamps (simulated seconds for the simulator) are placed after the wall-clock instant the
 writer opened, so a run shows a real date and keeps the robot's spacing.
 
-``PATH`` ending in ``.mcap`` is one MCAP file (Foxglove, `ros2 bag play PATH` on Iron and later, rosbags); any
-other ``PATH`` is a bag folder with metadata.yaml as `ros2 bag record -s mcap` makes (every ROS 2 distribution).
+``PATH`` ending in ``.mcap`` is one MCAP file (Foxglove, `ros2 bag play PATH`, rosbags); any other ``PATH`` is a
+bag folder with metadata.yaml (format 8) as `ros2 bag record -s mcap` makes it (for Humble, whose rosbag2
+predates that format, its maintainers suggest deleting metadata.yaml and `ros2 bag reindex PATH`; not tried here).
 The bag is written into a temporary folder beside ``PATH`` and moved into place by :meth:`McapRunWriter.close`.
 
 Needs the optional extra ``[ros]`` (the pure-Python ``rosbags``), imported only when a run is written or read: a

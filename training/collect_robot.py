@@ -26,6 +26,9 @@ from typing import Any
 import numpy as np
 
 from vtr.runtime import protocol
+from vtr.runtime.address import check_endpoint
+from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
+from vtr.runtime.contracts import CONTROL_DT
 from vtr.runtime.hello import Hello
 from vtr.runtime.robot import Observation
 from vtr.training.dataset import DatasetError, FrameData, load_dataset, save_dataset
@@ -45,25 +48,24 @@ COMMAND_MIX = (
 class RobotCollectConfig:
     """How `vtr collect --sim` drives a protocol robot."""
 
-    sim: str  # robot endpoint, e.g. tcp://127.0.0.1:5555
+    sim: str = opt(None, "record from this robot/simulator endpoint instead of in-process", metavar="ADDR")
     out: str = "data/robot.npz"  # dataset file, extended when it exists
     frames: int = 7024  # frames the dataset holds when done
     seed: int = 0  # command choice
-    dt: float = 0.1  # s per command (the repeat's control step)
+    dt: float = CONTROL_DT  # s per command (the repeat's control step)
     episode_min: int = 60  # frames per episode, drawn uniformly
     episode_max: int = 200
     segment_min: int = 3  # a command is held this many frames
     segment_max: int = 14
     backoff_steps: int = 4  # reverse steps after a collision
-    reset_every: int = 0  # reset the robot every k episodes (when it can); 0: only when stuck
-    save_every: int = 1000  # frames between atomic checkpoints
-    timeout_s: float = 2.0  # per-reply timeout
-    retries: int = 3  # tries per request
+    reset_every: int = opt(0, "--sim: reset every k episodes when the robot can; 0: only when stuck")
+    save_every: int = opt(1000, "--sim: frames between atomic checkpoints")
+    timeout_s: float = opt(2.0, "--sim: seconds to wait for each reply", flag="--timeout")
+    retries: int = opt(3, "--sim: tries per request (hello, observe, stop; never a motion command)")
     progress: bool = True
 
     def __post_init__(self) -> None:
-        if "://" not in self.sim:
-            raise ValueError(f"sim must be a ZeroMQ endpoint like tcp://127.0.0.1:5555, got {self.sim!r}")
+        check_endpoint(self.sim)
         for name in (
             "frames",
             "dt",
@@ -305,25 +307,7 @@ def run(cfg: RobotCollectConfig) -> dict[str, Any]:
 
 def add_arguments(parser: Any) -> None:
     """`vtr collect --sim ...` options (added to `vtr collect`'s parser)."""
-    group = parser.add_argument_group("from a protocol robot (--sim)")
-    group.add_argument(
-        "--sim",
-        default=None,
-        metavar="ADDR",
-        help="record from this robot/simulator endpoint instead of in-process",
-    )
-    group.add_argument(
-        "--timeout", type=float, default=2.0, help="--sim: seconds to wait for each reply (default 2)"
-    )
-    group.add_argument(
-        "--reset-every",
-        type=int,
-        default=0,
-        help="--sim: reset every k episodes when the robot can (default 0: only when stuck)",
-    )
-    group.add_argument(
-        "--save-every", type=int, default=1000, help="--sim: frames between atomic checkpoints (default 1000)"
-    )
+    add_config_arguments(parser.add_argument_group("from a protocol robot (--sim)"), RobotCollectConfig)
 
 
 def run_cli(args: Any) -> int:
@@ -332,16 +316,8 @@ def run_cli(args: Any) -> int:
     from vtr.runtime.robot import RobotError
 
     try:
-        cfg = RobotCollectConfig(
-            sim=args.sim,
-            out=args.out,
-            frames=args.frames,
-            seed=args.seed,
-            reset_every=args.reset_every,
-            save_every=args.save_every,
-            timeout_s=args.timeout,
-            progress=not args.no_progress,
-        )
+        common = {"out": args.out, "frames": args.frames, "seed": args.seed, "progress": not args.no_progress}
+        cfg = config_from_args(RobotCollectConfig, args, **common)
         summary = run(cfg)
     except (ValueError, OSError, RobotError) as exc:  # DatasetError is a ValueError
         print(f"vtr collect: {exc}", file=sys.stderr)

@@ -48,6 +48,7 @@ def test_the_example_can_be_taught_a_route(endpoint: str) -> None:
     with SimClient(endpoint, timeout_s=2.0) as client:
         route = teach(client, script, TeachConfig())
     assert len(route) == 16  # 30 control steps, a subgoal every 2, plus the start
+    assert route.camera["fov_deg"] == 90.0 and route.camera["height_m"] == 0.3  # from hello, for the checks
     assert route.poses[-1][0] == pytest.approx(-0.4, abs=1e-6)
     assert route.poses[-1][2] == pytest.approx(0.5, abs=1e-6)
 

@@ -65,7 +65,7 @@ class CorridorRobot:
 
 def config(tmp_path: Path, frames: int, **kw: object) -> RobotCollectConfig:
     return RobotCollectConfig(
-        sim="tcp://fake:0", out=str(tmp_path / "d.npz"), frames=frames, progress=False, **kw
+        sim="tcp://127.0.0.1:9", out=str(tmp_path / "d.npz"), frames=frames, progress=False, **kw
     )
 
 
