@@ -16,54 +16,61 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
-from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from vtr.benchmarks.timing import time_call, time_interleaved
-from vtr.runtime.atomic import write_text_atomic
-
-REPO_ROOT = Path(__file__).resolve().parent.parent
+from vtr.benchmarks.backends import bench_backends
+from vtr.benchmarks.hardware import all_cores, child_env
+from vtr.benchmarks.results import write_json
+from vtr.benchmarks.timing import time_interleaved
+from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 
 #: Targets from issue 5, as ratios (name -> (description, comparison, threshold)).
 TARGETS = {
     "ort_fp32_vs_torch_eager": ("torch eager p50 / onnxruntime fp32 p50", ">=", 3.0),
     "int8_vs_fp32": ("onnxruntime fp32 p50 / int8 p50", ">=", 2.5),
     "step_overhead": ("whole step p50 / inference p50 - 1", "<=", 0.15),
+    "step_overhead_continuous": ("same, no zero command between steps", "<=", 0.15),
     "fp32_vs_matmul": ("fp32 achieved GFLOP/s / matmul GFLOP/s", ">=", 0.60),
 }
+
+
+BACKENDS = ("ort_fp32", "ort_int8", "torch_eager", "cv2_dnn")
 
 
 @dataclass
 class LatencyConfig:
     """Settings of one latency benchmark run."""
 
-    model: Path  # fp32 VelocityNet ONNX (inputs `current`, `subgoal`; output `velocities`)
-    int8_model: Path | None = None  # int8 twin; None -> `<model stem>-int8.onnx` beside the model, if present
-    checkpoint: Path | None = (
-        None  # torch checkpoint for the eager backend; None -> rebuild from the ONNX weights
+    model: Path | None = opt(None, "fp32 VelocityNet ONNX (default: the shipped models/velocitynet.onnx)")
+    int8_model: Path | None = opt(
+        None, "int8 twin (default: <model stem>-int8.onnx beside the model, if present)"
     )
-    threads: int = 1  # intra-op threads for the runtime stage breakdown
-    thread_counts: tuple[int, ...] = (1, 0)  # backend sweep; 0 means all cores
-    steps: int = 200  # timed iterations per measurement
-    warmup: int = 20  # untimed iterations before each measurement
-    backends: tuple[str, ...] = ("ort_fp32", "ort_int8", "torch_eager", "cv2_dnn")
-    matmul_size: int = 512  # n of the n x n x n float32 matmul used as the hardware reference
-    zmq: bool = True  # time the ZeroMQ round trip to a local simulator server
-    memory: bool = True  # measure peak RSS of a runtime-only subprocess
-    sim_steps: int = 500  # simulator throughput steps (`vtr bench sim`) in the same summary; 0 = skip
-    json_path: Path | None = None  # where to write every number (atomic write)
+    checkpoint: Path | None = opt(
+        None, "VelocityNet checkpoint for torch eager (default: the model's layout)"
+    )
+    threads: int = opt(1, "intra-op threads for the runtime stages and the whole step")
+    thread_counts: tuple[int, ...] = opt((1, 0), "thread counts of the backend sweep (0 = all cores)")
+    steps: int = opt(200, "timed iterations per measurement")
+    warmup: int = opt(20, "untimed iterations before each measurement")
+    backends: tuple[str, ...] = opt(BACKENDS, "inference backends to time", choices=BACKENDS)
+    matmul_size: int = opt(512, "n of the n x n x n float32 matmul used as the hardware reference")
+    zmq: bool = opt(True, "time the ZeroMQ round trip to a local simulator server")
+    memory: bool = opt(True, "measure the peak RSS of a runtime-only subprocess")
+    sim_steps: int = opt(500, "simulator throughput steps (`vtr bench sim`) in the same run; 0 = skip")
+    json_path: Path | None = opt(None, "write every number here", flag="--json")
 
     def __post_init__(self) -> None:
-        self.model = Path(self.model)
-        if not self.model.is_file():
-            raise ValueError(f"model file not found: {self.model}")
+        from vtr.models import find_int8, find_model
+        from vtr.runtime.policy import OnnxPolicy
+
+        self.model = find_model(self.model)
+        OnnxPolicy(self.model)  # a file that is not a VelocityNet ONNX: one line now, not a traceback later
         if self.threads < 1:
             raise ValueError(f"threads must be >= 1, got {self.threads}")
         if not self.thread_counts or any(t < 0 for t in self.thread_counts):
@@ -76,23 +83,12 @@ class LatencyConfig:
             raise ValueError(f"warmup must be >= 0, got {self.warmup}")
         if self.sim_steps < 0:
             raise ValueError(f"sim_steps must be >= 0, got {self.sim_steps}")
-        unknown = set(self.backends) - {"ort_fp32", "ort_int8", "torch_eager", "cv2_dnn"}
+        unknown = set(self.backends) - set(BACKENDS)
         if unknown:
             raise ValueError(f"unknown backends: {sorted(unknown)}")
         if self.matmul_size < 16:
             raise ValueError(f"matmul_size must be >= 16, got {self.matmul_size}")
-        if self.int8_model is None:
-            sibling = self.model.with_name(self.model.stem + "-int8" + self.model.suffix)
-            self.int8_model = sibling if sibling.is_file() else None
-        elif not Path(self.int8_model).is_file():
-            raise ValueError(f"int8 model file not found: {self.int8_model}")
-
-
-def all_cores() -> int:
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-
-
-# ---------------------------------------------------------------- inputs
+        self.int8_model = find_int8(self.model, self.int8_model)
 
 
 def sample_frames(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
@@ -124,183 +120,6 @@ def _model_io(path: Path) -> tuple[int, int, int]:
     return h, w, n
 
 
-def ort_session(path: Path, threads: int) -> Any:
-    import onnxruntime as ort
-
-    opts = ort.SessionOptions()
-    opts.intra_op_num_threads = threads
-    opts.inter_op_num_threads = 1
-    opts.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-    opts.graph_optimization_level = ort.GraphOptimizationLevel.ORT_ENABLE_ALL
-    return ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
-
-
-# ---------------------------------------------------------------- hardware reference
-
-
-def matmul_rate_ort(n: int, threads: int, steps: int = 20) -> float:
-    """Median GFLOP/s of an n x n x n float32 MatMul in onnxruntime (the engine that runs the model)."""
-    import onnx
-    import onnxruntime as ort
-    from onnx import TensorProto, helper, numpy_helper
-
-    rng = np.random.default_rng(0)
-    b = numpy_helper.from_array(rng.standard_normal((n, n)).astype(np.float32), "B")
-    graph = helper.make_graph(
-        [helper.make_node("MatMul", ["A", "B"], ["C"])],
-        "matmul",
-        [helper.make_tensor_value_info("A", TensorProto.FLOAT, [n, n])],
-        [helper.make_tensor_value_info("C", TensorProto.FLOAT, [n, n])],
-        [b],
-    )
-    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
-    model.ir_version = 8
-    opts = ort.SessionOptions()
-    opts.intra_op_num_threads = threads
-    opts.inter_op_num_threads = 1
-    sess = ort.InferenceSession(model.SerializeToString(), opts, providers=["CPUExecutionProvider"])
-    a = rng.standard_normal((n, n)).astype(np.float32)
-    t = time_call(lambda: sess.run(None, {"A": a}), steps, 3)
-    del onnx
-    return 2.0 * n**3 / (t["p50_ms"] / 1e3) / 1e9
-
-
-_NUMPY_MATMUL = """
-import json, sys, time
-import numpy as np
-n, steps = int(sys.argv[1]), int(sys.argv[2])
-rng = np.random.default_rng(0)
-a = rng.standard_normal((n, n)).astype(np.float32)
-b = rng.standard_normal((n, n)).astype(np.float32)
-for _ in range(3):
-    a @ b
-times = []
-for _ in range(steps):
-    t0 = time.perf_counter()
-    a @ b
-    times.append(time.perf_counter() - t0)
-print(json.dumps({"gflops": 2.0 * n**3 / float(np.median(times)) / 1e9}))
-"""
-
-
-def matmul_rate_numpy(n: int, threads: int, steps: int = 20) -> float | None:
-    """Median GFLOP/s of numpy's float32 matmul in a subprocess whose BLAS is pinned to `threads` threads."""
-    env = dict(os.environ)
-    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS"):
-        env[var] = str(threads)
-    try:
-        out = subprocess.run(
-            [sys.executable, "-c", _NUMPY_MATMUL, str(n), str(steps)],
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=120,
-            check=True,
-        )
-        return float(json.loads(out.stdout.strip().splitlines()[-1])["gflops"])
-    except (subprocess.SubprocessError, ValueError, KeyError, IndexError):
-        return None
-
-
-# ---------------------------------------------------------------- backends
-
-
-def _backend_runner(
-    name: str, cfg: LatencyConfig, threads: int, x: np.ndarray, y: np.ndarray
-) -> Callable[[], Any]:
-    """A zero-argument callable running one inference of the model on the given backend."""
-    from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
-
-    if name in ("ort_fp32", "ort_int8"):
-        path = cfg.model if name == "ort_fp32" else cfg.int8_model
-        if path is None:
-            raise FileNotFoundError(
-                "no int8 model (pass --int8-model or put <model>-int8.onnx beside the model)"
-            )
-        sess = ort_session(Path(path), threads)
-        feeds = {INPUT_CURRENT: x, INPUT_SUBGOAL: y}
-        return lambda: sess.run(None, feeds)
-    if name == "torch_eager":
-        import torch
-
-        torch.set_num_threads(threads)
-        module = _torch_module(cfg)
-        tx, ty = torch.from_numpy(x), torch.from_numpy(y)
-
-        def run_torch() -> Any:
-            with torch.inference_mode():
-                return module(tx, ty)
-
-        return run_torch
-    if name == "cv2_dnn":
-        import cv2
-
-        cv2.setNumThreads(threads)
-        net = cv2.dnn.readNetFromONNX(str(cfg.model))
-
-        def run_cv2() -> Any:
-            net.setInput(x, INPUT_CURRENT)
-            net.setInput(y, INPUT_SUBGOAL)
-            return net.forward()
-
-        return run_cv2
-    raise ValueError(f"unknown backend {name!r}")
-
-
-def _torch_module(cfg: LatencyConfig) -> Callable[[Any, Any], Any]:
-    """VelocityNet as a torch eager callable: from a checkpoint if given, else rebuilt from the ONNX weights."""
-    if cfg.checkpoint is not None:
-        from vtr.training.train import load_model
-
-        kind, net, _ = load_model(cfg.checkpoint)
-        if kind != "velocitynet":
-            raise ValueError(f"{cfg.checkpoint} holds a {kind}, not a velocitynet")
-        return lambda a, b: net(a, b)
-    from vtr.benchmarks.onnx_tools import OnnxTorchModule
-    from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
-
-    graph = OnnxTorchModule(cfg.model)
-    return lambda a, b: graph(**{INPUT_CURRENT: a, INPUT_SUBGOAL: b})
-
-
-def bench_backends(cfg: LatencyConfig, x: np.ndarray, y: np.ndarray, gflop: float) -> dict[str, Any]:
-    """Every backend at every thread count, plus the matmul reference at the same thread counts."""
-    results: dict[str, Any] = {"threads": {}}
-    for t in cfg.thread_counts:
-        threads = t or all_cores()
-        entry: dict[str, Any] = {"matmul": {}, "backends": {}}
-        ort_rate = matmul_rate_ort(cfg.matmul_size, threads)
-        np_rate = matmul_rate_numpy(cfg.matmul_size, threads)
-        entry["matmul"] = {
-            "n": cfg.matmul_size,
-            "ort_gflops": ort_rate,
-            "numpy_gflops": np_rate,
-            "best_gflops": max(r for r in (ort_rate, np_rate) if r is not None),
-        }
-        runners: dict[str, Callable[[], Any]] = {}
-        for name in cfg.backends:
-            try:
-                runners[name] = _backend_runner(name, cfg, threads, x, y)
-                runners[name]()
-            except Exception as err:  # a backend that cannot load this model is reported, not fatal
-                runners.pop(name, None)
-                entry["backends"][name] = {"skipped": f"{type(err).__name__}: {err}"}
-        timings = time_interleaved(runners, cfg.steps, cfg.warmup)
-        for name, timing in timings.items():
-            achieved = gflop / (timing["p50_ms"] / 1e3)
-            entry["backends"][name] = {
-                **timing,
-                "gflop_per_step": gflop,
-                "achieved_gflops": achieved,
-                "fraction_of_matmul": achieved / entry["matmul"]["best_gflops"],
-            }
-        results["threads"][str(threads)] = entry
-    return results
-
-
-# ---------------------------------------------------------------- runtime stages
-
-
 def bench_stages(cfg: LatencyConfig, current: np.ndarray, subgoal: np.ndarray) -> dict[str, Any]:
     """The runtime's own stages at cfg.threads, and the whole step: the real ``Repeater.step``."""
     from vtr.benchmarks.step_bench import BenchStep
@@ -308,6 +127,7 @@ def bench_stages(cfg: LatencyConfig, current: np.ndarray, subgoal: np.ndarray) -
     from vtr.runtime.preprocess import image_error, to_nchw
 
     step = BenchStep(cfg.model, cfg.threads, current, subgoal)
+    continuous = BenchStep(cfg.model, cfg.threads, current, subgoal, continuous=True)
     robot, policy = step.robot, step.policy
     feeds = {INPUT_CURRENT: to_nchw(current), INPUT_SUBGOAL: to_nchw(subgoal)}
 
@@ -319,6 +139,7 @@ def bench_stages(cfg: LatencyConfig, current: np.ndarray, subgoal: np.ndarray) -
             "image_error": lambda: image_error(current, subgoal),
             "command_encode": lambda: robot.encode_command(0.1, -0.2),
             "whole_step": step,
+            "whole_step_continuous": continuous,
         },
         cfg.steps,
         cfg.warmup,
@@ -347,63 +168,19 @@ def bench_sim(cfg: LatencyConfig, image_size: tuple[int, int]) -> dict[str, Any]
         return {"skipped": f"{type(err).__name__}: {err}"}
 
 
-_RSS_SCRIPT = """
-import json, resource, sys
-for blocked in ("torch", "cv2", "pymunk", "matplotlib"):
-    sys.modules[blocked] = None
-sys.path.insert(0, sys.argv[1])
-
-
-def hwm_mb():
-    # VmHWM belongs to this process's own address space; ru_maxrss also carries the parent's high-water
-    # mark across fork + exec on Linux, so it would report the benchmark process, not this one.
-    try:
-        for line in open("/proc/self/status"):
-            if line.startswith("VmHWM:"):
-                return int(line.split()[1]) / 1024.0
-    except OSError:
-        pass
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
-from vtr.benchmarks.step_bench import BenchStep
-import numpy as np
-model, steps, h, w = sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5])
-before = hwm_mb()
-rng = np.random.default_rng(0)
-subgoal = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
-current = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
-step = BenchStep(model, 1, current, subgoal)
-for _ in range(steps):
-    step()
-heavy = sorted(m for m in ("torch", "cv2", "pymunk", "matplotlib", "onnx") if sys.modules.get(m) is not None)
-print(json.dumps({"peak_rss_mb": hwm_mb(), "rss_after_imports_mb": before, "steps": steps,
-                  "ru_maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
-                  "heavy_modules_loaded": heavy, "step": step.name}))
-"""
-
-
 def bench_memory(cfg: LatencyConfig) -> dict[str, Any]:
     """Peak RSS of a process that imports only the runtime (+ onnxruntime) and runs control steps."""
     h, w, _ = _model_io(cfg.model)
     try:
         out = subprocess.run(
-            [
-                sys.executable,
-                "-c",
-                _RSS_SCRIPT,
-                str(REPO_ROOT),
-                str(cfg.model.resolve()),
-                str(cfg.steps),
-                str(h),
-                str(w),
-            ],
+            [sys.executable, "-m", "vtr.benchmarks.memory_probe", str(cfg.model.resolve()), str(cfg.steps),
+             str(h), str(w)],
             capture_output=True,
             text=True,
             timeout=300,
             check=True,
-            cwd=str(REPO_ROOT),
-        )
+            env=child_env(),
+        )  # fmt: skip
         return json.loads(out.stdout.strip().splitlines()[-1])
     except subprocess.CalledProcessError as err:
         return {"skipped": f"runtime-only process failed: {err.stderr.strip().splitlines()[-1:]}"}
@@ -428,6 +205,8 @@ def ratios(result: dict[str, Any]) -> dict[str, Any]:
     out["int8_vs_fp32"] = fp32 / int8 if fp32 and int8 else None
     st = result["stages"]["stages"]
     out["step_overhead"] = st["whole_step"]["p50_ms"] / st["inference"]["p50_ms"] - 1.0
+    cont = st.get("whole_step_continuous")
+    out["step_overhead_continuous"] = cont["p50_ms"] / st["inference"]["p50_ms"] - 1.0 if cont else None
     out["fp32_vs_matmul"] = b.get("ort_fp32", {}).get("fraction_of_matmul")
     verdict = {}
     for key, (_, op, threshold) in TARGETS.items():
@@ -491,7 +270,11 @@ def format_report(result: dict[str, Any]) -> str:
     lines += ["", "targets (issue 5), at 1 thread:"]
     for key, (desc, op, threshold) in TARGETS.items():
         value, ok = r[key], r["meets_target"][key]
-        shown = "n/a" if value is None else (f"{value:+.1%}" if key == "step_overhead" else f"{value:.2f}")
+        shown = (
+            "n/a"
+            if value is None
+            else (f"{value:+.1%}" if key.startswith("step_overhead") else f"{value:.2f}")
+        )
         mark = "n/a" if ok is None else ("MET" if ok else "missed")
         lines.append(f"  {desc:<42} {shown:>8}  target {op} {threshold:g}  {mark}")
     return "\n".join(lines)
@@ -501,7 +284,7 @@ def run(cfg: LatencyConfig) -> dict[str, Any]:
     """Run every measurement and return one JSON-ready dict (also written to cfg.json_path)."""
     import platform
 
-    from vtr.benchmarks.onnx_tools import count_flops
+    from vtr.benchmarks.flops import count_flops
 
     h, w, _ = _model_io(cfg.model)
     current, subgoal = sample_frames(h, w)
@@ -528,79 +311,22 @@ def run(cfg: LatencyConfig) -> dict[str, Any]:
     return result
 
 
-def write_json(path: Path, data: Any) -> None:
-    write_text_atomic(path, json.dumps(data, indent=2, default=_json_default) + "\n")
-
-
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--model", type=Path, default=Path("models/velocitynet.onnx"), help="fp32 VelocityNet ONNX"
-    )
-    parser.add_argument(
-        "--int8-model", type=Path, default=None, help="int8 twin (default: <model>-int8.onnx)"
-    )
-    parser.add_argument(
-        "--checkpoint", type=Path, default=None, help="torch checkpoint for the eager backend"
-    )
-    parser.add_argument("--threads", type=int, default=1, help="threads for the runtime stage breakdown")
-    parser.add_argument(
-        "--thread-counts",
-        default="1,all",
-        help="comma-separated thread counts for the backend sweep ('all' = cores)",
-    )
-    parser.add_argument("--steps", type=int, default=200, help="timed iterations per measurement")
-    parser.add_argument("--warmup", type=int, default=20, help="untimed iterations before each measurement")
-    parser.add_argument("--backends", default="ort_fp32,ort_int8,torch_eager,cv2_dnn", help="comma-separated")
-    parser.add_argument("--matmul-size", type=int, default=512, help="n of the reference n^3 float32 matmul")
-    parser.add_argument("--no-zmq", action="store_true", help="skip the ZeroMQ round trip")
-    parser.add_argument("--no-memory", action="store_true", help="skip the runtime-only peak RSS subprocess")
-    parser.add_argument("--sim-steps", type=int, default=500, help="simulator throughput steps (0 = skip)")
-    parser.add_argument("--json", type=Path, default=None, help="write every number here")
+    add_config_arguments(parser, LatencyConfig)
     parser.add_argument(
         "--standin", action="store_true", help="write a random-weight stand-in VelocityNet to --model first"
     )
 
 
-def config_from_args(args: argparse.Namespace) -> LatencyConfig:
-    counts = tuple(0 if t.strip() == "all" else int(t) for t in args.thread_counts.split(",") if t.strip())
+def run_cli(args: argparse.Namespace) -> int:
     if args.standin:
-        from vtr.benchmarks.onnx_tools import make_standin_velocitynet
+        if args.model is None:
+            raise ValueError("--standin needs --model: the file to write the stand-in to")
+        from vtr.benchmarks.standin import make_standin_velocitynet
 
         args.model.parent.mkdir(parents=True, exist_ok=True)
         make_standin_velocitynet(args.model)
-    return LatencyConfig(
-        model=args.model,
-        int8_model=args.int8_model,
-        checkpoint=args.checkpoint,
-        threads=args.threads,
-        thread_counts=counts,
-        steps=args.steps,
-        warmup=args.warmup,
-        backends=tuple(b.strip() for b in args.backends.split(",") if b.strip()),
-        matmul_size=args.matmul_size,
-        zmq=not args.no_zmq,
-        memory=not args.no_memory,
-        sim_steps=args.sim_steps,
-        json_path=args.json,
-    )
-
-
-def run_cli(args: argparse.Namespace) -> int:
-    try:
-        cfg = config_from_args(args)
-    except ValueError as err:
-        print(f"vtr bench latency: {err}", file=sys.stderr)
-        return 2
+    cfg = config_from_args(LatencyConfig, args)  # a ValueError is one line, exit 2
     result = run(cfg)
     print(format_report(result))
     if cfg.json_path is not None:

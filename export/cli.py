@@ -14,6 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from vtr.models import int8_path
+from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT
 
 
@@ -21,14 +23,14 @@ from vtr.runtime.contracts import CONTROL_DT
 class ExportConfig:
     """What `vtr export` writes."""
 
-    checkpoint: str  # VelocityNet model.pt / checkpoint.pt (or its folder)
-    out: str = "models/velocitynet.onnx"  # the fp32 ONNX file
-    data: str | None = None  # dataset for real-frame parity and int8 calibration
-    int8: bool = False  # also write <out stem>-int8.onnx
-    opset: int = 17  # ONNX opset (>= 16 so ViewNet's GridSample exports too)
+    checkpoint: str = opt(help="VelocityNet model.pt / checkpoint.pt (or its run folder)")
+    out: str = opt("models/velocitynet.onnx", "the fp32 ONNX file")
+    data: str | None = opt(None, "dataset: real-frame parity check and int8 calibration")
+    int8: bool = opt(False, "also write <out stem>-int8.onnx (needs --data)")
+    opset: int = opt(17, "ONNX opset (>= 16 so ViewNet's GridSample exports too)")
     calibration_pairs: int = 128  # (current, subgoal) pairs used to calibrate int8
-    viewnet: str | None = None  # optional ViewNet checkpoint to export as well
-    viewnet_out: str | None = None  # where the ViewNet ONNX goes (default: next to out)
+    viewnet: str | None = opt(None, "also export this ViewNet checkpoint")
+    viewnet_out: str | None = opt(None, "where the ViewNet ONNX goes (default: viewnet.onnx next to --out)")
 
     def __post_init__(self) -> None:
         if self.opset < 13:
@@ -41,19 +43,15 @@ class ExportConfig:
             raise ValueError(f"ExportConfig.calibration_pairs must be >= 1, got {self.calibration_pairs}")
 
 
-def int8_path(out: str | Path) -> Path:
-    out = Path(out)
-    return out.with_name(out.stem + "-int8" + out.suffix)
-
-
-def run(cfg: ExportConfig) -> dict[str, Any]:
+def run(cfg: ExportConfig, data: Any = None) -> dict[str, Any]:
+    """Export; ``data``: the dataset at ``cfg.data`` already loaded (``vtr train all`` loads it once)."""
     import numpy as np
     import torch
 
-    from vtr.export.onnx_export import export_onnx, velocitynet_meta
+    from vtr.export.onnx_export import export_onnx, velocitynet_meta, viewnet_props
     from vtr.export.quantize import calibration_pairs, compare, quantize_int8
+    from vtr.training.checkpoint import load_model
     from vtr.training.dataset import load_dataset
-    from vtr.training.train import load_model
 
     kind, model, ckpt = load_model(cfg.checkpoint)
     if kind != "velocitynet":
@@ -63,9 +61,9 @@ def run(cfg: ExportConfig) -> dict[str, Any]:
     dt = float(ckpt.get("data_meta", {}).get("dt", CONTROL_DT))
     meta = velocitynet_meta(model.cfg, dt=dt)
     real = None
-    data = None
-    if cfg.data:
+    if cfg.data and data is None:
         data = load_dataset(cfg.data, image_size=model.cfg.image_size)
+    if data is not None:
         real = calibration_pairs(data.images, data.episodes, count=cfg.calibration_pairs, seed=1)
     parity_inputs = [real[0][:16], real[1][:16]] if real is not None else None
     result: dict[str, Any] = {
@@ -90,7 +88,7 @@ def run(cfg: ExportConfig) -> dict[str, Any]:
         result["viewnet"] = export_onnx(
             viewnet,
             v_out,
-            meta,
+            viewnet_props(viewnet.cfg, dt=dt),  # its own metadata: a ViewNet is not a policy
             opset=max(cfg.opset, 16),
             sample_inputs=sample,
             real_inputs=real_v,
@@ -103,31 +101,11 @@ def run(cfg: ExportConfig) -> dict[str, Any]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--checkpoint", required=True, help="VelocityNet model.pt (or its run folder)")
-    parser.add_argument("--out", default="models/velocitynet.onnx", help="fp32 ONNX output")
-    parser.add_argument("--data", help="dataset: real-frame parity check and int8 calibration")
-    parser.add_argument("--int8", action="store_true", help="also write <out>-int8.onnx (needs --data)")
-    parser.add_argument("--opset", type=int, default=17, help="ONNX opset (default 17)")
-    parser.add_argument("--viewnet", help="also export this ViewNet checkpoint (GridSample, opset >= 16)")
-    parser.add_argument("--viewnet-out", help="ViewNet ONNX output (default: viewnet.onnx next to --out)")
+    add_config_arguments(parser, ExportConfig)
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    from vtr.training.dataset import DatasetError
-
-    try:
-        cfg = ExportConfig(
-            checkpoint=args.checkpoint,
-            out=args.out,
-            data=args.data,
-            int8=args.int8,
-            opset=args.opset,
-            viewnet=args.viewnet,
-            viewnet_out=args.viewnet_out,
-        )
-        result = run(cfg)
-    except (ValueError, FileNotFoundError, DatasetError) as err:
-        print(f"vtr export: {err}")
-        return 1
+    """A bad checkpoint or dataset is a ValueError: one line, exit 2 (``runtime.cli.dispatch``)."""
+    result = run(config_from_args(ExportConfig, args))
     print(json.dumps(result, indent=2))
     return 0

@@ -15,17 +15,18 @@ and fails to down-convert to an explicit lower opset, and it writes ReduceMean f
 from __future__ import annotations
 
 import os
-import tempfile
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
+from vtr.runtime.atomic import temp_dir
 from vtr.runtime.contracts import CONTROL_DT
-from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
+from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, PREFIX, ModelMeta
+from vtr.runtime.preprocess import PREPROCESSING
 
 DEFAULT_OPSET = 17  # >= 16 for ViewNet's GridSample; onnxruntime and cv2.dnn both read it
 #: Max |onnxruntime - torch| allowed on VelocityNet's output (m/s, rad/s): float32 reordering noise is
@@ -48,7 +49,7 @@ def _session(path_or_bytes: str | bytes) -> Any:
 def export_onnx(
     model: torch.nn.Module,
     out_path: str | os.PathLike,
-    meta: ModelMeta,
+    meta: ModelMeta | Mapping[str, str],
     opset: int = DEFAULT_OPSET,
     sample_inputs: Sequence[torch.Tensor] | None = None,
     real_inputs: Sequence[np.ndarray] | None = None,
@@ -63,7 +64,8 @@ def export_onnx(
     Args:
         model: the torch module (put in eval mode here).
         out_path: the .onnx file, written atomically.
-        meta: constants stored as ``vtr.*`` metadata_props.
+        meta: constants stored as ``vtr.*`` metadata_props: a ``ModelMeta`` (VelocityNet, what the runtime
+            reads) or ready props (``viewnet_props``; then ``sample_inputs`` must be given).
         opset: ONNX opset, explicit.
         sample_inputs: tensors to trace with; default: random inputs of the shapes ``meta`` implies
             (two (1, 3, H, W) images, as VelocityNet takes).
@@ -79,14 +81,16 @@ def export_onnx(
     import onnx
 
     model = model.eval().cpu()
-    h, w = meta.image_height, meta.image_width
+    props = meta.to_props() if isinstance(meta, ModelMeta) else dict(meta)
     if sample_inputs is None:
-        sample_inputs = tuple(torch.rand(1, 3, h, w) for _ in input_names)
+        if not isinstance(meta, ModelMeta):
+            raise ValueError("export_onnx needs sample_inputs when meta is not a ModelMeta")
+        sample_inputs = tuple(torch.rand(1, 3, meta.image_height, meta.image_width) for _ in input_names)
     sample_inputs = tuple(sample_inputs)
     out_path = Path(out_path)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     dynamic = {name: {0: "batch"} for name in (*input_names, *output_names)}
-    with tempfile.TemporaryDirectory(dir=out_path.parent) as tmpdir:
+    with temp_dir(out_path.parent) as tmpdir:  # removed on exit; a kill -9 leftover goes on the next run
         raw = os.path.join(tmpdir, "raw.onnx")
         kwargs: dict[str, Any] = {"dynamo": dynamo}
         if dynamo:
@@ -110,7 +114,7 @@ def export_onnx(
             )
         proto = onnx.load(raw)
         del proto.metadata_props[:]
-        for key, value in meta.to_props().items():
+        for key, value in props.items():
             proto.metadata_props.add(key=key, value=value)
         proto.doc_string = "vtr-mpc " + type(model).__name__
         onnx.checker.check_model(proto, full_check=True)
@@ -154,6 +158,20 @@ def check_parity(
     if not err <= atol:
         raise ParityError(f"onnxruntime differs from torch by {err:.3g} > tolerance {atol:.3g}")
     return err
+
+
+def viewnet_props(cfg: Any, dt: float = CONTROL_DT) -> dict[str, str]:
+    """ViewNet's ONNX metadata: what it is and what it was trained on, not VelocityNet's policy contract
+    (so the runtime refuses a ViewNet given as a policy: it lacks ``vtr.horizon``)."""
+    return {
+        PREFIX + "kind": "viewnet",
+        PREFIX + "image_height": str(cfg.image_size),
+        PREFIX + "image_width": str(cfg.image_size),
+        PREFIX + "v_max": str(cfg.v_max),
+        PREFIX + "w_max": str(cfg.w_max),
+        PREFIX + "dt": str(dt),
+        PREFIX + "preprocessing": PREPROCESSING,
+    }
 
 
 def velocitynet_meta(cfg: Any, dt: float = CONTROL_DT) -> ModelMeta:

@@ -1,75 +1,133 @@
-"""ZeroMQ client for the simulator (or a robot bridge speaking the same protocol): a ``Robot`` over the wire.
+"""ZeroMQ client for the simulator or a robot bridge (docs/PROTOCOL.md): a ``Robot`` over the wire.
 
-Reliability follows the Lazy Pirate pattern (ZeroMQ Guide, ch. 4): send on a REQ socket, poll for the
-reply with a timeout; on timeout the socket is stuck mid-exchange, so close it with LINGER=0, open a
-fresh one and resend; after ``retries`` attempts give up with a :class:`~runtime.robot.RobotError`.
+Socket: a DEALER with explicit ``seq`` matching, not the Lazy Pirate REQ. A REQ socket pairs "the next
+message" with "the current request", so one duplicated reply leaves it one reply behind for good, and it
+must be rebuilt after every fault. Here each reply is matched to its request by ``seq``: a reply to an
+earlier request (late or duplicated) is counted in :attr:`SimClient.stale_replies` and skipped while the
+wait goes on; a malformed reply, or one for no request we sent, is counted in :attr:`bad_frames` and
+raised as :class:`BadFrameError`, and the next exchange starts clean with a new ``seq``. No fault
+outlives one reply. The socket is rebuilt (LINGER=0) only after a timeout, which drops any request
+still queued for a peer that went away, so a rebooted robot never receives a command from before. A
+socket monitor notices a dropped connection; the next ``reset``/``step`` is then preceded by a ``hello``
+that reveals a rebooted robot before any motion command reaches it (and the server refuses a motion
+command naming another session, should one slip through).
 
-Note that resending a ``step`` whose reply was lost may apply it twice; on a lockstep simulator this
-moves the robot one extra control step, which the visual controller absorbs.
+Timeouts never resend a motion command. A ``step`` waits ``duration + timeout_s``; when nothing comes,
+the first thing sent is a ``stop``. If the stop is answered the step raises BadFrameError (the robot is
+stopped, the link is alive); if not, :class:`LinkLost`. Only ``hello``, ``observe`` and ``stop`` are
+retried. ``cancel`` (the run's stop event, set by Ctrl-C/SIGTERM) ends any wait within ``slice_s``.
 
-Every reply is validated by :mod:`runtime.protocol`; a reply that fails (wrong shape, encoding,
-truncated pixels, unknown version, stale seq, a stamp older than the last one of the same server
-session) raises :class:`~runtime.protocol.BadFrameError` and increments :attr:`SimClient.bad_frames`.
+Stamps are judged per robot session: a stamp older than the last accepted one is stale; one further ahead
+than the wall clock allows (``duration`` + elapsed wall time x the announced rate + 1 s) is from the
+future; either is rejected without moving the reference, so one outlier costs one frame. ``reset``
+restarts the clock. A new session token, confirmed by a ``hello`` that carries it too, means the robot
+restarted: :class:`RobotRestarted` (one corrupt session field is one bad frame, not a restart).
 """
 
 from __future__ import annotations
 
+import threading
 import time
 from typing import Any
 
 import zmq
 
 from vtr.runtime import protocol
-from vtr.runtime.protocol import BadFrameError, Reply
-from vtr.runtime.robot import Observation, RobotError
+from vtr.runtime.address import check_endpoint
+from vtr.runtime.hello import Hello, parse_hello
+from vtr.runtime.protocol import BadFrameError, Limits, Reply
+from vtr.runtime.robot import Interrupted, LinkLost, Observation, RobotError, RobotRestarted
+
+#: Commands that are safe to send again after a missed reply (they move nothing).
+RETRYABLE = ("hello", "observe", "stop")
+#: Slack on the "stamp from the future" bound, in robot-clock seconds.
+FUTURE_SLACK_S = 1.0
 
 
 class SimClient:
-    """Robot over ZeroMQ. ``expect_shape`` (H, W) rejects images of any other size."""
+    """Robot over ZeroMQ. ``expect_shape`` (H, W) rejects images of any other size.
+
+    ``timeout_s`` is the reply wait beyond a step's own duration (the margin that bounds how late the
+    stop comes when the robot goes silent: ``dt + timeout_s``, 0.4 s by default); ``setup_timeout_s``
+    is the wait for ``hello`` and ``reset``, which may rebuild a world.
+    """
 
     def __init__(
         self,
         endpoint: str,
-        timeout_s: float = 2.0,
+        timeout_s: float = 0.3,
         retries: int = 3,
         expect_shape: tuple[int, int] | None = None,
         max_message_bytes: int = protocol.MAX_MESSAGE_BYTES,
+        setup_timeout_s: float = 5.0,
+        cancel: threading.Event | None = None,
+        slice_s: float = 0.02,
     ) -> None:
-        if timeout_s <= 0:
-            raise ValueError(f"timeout_s must be > 0, got {timeout_s}")
+        if not timeout_s > 0 or not setup_timeout_s > 0:
+            raise ValueError(f"timeout_s and setup_timeout_s must be > 0, got {timeout_s}, {setup_timeout_s}")
         if retries < 1:
             raise ValueError(f"retries must be >= 1, got {retries}")
+        check_endpoint(endpoint)
         self.endpoint = endpoint
         self.timeout_s = float(timeout_s)
+        self.setup_timeout_s = float(setup_timeout_s)
         self.retries = int(retries)
         self.expect_shape = expect_shape
-        self.max_message_bytes = max_message_bytes
-        #: Replies rejected by validation.
+        self.max_message_bytes = int(max_message_bytes)
+        self.cancel = cancel or threading.Event()
+        self.slice_s = float(slice_s)
+        #: Replies rejected by validation (malformed, wrong seq/cmd/shape, stale or future stamp).
         self.bad_frames = 0
-        #: Times a reply did not arrive in time and the socket was rebuilt.
+        #: Replies to an earlier request (late or duplicated), skipped.
+        self.stale_replies = 0
+        #: Waits that ended without a reply (the socket was rebuilt each time).
         self.timeouts = 0
         #: Times the server's session token changed (it restarted).
         self.session_changes = 0
         self.session: str | None = None
         self.last_bad_frame: str | None = None
-        self._last_stamp: float | None = None
+        #: What the robot announced (set by :meth:`handshake`); its limits check every step before sending.
+        self.hello_info: Hello | None = None
         #: The last exchange's round trip (send to reply received) and validation time, in milliseconds.
         self.last_timing_ms: dict[str, float] = {}
+        self._last_stamp: float | None = None
+        self._last_stamp_wall = 0.0
         self._seq = 0
+        self._confirming = False  # inside the hello that checks a session change
         self._ctx = zmq.Context()
         self._sock: zmq.Socket | None = None
+        self._monitor: zmq.Socket | None = None
+
+    @property
+    def limits(self) -> Limits | None:
+        return None if self.hello_info is None else self.hello_info.limits
 
     # ------------------------------------------------------------------ socket management
-    def _open(self) -> zmq.Socket:
-        sock = self._ctx.socket(zmq.REQ)
-        sock.setsockopt(zmq.LINGER, 0)
-        sock.connect(self.endpoint)
-        return sock
+    def _socket(self) -> zmq.Socket:
+        if self._sock is None:
+            sock = self._ctx.socket(zmq.DEALER)
+            sock.setsockopt(zmq.LINGER, 0)
+            sock.setsockopt(zmq.MAXMSGSIZE, self.max_message_bytes)  # a 300 MiB reply never reaches memory
+            # disconnects (a robot that died or rebooted) are noticed before the next motion command
+            self._monitor = sock.get_monitor_socket(zmq.EVENT_DISCONNECTED)
+            sock.connect(self.endpoint)
+            self._sock = sock
+        return self._sock
 
     def _drop(self) -> None:
         if self._sock is not None:
+            self._sock.disable_monitor()
+            self._monitor.close(linger=0)
             self._sock.close(linger=0)
             self._sock = None
+
+    def _peer_dropped(self) -> bool:
+        """Whether the connection to the robot dropped since the last look (drains the monitor)."""
+        dropped = False
+        while self._sock is not None and self._monitor.poll(0):
+            self._monitor.recv_multipart()
+            dropped = True
+        return dropped
 
     def close(self) -> None:
         self._drop()
@@ -81,69 +139,165 @@ class SimClient:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+    # ------------------------------------------------------------------ one exchange
     def _exchange(self, cmd: str, **fields: Any) -> Reply:
-        """Send one request, Lazy-Pirate style, and return its validated reply."""
-        for _ in range(self.retries):
-            self._seq += 1
-            seq = self._seq
-            request = protocol.encode_request(cmd, seq, stamp=time.time(), **fields)
-            if self._sock is None:
-                self._sock = self._open()
-            t0 = time.perf_counter()
-            try:
-                self._sock.send_multipart(request)
-                ready = self._sock.poll(int(self.timeout_s * 1000), zmq.POLLIN)
-                frames = self._sock.recv_multipart() if ready else None
-            except BaseException:
-                # interrupted mid-exchange (e.g. KeyboardInterrupt): the REQ socket now waits for a reply
-                # that nobody will read, so the zero command that follows needs a fresh socket
-                self._drop()
-                raise
-            if frames is not None:
-                t1 = time.perf_counter()
-                reply = self._validate(frames, cmd, seq)
-                self.last_timing_ms = {"receive": (t1 - t0) * 1e3, "decode": (time.perf_counter() - t1) * 1e3}
+        """Send one request and return its validated reply (see the module docstring for faults)."""
+        for attempt in range(1, self.retries + 1):
+            reply = self._attempt(cmd, fields)
+            if reply is not None:
                 return reply
+            # timed out: the request may be queued for a dead peer; drop it with the socket
             self.timeouts += 1
-            self._drop()  # a REQ socket that timed out cannot send again: rebuild it
-        raise RobotError(
-            f"no reply from {self.endpoint} to {cmd!r} after {self.retries} tries of {self.timeout_s} s; "
-            "is the simulator server (`vtr sim serve`) running?"
+            self._drop()
+            if cmd != "stop":
+                stopped = self._stop_after_timeout()
+                if cmd not in RETRYABLE:
+                    wait = self._wait_s(cmd, fields)
+                    if stopped:
+                        self._reject(f"no reply to {cmd!r} within {wait:.2f} s; the robot was sent a stop")
+                    raise LinkLost(
+                        f"no reply from {self.endpoint} to {cmd!r} within {wait:.2f} s, nor to the stop sent after it"
+                    )
+            if attempt == self.retries:
+                break
+        raise LinkLost(
+            f"no reply from {self.endpoint} to {cmd!r} after {self.retries} tries; "
+            "is the robot bridge or the simulator (`vtr sim serve`) running?"
         )
 
-    def _validate(self, frames: list[bytes], cmd: str, seq: int) -> Reply:
+    def _wait_s(self, cmd: str, fields: dict[str, Any]) -> float:
+        if cmd in ("hello", "reset"):
+            return self.setup_timeout_s
+        return float(fields.get("duration", 0.0)) + self.timeout_s
+
+    def _attempt(self, cmd: str, fields: dict[str, Any]) -> Reply | None:
+        """Send once and wait; the reply, or None on timeout. Raises on a bad reply or a cancel."""
+        guard = self.session if cmd in protocol.GUARDED_COMMANDS else None
+        if guard is not None and self._peer_dropped():
+            # the connection dropped: a hello says whether the same robot is back (else RobotRestarted)
+            self._attempt("hello", {})
+            guard = self.session
+        self._seq += 1
+        seq = self._seq
+        frames = protocol.encode_request(cmd, seq, time.time(), self.limits, session=guard, **fields)
+        sock = self._socket()
+        t0 = time.perf_counter()
+        deadline = time.monotonic() + self._wait_s(cmd, fields)
+        try:
+            sock.send_multipart([b"", *frames], zmq.NOBLOCK)
+        except zmq.Again:
+            return None
+        try:
+            while True:
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    return None
+                if cmd != "stop" and self.cancel.is_set():
+                    self._drop()
+                    raise Interrupted(f"{cmd!r} abandoned: the run was asked to stop")
+                if not sock.poll(int(max(1, min(remaining, self.slice_s) * 1000)), zmq.POLLIN):
+                    continue
+                raw = sock.recv_multipart(zmq.NOBLOCK)
+                t1 = time.perf_counter()
+                reply = self._match(raw, cmd, seq, fields)
+                if reply is not None:
+                    self.last_timing_ms = {
+                        "receive": (t1 - t0) * 1e3,
+                        "decode": (time.perf_counter() - t1) * 1e3,
+                    }
+                    return reply
+        except KeyboardInterrupt:
+            self._drop()  # the zero command that follows needs a socket without this pending request
+            raise
+
+    def _stop_after_timeout(self) -> bool:
+        """Stops on a fresh socket, up to ``retries``; True as soon as one is answered, even badly or with
+        a refusal (the robot is there). A new session raises RobotRestarted."""
+        for _ in range(self.retries):
+            try:
+                if self._attempt("stop", {}) is not None:
+                    return True
+            except RobotRestarted:
+                raise
+            except (RobotError, BadFrameError):
+                return True
+            self.timeouts += 1
+            self._drop()
+        return False
+
+    def _reject(self, why: str) -> None:
+        self.bad_frames += 1
+        self.last_bad_frame = why
+        raise BadFrameError(why)
+
+    def _match(self, raw: list[bytes], cmd: str, seq: int, fields: dict[str, Any]) -> Reply | None:
+        """A reply for ``seq``, or None for one to skip (an earlier request's); raises on a bad one."""
+        if len(raw) < 2 or raw[0] != b"":
+            self._reject(f"reply without the empty delimiter frame ({len(raw)} frames)")
+        frames = raw[1:]
         try:
             reply = protocol.decode_reply(
-                frames,
-                expect_cmd=cmd,
-                expect_seq=seq,
-                expect_shape=self.expect_shape,
-                max_message_bytes=self.max_message_bytes,
+                frames, expect_shape=self.expect_shape, max_message_bytes=self.max_message_bytes
             )
-            if reply.ok:
-                self._check_stamp(reply)
         except BadFrameError as exc:
-            self.bad_frames += 1
-            self.last_bad_frame = str(exc)
-            raise
+            _, peeked = protocol.peek_cmd_seq(frames)
+            if peeked is not None and peeked < seq:
+                self.stale_replies += 1  # a broken reply to an old request: it cannot affect this one
+                return None
+            self._reject(str(exc))
+        if reply.seq is not None and reply.seq < seq:
+            self.stale_replies += 1
+            return None
+        if reply.seq is not None and reply.seq != seq:
+            self._reject(f"reply has seq {reply.seq}, but the last request sent was {seq}")
+        if reply.cmd is not None and reply.cmd != cmd:
+            self._reject(f"reply is for command {reply.cmd!r}, expected {cmd!r}")
+        self._check_session(reply)
         if not reply.ok:
             raise RobotError(f"{self.endpoint} refused {cmd!r}: {reply.error}")
+        self._check_stamp(reply, float(fields.get("duration", 0.0)))
         return reply
 
-    def _check_stamp(self, reply: Reply) -> None:
-        if reply.session != self.session:
-            if self.session is not None:
-                self.session_changes += 1
-            self.session = reply.session
-            self._last_stamp = None
-        if reply.cmd == "reset":
-            self._last_stamp = None
+    def _check_session(self, reply: Reply) -> None:
+        """A reply from another session: the robot restarted, or the reply is corrupt. A ``hello`` tells
+        which: the same new session again confirms the restart (RobotRestarted), the old one makes this
+        reply one bad frame."""
+        if reply.session is None or reply.session == self.session or self._confirming:
+            return
+        previous = self.session
+        if previous is None:
+            self.session, self._last_stamp = reply.session, None
+            return
+        self._confirming = True
+        try:
+            confirm = self._attempt("hello", {})
+        except (RobotError, BadFrameError):
+            confirm = None
+        finally:
+            self._confirming = False
+        if confirm is not None and confirm.session == previous:
+            self._reject(f"reply from session {reply.session}, but the robot is still session {previous}")
+        self.session = confirm.session if confirm is not None and confirm.session else reply.session
+        self._last_stamp = None
+        self.session_changes += 1
+        raise RobotRestarted(
+            f"robot restarted: session {previous} became {self.session}; it is not where the run left it"
+        )
+
+    def _check_stamp(self, reply: Reply, duration: float) -> None:
         assert reply.stamp is not None
-        if self._last_stamp is not None and reply.stamp < self._last_stamp:
-            raise BadFrameError(
-                f"stale frame: stamp {reply.stamp} is older than the last one, {self._last_stamp}"
-            )
-        self._last_stamp = reply.stamp
+        now = time.monotonic()
+        last = self._last_stamp
+        if reply.cmd != "reset" and last is not None:
+            if reply.stamp < last:
+                self._reject(f"stale frame: stamp {reply.stamp} is older than the last accepted one, {last}")
+            rate = 1.0 if self.hello_info is None else max(1.0, self.hello_info.realtime_factor)
+            bound = last + duration + (now - self._last_stamp_wall) * rate + FUTURE_SLACK_S
+            if reply.stamp > bound:
+                self._reject(
+                    f"frame from the future: stamp {reply.stamp} is past {bound:.3f}, the most the clock can have run"
+                )
+        self._last_stamp, self._last_stamp_wall = reply.stamp, now
 
     @staticmethod
     def _observation(reply: Reply) -> Observation:
@@ -152,8 +306,17 @@ class SimClient:
 
     # ------------------------------------------------------------------ the Robot protocol
     def hello(self) -> dict[str, Any]:
-        """Protocol version, camera, limits and simulated time of the server (the reply header)."""
+        """The hello reply's header: protocol version, camera, limits, clock (docs/PROTOCOL.md)."""
         return dict(self._exchange("hello").header)
+
+    def handshake(self) -> Hello:
+        """``hello``, validated against the schema; from then on steps are checked against its limits."""
+        reply = self._exchange("hello")
+        try:
+            self.hello_info = parse_hello(reply)
+        except BadFrameError as exc:
+            self._reject(f"hello: {exc}")
+        return self.hello_info
 
     def reset(self, pose: tuple[float, float, float] | None = None, seed: int | None = None) -> Observation:
         return self._observation(self._exchange("reset", pose=pose, seed=seed))

@@ -35,8 +35,8 @@ class CameraSpec:
 
     width: int = 128  # pixels (the network's input)
     height: int = 128  # pixels
-    fov_deg: float = 90.0  # horizontal field of view, square pixels
-    height_m: float = 0.3  # optical centre above the floor
+    fov_deg: float | None = 90.0  # horizontal field of view, square pixels (None: unknown)
+    height_m: float | None = 0.3  # optical centre above the floor (None: unknown)
 
 
 #: Defaults, one source: sim2d.CameraConfig, training's image sizes and the model metadata start here.

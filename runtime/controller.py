@@ -90,16 +90,6 @@ class Verdict:
     events: tuple[Decision, ...]
     from_index: int
 
-    @property
-    def advanced(self) -> int:
-        """Subgoals reached on this image."""
-        return sum(1 for e in self.events if e.action is Action.ADVANCE)
-
-    @property
-    def jumped_to(self) -> list[int]:
-        """Subgoal indices the stall guard or localisation jumped to on this image."""
-        return [e.index for e in self.events if e.action is Action.JUMP]
-
 
 @dataclass
 class ControllerConfig:
@@ -273,6 +263,10 @@ class Controller:
             events.append(decision)
             decision = self.decide(image)
         return Verdict(decision, tuple(events), from_index)
+
+    def relocalise(self) -> None:
+        """Search the whole route for the best-matching subgoal on the next image (after a robot restart)."""
+        self._localise_pending = True
 
     def _localise(self, image: np.ndarray) -> Decision | None:
         errors = np.array([image_error(image, s) for s in self.subgoals])

@@ -28,9 +28,13 @@ from typing import IO
 
 import numpy as np
 
+from vtr.runtime.address import EXAMPLE, check_endpoint
+from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.controller import ControllerConfig
-from vtr.runtime.repeater import RepeatConfig, Repeater, StepRecord, Summary
+from vtr.runtime.hello import check_robot_fits
+from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus, StepRecord, Summary
 from vtr.runtime.robot import RobotError
+from vtr.runtime.run_outputs import RunOutputs
 
 
 def log_writer(stream: IO[str]) -> Callable[[StepRecord], None]:
@@ -47,81 +51,51 @@ def log_writer(stream: IO[str]) -> Callable[[StepRecord], None]:
 # ------------------------------------------------------------------------------------------------- CLI
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--sim", required=True, help="robot/simulator endpoint, e.g. tcp://127.0.0.1:5555")
-    parser.add_argument("--model", required=True, help="VelocityNet ONNX file")
-    parser.add_argument("--route", required=True, help="taught route (.npz from `vtr teach`)")
-    parser.add_argument("--log", default=None, help="write one JSON line per control step here")
-    parser.add_argument("--json", action="store_true", help="print the summary as JSON")
-    parser.add_argument(
-        "--e-m",
-        type=float,
-        default=None,
-        help="fixed switch threshold (paper: 17); default: calibrated from the route",
-    )
-    parser.add_argument("--threads", type=int, default=1, help="onnxruntime intra-op threads")
-    parser.add_argument("--max-steps", type=int, default=2000, help="stop after this many control steps")
-    parser.add_argument(
-        "--stall-steps", type=int, default=None, help="stall guard patience; 0 disables it (default: 10)"
-    )
-    parser.add_argument(
-        "--settle",
-        type=int,
-        default=None,
-        help="extra commands at a subgoal while the error still falls under e_m (default: 2; paper: 0)",
-    )
-    parser.add_argument(
-        "--paper",
-        action="store_true",
-        help="the paper's Algorithm 1 exactly: e_m 17, no settling, no stall guard",
-    )
-    parser.add_argument("--localise", action="store_true", help="start at the best-matching subgoal")
-    parser.add_argument("--continuous", action="store_true", help="no zero command between control steps")
-    parser.add_argument(
-        "--start",
-        choices=("route", "here"),
-        default="route",
-        help="route: reset the simulator to the route's first pose first; here: start where the robot is",
-    )
-    parser.add_argument(
-        "--seed", type=int, default=1, help="actuation-noise seed for the reset (--start route)"
-    )
-    parser.add_argument("--timeout", type=float, default=2.0, help="seconds to wait for each reply")
-    parser.add_argument("--retries", type=int, default=3, help="tries per request before giving up")
-    parser.add_argument(
-        "--frame-timeout", type=float, default=5.0, help="seconds without a valid frame before stopping"
-    )
-
-
 @dataclass
 class RepeatRunConfig:
     """Everything `vtr repeat` needs."""
 
-    sim: str  # endpoint
-    model: str  # ONNX path
-    route: str  # route .npz path
-    log: str | None = None  # JSON-lines log path
-    threads: int = 1  # onnxruntime intra-op threads
-    timeout_s: float = 2.0  # per-reply timeout
-    retries: int = 3  # tries per request
+    sim: str = opt(help=f"robot/simulator endpoint, e.g. {EXAMPLE}")
+    model: str = opt(help="VelocityNet ONNX file")
+    route: str = opt(help="taught route (.npz from `vtr teach`)")
+    log: str | None = opt(None, "write one JSON line per control step here, then the summary")
+    threads: int = opt(1, "onnxruntime intra-op threads")
+    timeout_s: float = opt(
+        0.3,
+        "seconds to wait for a reply beyond the step's own duration; then a stop is sent",
+        flag="--timeout",
+    )
+    retries: int = opt(3, "tries per request before giving up")
     #: "route": reset the simulator to the route's first pose before repeating; "here": start where it is
     #: (a real robot placed by hand, or a bridge that does not implement reset).
-    start: str = "route"
-    #: Actuation-noise seed for the reset ("route" start only).
-    seed: int | None = 1
+    start: str = opt(
+        "route",
+        "route: reset the simulator to the route's first pose first; here: start where the robot is",
+        choices=("route", "here"),
+    )
+    seed: int | None = opt(1, "actuation-noise seed for the reset (--start route)")
+    mcap: str | None = opt(
+        None,
+        "also write the run as a ROS 2 MCAP bag for Foxglove and ros2 bag play (PATH.mcap: one file, else a "
+        "bag folder); needs pip install 'vtr-mpc[ros]'",
+        metavar="PATH",
+    )
+    foxglove: int | None = opt(
+        None, "serve the run live to Foxglove on ws://127.0.0.1:PORT; needs pip install 'vtr-mpc[foxglove]'",
+        metavar="PORT",
+    )  # fmt: skip
     repeat: RepeatConfig = field(default_factory=RepeatConfig)
 
     def __post_init__(self) -> None:
+        check_endpoint(self.sim)
         if self.start not in ("route", "here"):
             raise ValueError(f"start must be 'route' or 'here', got {self.start!r}")
-        if "://" not in self.sim:
-            raise ValueError(f"sim must be a ZeroMQ endpoint like tcp://127.0.0.1:5555, got {self.sim!r}")
         if self.threads < 1:
-            raise ValueError(f"threads must be >= 1, got {self.threads}")
+            raise ValueError(f"--threads must be >= 1, got {self.threads}")
         if not self.timeout_s > 0:
-            raise ValueError(f"timeout_s must be > 0, got {self.timeout_s}")
+            raise ValueError(f"--timeout must be > 0 seconds, got {self.timeout_s}")
         if self.retries < 1:
-            raise ValueError(f"retries must be >= 1, got {self.retries}")
+            raise ValueError(f"--retries must be >= 1, got {self.retries}")
 
 
 def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summary:
@@ -132,30 +106,63 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
     policy = OnnxPolicy(cfg.model, threads=cfg.threads)
     route = Route.load(cfg.route)
     policy.check_route(route)
-    log_file = open(cfg.log, "w", encoding="utf-8") if cfg.log else None  # noqa: SIM115
-    try:
-        with SimClient(cfg.sim, cfg.timeout_s, cfg.retries, expect_shape=policy.image_shape) as client:
-            if cfg.start == "route":
-                pose = route.poses[0]
-                if not np.all(np.isfinite(pose)):
-                    raise ValueError("the route's first pose is unknown; use --start here")
-                client.reset(pose=(float(pose[0]), float(pose[1]), float(pose[2])), seed=cfg.seed)
-            on_step = log_writer(log_file) if log_file is not None else None
-            repeater = Repeater(
-                client, policy, route, config=cfg.repeat, on_step=on_step, stop_event=stop_event
-            )
-            summary = repeater.run()
-            if log_file is not None:
-                log_file.write(json.dumps({"summary": summary.to_dict()}, default=float) + "\n")
-            return summary
-    finally:
-        if log_file is not None:
-            log_file.close()
+    with SimClient(
+        cfg.sim, cfg.timeout_s, cfg.retries, expect_shape=policy.image_shape, cancel=stop_event
+    ) as client:
+        # what the robot announces: its limits check every step, its camera must match route and model
+        for note in check_robot_fits(client.handshake(), route.camera, policy.meta):
+            print(f"vtr repeat: note: {note}", file=sys.stderr)
+        if cfg.start == "route":
+            pose = route.poses[0]
+            if not np.all(np.isfinite(pose)):
+                raise ValueError("the route's first pose is unknown; use --start here")
+            client.reset(pose=(float(pose[0]), float(pose[1]), float(pose[2])), seed=cfg.seed)
+        repeater = Repeater(client, policy, route, config=cfg.repeat, stop_event=stop_event)
+        with RunOutputs(cfg.mcap, cfg.foxglove, route.images) as outputs:  # MCAP bag, live view
+            if cfg.log is None:
+                repeater.on_step = outputs.chain()
+                summary = repeater.run()
+            else:
+                # opened only now, with the model, route and robot checked: a refused start leaves no empty log
+                with open(cfg.log, "w", encoding="utf-8") as log_file:
+                    repeater.on_step = outputs.chain(log_writer(log_file))
+                    summary = repeater.run()
+                    log_file.write(json.dumps({"summary": summary.to_dict()}, default=float) + "\n")
+            outputs.finish(summary.to_dict())
+        return summary
 
 
-def run_cli(args: argparse.Namespace) -> int:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_config_arguments(parser, RepeatRunConfig)
+    add_config_arguments(parser, RepeatConfig)
+    default = ControllerConfig()
+    parser.add_argument("--json", action="store_true", help="print the summary as JSON")
+    parser.add_argument(
+        "--e-m",
+        type=float,
+        default=None,
+        help="fixed switch threshold (paper: 17); default: calibrated from the route",
+    )
+    parser.add_argument(
+        "--stall-steps", type=int, default=None,
+        help=f"stall guard patience; 0 disables it (default: {default.stall_steps})",
+    )  # fmt: skip
+    parser.add_argument(
+        "--settle", type=int, default=None,
+        help=f"extra commands at a subgoal while the error still falls (default: {default.settle_steps}; paper: 0)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--paper",
+        action="store_true",
+        help="the paper's Algorithm 1 exactly: e_m 17, no settling, no stall guard",
+    )
+    parser.add_argument("--localise", action="store_true", help="start at the best-matching subgoal")
+    parser.add_argument("--continuous", action="store_true", help="no zero command between control steps")
+
+
+def controller_from_args(args: argparse.Namespace) -> ControllerConfig:
     base = ControllerConfig.paper() if args.paper else ControllerConfig()
-    controller = replace(
+    return replace(
         base,
         e_m_mode="fixed" if args.e_m is not None else base.e_m_mode,
         e_m=args.e_m if args.e_m is not None else base.e_m,
@@ -164,20 +171,16 @@ def run_cli(args: argparse.Namespace) -> int:
         localise=args.localise,
         continuous=args.continuous,
     )
-    cfg = RepeatRunConfig(
-        sim=args.sim,
-        model=args.model,
-        route=args.route,
-        log=args.log,
-        threads=args.threads,
-        timeout_s=args.timeout,
-        retries=args.retries,
-        start=args.start,
-        seed=args.seed,
-        repeat=RepeatConfig(
-            controller=controller, max_steps=args.max_steps, frame_timeout_s=args.frame_timeout
-        ),
-    )
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    """0: the route was finished; 1: the repeat ended otherwise; 2: refused input; 130: interrupted."""
+    try:
+        repeat_cfg = config_from_args(RepeatConfig, args, controller=controller_from_args(args))
+        cfg = config_from_args(RepeatRunConfig, args, repeat=repeat_cfg)
+    except ValueError as exc:
+        print(f"vtr repeat: {exc}", file=sys.stderr)
+        return 2
     stop_event = threading.Event()
     previous = {
         sig: signal.signal(sig, lambda *_: stop_event.set()) for sig in (signal.SIGINT, signal.SIGTERM)
@@ -185,7 +188,7 @@ def run_cli(args: argparse.Namespace) -> int:
     try:
         summary = run(cfg, stop_event)
     except (OSError, ValueError, RobotError) as exc:  # bad model/route files, refusals: say so, no traceback
-        print(f"vtr repeat: {exc}", file=sys.stderr)
+        print(f"vtr repeat: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2
     finally:
         for sig, handler in previous.items():
@@ -198,5 +201,8 @@ def run_cli(args: argparse.Namespace) -> int:
             f"vtr repeat: {s.status.value}{' (' + s.detail + ')' if s.detail else ''}; {s.subgoals_reached}/{s.subgoals_total} "
             f"subgoals, {s.steps} steps, e_m={s.e_m:.2f}, simulated {s.sim_time_s:.1f} s, wall {s.wall_time_s:.1f} s, "
             f"bad frames {s.bad_frames}, non-finite outputs {s.nonfinite_outputs}"
+            + (f", re-localised after {s.robot_restarts} robot restart(s)" if s.robot_restarts else "")
         )
+    if summary.status is RepeatStatus.INTERRUPTED:
+        return 130
     return 0 if summary.completed else 1

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
-from vtr.runtime.contracts import CAMERA, CONTROL_DT, V_MAX, W_MAX
+from vtr.runtime.contracts import CAMERA, CONTROL_DT, V_MAX, W_MAX, CameraSpec
 from vtr.runtime.preprocess import PREPROCESSING
 
 #: Metadata key prefix in the ONNX file's metadata_props.
@@ -13,6 +13,8 @@ PREFIX = "vtr."
 FORMAT_VERSION = 1
 INPUT_CURRENT = "current"
 INPUT_SUBGOAL = "subgoal"
+#: Metadata a model may lack (older exports); read as None.
+OPTIONAL_FIELDS = ("camera_fov_deg", "camera_height_m")
 OUTPUT_VELOCITIES = "velocities"  # (B, 2, N): row 0 = v (m/s), row 1 = w (rad/s)
 
 
@@ -29,6 +31,14 @@ class ModelMeta:
     e_m_default: float = 17.0  # subgoal switch threshold, mean abs pixel difference (0..255)
     preprocessing: str = PREPROCESSING
     format_version: int = FORMAT_VERSION
+    #: The camera the training images came from (None: not recorded, as in models exported before it was).
+    camera_fov_deg: float | None = CAMERA.fov_deg  # degrees, horizontal
+    camera_height_m: float | None = CAMERA.height_m  # metres above the floor
+
+    @property
+    def camera(self) -> CameraSpec:
+        """The camera this model expects: its input size, and the field of view and height it was trained on."""
+        return CameraSpec(self.image_width, self.image_height, self.camera_fov_deg, self.camera_height_m)
 
     def __post_init__(self) -> None:
         if self.image_height <= 0 or self.image_width <= 0:
@@ -39,7 +49,7 @@ class ModelMeta:
             raise ValueError(f"v_max, w_max, dt and e_m_default must be positive: {self}")
 
     def to_props(self) -> dict[str, str]:
-        return {PREFIX + k: str(v) for k, v in asdict(self).items()}
+        return {PREFIX + k: str(v) for k, v in asdict(self).items() if v is not None}
 
     @classmethod
     def from_props(cls, props: dict[str, str]) -> ModelMeta:
@@ -47,12 +57,19 @@ class ModelMeta:
         kwargs = {}
         for name, field in cls.__dataclass_fields__.items():
             key = PREFIX + name
+            if key not in props and name in OPTIONAL_FIELDS:
+                kwargs[name] = None
+                continue
             if key not in props:
                 raise ValueError(f"model metadata lacks {key!r}; was it exported with `vtr export`?")
             typ = (
-                field.type
-                if isinstance(field.type, type)
-                else {"int": int, "float": float, "str": str}[field.type]
+                float
+                if name in OPTIONAL_FIELDS
+                else (
+                    field.type
+                    if isinstance(field.type, type)
+                    else {"int": int, "float": float, "str": str}[field.type]
+                )
             )
             try:
                 kwargs[name] = typ(props[key])

@@ -12,15 +12,19 @@ Safety rules, in order of precedence:
   interrupt (``stop_event`` or KeyboardInterrupt), a robot error, no valid frame in time, or any other
   exception (re-raised after the stop);
 - a frame that fails validation (``BadFrameError`` from the client, or a wrong shape/dtype or a
-  non-finite stamp from any Robot) is counted and never reaches the policy: the robot is stopped and
+  non-finite stamp from any Robot), the reply to the zero command between steps included, is counted
+  and never reaches the policy: the robot is stopped and
   re-polled with ``observe`` until a valid frame arrives, or ``frame_timeout_s`` passes without one;
 - the step limit ends a run whose robot is lost.
 
 How a run ends is a :class:`RepeatStatus`. Produced today: ``finished``, ``stalled`` (the controller's
-stall guard), ``step_limit``, ``interrupted``, ``link_lost`` (no valid frame for ``frame_timeout_s``) and
-``robot_error`` (a ``RobotError``). Reserved for the detectors that land next, and produced through the
-two hooks below without touching this loop: ``lost`` (robust matching says the robot is off the route),
-``collided`` and ``robot_restarted`` (the link sees a new server session).
+stall guard), ``step_limit``, ``interrupted``, ``link_lost`` (no valid frame for ``frame_timeout_s``, or
+the link's ``LinkLost``: no reply even to the stop sent after a missed one), ``robot_error`` (a
+``RobotError``) and ``robot_restarted``. Reserved for the detectors that land next, and produced through
+the two hooks below without touching this loop: ``lost`` (robust matching says the robot is off the
+route) and ``collided``. ``robot_restarted`` (the link saw a new server session: the robot rebooted and is somewhere
+else) ends the run, or with the controller's ``localise`` the robot is stopped and the route searched
+again on its next frame (at most ``MAX_RELOCALISATIONS`` times; the record's detail says so).
 
 - a terminal controller action whose value names a status (``Action.STALLED`` -> ``stalled``; a future
   ``Action("lost")`` -> ``lost``) ends the run with that status;
@@ -30,150 +34,25 @@ two hooks below without touching this loop: ``lost`` (robust matching says the r
 
 from __future__ import annotations
 
-import enum
 import math
 import threading
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import asdict, dataclass, field
-from typing import Any
 
 import numpy as np
 
 from vtr.runtime.contracts import CONTROL_DT, Observation, Policy, Robot
-from vtr.runtime.controller import Action, Controller, ControllerConfig, Decision, Verdict
+from vtr.runtime.controller import Action, Controller, Verdict
 from vtr.runtime.protocol import BadFrameError
+from vtr.runtime.repeat_types import RepeatConfig, RepeatStatus, StepRecord, Summary
 from vtr.runtime.robot import RobotError
 from vtr.runtime.route import Route
 
-
-class RepeatStatus(str, enum.Enum):
-    """How a repeat ended (see the module docstring for which are produced today)."""
-
-    FINISHED = "finished"  # past the last subgoal
-    STALLED = "stalled"  # the stall guard found no subgoal close enough
-    LOST = "lost"  # reserved: matching says the robot is off the route
-    COLLIDED = "collided"  # reserved: the robot reports a collision
-    ROBOT_RESTARTED = "robot_restarted"  # reserved: the robot's session changed under us
-    LINK_LOST = "link_lost"  # no valid frame within frame_timeout_s
-    INTERRUPTED = "interrupted"  # stop_event or KeyboardInterrupt
-    STEP_LIMIT = "step_limit"  # max_steps commands sent
-    ROBOT_ERROR = "robot_error"  # the robot cannot be reached or refused a command
+__all__ = ["RepeatConfig", "RepeatStatus", "Repeater", "StepRecord", "Summary", "safe_stop"]
 
 
-@dataclass
-class RepeatConfig:
-    """Repeat-loop settings."""
-
-    #: Subgoal switching (Algorithm 1 and its extensions).
-    controller: ControllerConfig = field(default_factory=ControllerConfig)
-    #: Seconds each command is applied for; None takes the model's metadata dt (the paper's 0.1 s).
-    dt: float | None = None
-    #: Control steps (commands sent) before giving up: a lost robot must stop.
-    max_steps: int = 2000
-    #: Seconds without a valid frame before the run ends.
-    frame_timeout_s: float = 5.0
-    #: Pause between re-polls after a bad frame, in seconds.
-    bad_frame_backoff_s: float = 0.05
-
-    def __post_init__(self) -> None:
-        if self.dt is not None and not (math.isfinite(self.dt) and self.dt > 0):
-            raise ValueError(f"dt must be a positive number of seconds, got {self.dt!r}")
-        if self.max_steps < 1:
-            raise ValueError(f"max_steps must be >= 1, got {self.max_steps}")
-        if not self.frame_timeout_s > 0:
-            raise ValueError(f"frame_timeout_s must be > 0, got {self.frame_timeout_s}")
-        if self.bad_frame_backoff_s < 0:
-            raise ValueError(f"bad_frame_backoff_s must be >= 0, got {self.bad_frame_backoff_s}")
-
-
-@dataclass(frozen=True)
-class StepRecord:
-    """One judged image: the command sent on it, or how the run ended on it.
-
-    ``step``: commands sent before this one. ``from_subgoal``/``subgoal``: the index before the image
-    was judged and the one steered to; ``events``: the controller's ADVANCE/JUMP decisions on it;
-    ``error``: the image error (0..255) to ``subgoal``; ``v``, ``w``: the command applied for dt (zero
-    when ``commanded`` is False); ``pose``/``stamp``: the robot's pose (None when unknown) and clock of
-    the image; ``latency_ms``: ``error`` (controller), ``preprocess``/``inference`` (policy stages),
-    ``policy`` (predict), ``compute`` (image in to command ready), ``robot`` (step round trip plus the
-    zero command) and what the robot reports itself (SimClient: ``receive``, ``decode``), ``total``.
-    ``status`` is set on the record that ended the run (then no command was sent on it); ``image`` is
-    None only when the run ended before any valid frame.
-    """
-
-    step: int
-    from_subgoal: int
-    subgoal: int
-    action: Action | None
-    events: tuple[Decision, ...]
-    error: float
-    e_m: float
-    v: float
-    w: float
-    commanded: bool
-    stamp: float | None
-    pose: tuple[float, float, float] | None
-    latency_ms: Mapping[str, float]
-    image: np.ndarray | None
-    status: RepeatStatus | None = None
-    detail: str = ""
-
-    @property
-    def advanced(self) -> int:
-        return sum(1 for e in self.events if e.action is Action.ADVANCE)
-
-    @property
-    def jumped_to(self) -> list[int]:
-        return [e.index for e in self.events if e.action is Action.JUMP]
-
-    def to_log(self) -> dict[str, Any]:
-        """The JSON-lines log record of a command (`vtr repeat --log`)."""
-        return {
-            "step": self.step,
-            "subgoal": self.subgoal,
-            "from_subgoal": self.from_subgoal,
-            "advanced": self.advanced,
-            "jumped_to": self.jumped_to,
-            "error": round(self.error, 4),
-            "e_m": round(self.e_m, 4),
-            "v": self.v,
-            "w": self.w,
-            "stamp": self.stamp,
-            "pose": list(self.pose) if self.pose is not None else None,
-            "latency_ms": {k: round(x, 4) for k, x in self.latency_ms.items()},
-        }
-
-
-@dataclass(frozen=True)
-class Summary:
-    """How a repeat ended, with its counters."""
-
-    status: RepeatStatus
-    detail: str
-    subgoals_reached: int
-    subgoals_total: int
-    steps: int
-    e_m: float
-    sim_time_s: float
-    wall_time_s: float
-    bad_frames: int
-    nonfinite_outputs: int
-    jumps: int
-    localised_to: int | None
-    plateaus: int = 0  # subgoals the stall guard accepted next to, at error <= jump_factor * e_m
-    mean_latency_ms: Mapping[str, float] = field(default_factory=dict)
-
-    @property
-    def completed(self) -> bool:
-        return self.status is RepeatStatus.FINISHED
-
-    def to_dict(self) -> dict[str, Any]:
-        out = asdict(self)
-        out["status"] = self.status.value
-        out["completed"] = self.completed
-        out["mean_latency_ms"] = dict(self.mean_latency_ms)
-        return out
+#: Restarts a run re-localises after (``localise``); one more ends it as robot_restarted.
+MAX_RELOCALISATIONS = 3
 
 
 class _NoValidFrame(Exception):
@@ -231,7 +110,12 @@ class Repeater:
                 "teach the route again with the model's dt"
             )
         self.dt = float(self.config.dt if self.config.dt is not None else (model_dt or CONTROL_DT))
-        self.controller = controller or Controller(route.images, self.config.controller)
+        self.controller = (
+            controller if controller is not None else Controller(route.images, self.config.controller)
+        )
+        # one view object per subgoal, passed again while it is steered to (OnnxPolicy keeps its tensor)
+        self._views = list(self.controller.subgoals)
+        self._last = len(self._views) - 1
         self.on_step = on_step
         self.stop_event = stop_event or threading.Event()
         self.max_steps = self.config.max_steps
@@ -248,6 +132,8 @@ class Repeater:
         self._last_rejected = ""
         self._totals: dict[str, float] = {}
         self._crashed = False
+        #: Robot restarts survived by re-localising (``localise`` only).
+        self.robot_restarts = 0
 
     @property
     def done(self) -> bool:
@@ -278,11 +164,37 @@ class Repeater:
             except BadFrameError as exc:
                 self.bad_frames += 1
                 self._last_rejected = str(exc)
-            safe_stop(self.robot)
+            self._zero()
             if time.monotonic() - self._last_valid > self.config.frame_timeout_s or self.stop_event.is_set():
                 raise _NoValidFrame()
             time.sleep(self.config.bad_frame_backoff_s)
             call = self.robot.observe
+
+    def _zero(self) -> None:
+        """The zero command, re-sent while its reply is bad (each one counted as a bad frame) until one is
+        good or ``frame_timeout_s`` passes: after a bad reply the robot gets nothing but stops. A lost link
+        or a restarted robot (RobotError) ends the step like any other."""
+        while True:
+            try:
+                self.robot.stop()
+                return
+            except BadFrameError as exc:
+                self.bad_frames += 1
+                self._last_rejected = str(exc)
+                if (
+                    time.monotonic() - self._last_valid > self.config.frame_timeout_s
+                    or self.stop_event.is_set()
+                ):
+                    raise _NoValidFrame() from None
+                time.sleep(self.config.bad_frame_backoff_s)
+
+    def _relocalise(self, why: str) -> StepRecord:
+        """``localise``: the robot restarted; stop it, then find the route again on its next frame."""
+        safe_stop(self.robot)
+        self.robot_restarts += 1
+        self.controller.relocalise()
+        self._obs = None  # the next step fetches a fresh frame from the rebooted robot
+        return self._record(None, None, 0.0, 0.0, False, {}, None, f"{why}; re-localising on the next frame")
 
     # ------------------------------------------------------------------ the loop
     def step(self) -> StepRecord:
@@ -298,7 +210,12 @@ class Repeater:
                 detail = f"no valid frame for {self.config.frame_timeout_s} s; last rejected: {self._last_rejected}"
                 record = self._end(RepeatStatus.LINK_LOST, detail)
         except RobotError as exc:
-            record = self._end(_status_of(getattr(exc, "status", ""), RepeatStatus.ROBOT_ERROR), str(exc))
+            status = _status_of(getattr(exc, "status", ""), RepeatStatus.ROBOT_ERROR)
+            relocalise = self.controller.cfg.localise and self.robot_restarts < MAX_RELOCALISATIONS
+            if status is RepeatStatus.ROBOT_RESTARTED and relocalise:
+                record = self._relocalise(str(exc))
+            else:
+                record = self._end(status, str(exc))
         except KeyboardInterrupt:
             record = self._end(RepeatStatus.INTERRUPTED)
         except BaseException:
@@ -306,12 +223,17 @@ class Repeater:
             safe_stop(self.robot)
             raise
         if self.on_step is not None:
-            self.on_step(record)
+            try:
+                self.on_step(record)
+            except BaseException:  # the observer failed (a full disk, Ctrl-C in it): the robot stops first
+                self._crashed = True
+                safe_stop(self.robot)
+                raise
         return record
 
     def _step(self) -> StepRecord:
         if self._obs is None:
-            self._t_start = time.perf_counter()
+            self._t_start = self._t_start or time.perf_counter()
             self._last_valid = time.monotonic()
             self._obs = self._fetch(self.robot.observe)
             self._first_stamp = self._obs.stamp
@@ -327,7 +249,7 @@ class Repeater:
             return self._end(status, decision.note if status is not RepeatStatus.FINISHED else "", verdict)
         if self.steps >= self.max_steps:
             return self._end(RepeatStatus.STEP_LIMIT, "", verdict)
-        velocities = self.policy.predict(obs.image, self.controller.subgoal)
+        velocities = self.policy.predict(obs.image, self._views[min(self.controller.index, self._last)])
         v, w = float(velocities[0, 0]), float(velocities[1, 0])
         t_policy = time.perf_counter()
         stage = dict(getattr(self.policy, "last_timing_ms", None) or {})
@@ -338,7 +260,7 @@ class Repeater:
         # the robot's own breakdown of the step round trip (SimClient: receive, decode)
         robot_stage = getattr(self.robot, "last_timing_ms", None) or {}
         if decision.then_stop:
-            self.robot.stop()
+            self._zero()
         t_end = time.perf_counter()
         stage["robot"] = (t_end - t_policy) * 1e3
         stage.update({k: float(x) for k, x in robot_stage.items()})
@@ -419,5 +341,6 @@ class Repeater:
             jumps=self.controller.jumps,
             localised_to=self.controller.localised_to,
             plateaus=self.controller.plateaus,
+            robot_restarts=self.robot_restarts,
             mean_latency_ms={k: round(x / steps, 4) for k, x in self._totals.items()} if steps else {},
         )

@@ -10,7 +10,15 @@ from __future__ import annotations
 
 from vtr.runtime.contracts import Observation, ResettableRobot, Robot
 
-__all__ = ["Observation", "ResettableRobot", "Robot", "RobotError"]
+__all__ = [
+    "Interrupted",
+    "LinkLost",
+    "Observation",
+    "ResettableRobot",
+    "Robot",
+    "RobotError",
+    "RobotRestarted",
+]
 
 
 class RobotError(RuntimeError):
@@ -21,3 +29,21 @@ class RobotError(RuntimeError):
     """
 
     status: str = "robot_error"
+
+
+class RobotRestarted(RobotError):
+    """The robot's session changed: it rebooted and no longer is where the run left it."""
+
+    status = "robot_restarted"
+
+
+class LinkLost(RobotError):
+    """The robot did not answer, not even the zero command sent after the missed reply."""
+
+    status = "link_lost"
+
+
+class Interrupted(RobotError):
+    """A wait for the robot was abandoned because the run was asked to stop (Ctrl-C, SIGTERM)."""
+
+    status = "interrupted"

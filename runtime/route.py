@@ -10,8 +10,10 @@ Arrays (L = number of subgoals):
   ``spacing`` (the subgoal spacing rule, see runtime.teach), ``map``, ``dt`` (s), ``created`` (ISO 8601
   UTC), ``name``.
 
-The file is written to a temporary name in the same folder and ``os.replace``d into place; ``load``
-reads with ``allow_pickle=False`` and validates every array.
+The file is written uncompressed (a route is a few MB; a compressed one would expand more than the loader's
+cap) to a temporary name in the same folder and ``os.replace``d into place. ``load`` first checks the
+archive's size caps (runtime.npz_guard: at most 4x the file size, no pickles), then reads with
+``allow_pickle=False`` and validates every array.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import numpy as np
 
 from vtr.runtime.atomic import atomic_path
 from vtr.runtime.contracts import CONTROL_DT
+from vtr.runtime.npz_guard import MAX_EXPANSION, NpzTooLargeError, check_npz
 
 ROUTE_FORMAT_VERSION = 1
 
@@ -104,7 +107,7 @@ class Route:
         """Write atomically: a temporary file in the same folder, then os.replace."""
         self.validate()
         with atomic_path(path) as tmp, open(tmp, "wb") as f:
-            np.savez_compressed(
+            np.savez(
                 f,
                 images=self.images,
                 poses=self.poses,
@@ -115,9 +118,18 @@ class Route:
             os.fsync(f.fileno())
 
     @classmethod
-    def load(cls, path: str | os.PathLike[str]) -> Route:
-        """Read and validate a route file; RouteError says what is wrong with it."""
+    def load(cls, path: str | os.PathLike[str], max_expansion: float = MAX_EXPANSION) -> Route:
+        """Read and validate a route file; RouteError says what is wrong with it.
+
+        A file whose arrays would take more than ``max_expansion`` times its size is refused unread.
+        """
         path = os.fspath(path)
+        if not os.path.isfile(path):
+            raise FileNotFoundError(f"route file {path!r} does not exist")
+        try:
+            check_npz(path, max_expansion)
+        except NpzTooLargeError as exc:
+            raise RouteError(str(exc)) from None
         try:
             with np.load(path, allow_pickle=False) as data:
                 missing = {"images", "poses", "commands", "meta"} - set(data.files)
@@ -130,7 +142,11 @@ class Route:
         except FileNotFoundError:
             raise
         except Exception as exc:
-            raise RouteError(f"{path}: cannot read as a route .npz: {exc}") from exc
+            # numpy's own text for a random file suggests allow_pickle, which must never be the fix here
+            why = "not a NumPy .npz archive" if "pickle" in str(exc) else str(exc)
+            raise RouteError(
+                f"{path}: cannot read as a route .npz ({why}); pass a route written by `vtr teach`"
+            ) from exc
         try:
             meta = json.loads(str(meta_raw.item()))
         except (ValueError, TypeError) as exc:

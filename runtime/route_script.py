@@ -95,6 +95,8 @@ def load_route_script(path: str | os.PathLike[str]) -> RouteScript:
             data = json.load(f)
     except json.JSONDecodeError as exc:
         raise RouteScriptError(f"{path}: not valid JSON: {exc}") from None
+    except UnicodeDecodeError:
+        raise RouteScriptError(f"{path}: not a ROUTE.json file (not UTF-8 text)") from None
     try:
         script = parse_route_script(data)
     except RouteScriptError as exc:

@@ -20,11 +20,13 @@ import argparse
 import math
 import os
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from vtr.runtime.address import EXAMPLE, check_endpoint
+from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT
 from vtr.runtime.preprocess import image_error
 from vtr.runtime.protocol import jsonable
@@ -39,20 +41,13 @@ SPACING_RULES = ("steps", "distance", "image")
 class TeachConfig:
     """How a route is driven and how subgoals are spaced (rules in the module docstring)."""
 
-    #: Control step in seconds (the repeat applies each command for the same time).
-    dt: float = CONTROL_DT
-    #: Subgoal spacing rule: "steps", "distance" or "image".
-    spacing: str = "steps"
-    #: "steps": record every k-th control step.
-    every: int = 2
-    #: "distance": metres travelled since the last subgoal.
-    min_distance: float = 0.05
-    #: "distance": radians turned since the last subgoal.
-    min_angle: float = 0.1
-    #: "image": mean abs pixel change (0..255) from the last subgoal.
-    min_image_change: float = 20.0
-    #: Seed for the simulator's actuation noise at reset; None leaves it to the simulator.
-    seed: int | None = 0
+    dt: float = opt(CONTROL_DT, "control step in seconds (the repeat applies each command as long)")
+    spacing: str = opt("steps", "subgoal spacing rule", choices=SPACING_RULES)
+    every: int = opt(2, "'steps': a subgoal every k control steps")
+    min_distance: float = opt(0.05, "'distance': metres travelled between subgoals")
+    min_angle: float = opt(0.1, "'distance': radians turned between subgoals")
+    min_image_change: float = opt(20.0, "'image': mean abs pixel change (0..255) between subgoals")
+    seed: int | None = opt(0, "simulator actuation-noise seed at reset")
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.dt) and self.dt > 0):
@@ -83,12 +78,21 @@ def _wrap(angle: float) -> float:
 
 def _robot_info(robot: Any) -> dict[str, Any]:
     """Camera/map description from the robot, when it offers one (SimClient.hello, LocalRobot.sim.info)."""
+    timeouts = getattr(robot, "timeouts", 0)
     try:
         if hasattr(robot, "hello"):
-            return dict(robot.hello().get("info") or {})
+            header = robot.hello()
+            info = dict(header.get("info") or {})
+            # the hello schema (docs/PROTOCOL.md) puts camera and map at the top level; info is free-form
+            info.update({k: header[k] for k in ("camera", "map") if header.get(k) is not None})
+            return info
         sim = getattr(robot, "sim", None)
         if sim is not None and hasattr(sim, "info"):
             return dict(jsonable(sim.info()))
+    except RobotError:
+        if getattr(robot, "timeouts", 0) > timeouts:
+            raise  # nothing answers: say so now, not after a second round of tries on reset
+        return {}  # a bridge that does not implement hello
     except Exception:
         return {}
     return {}
@@ -160,18 +164,25 @@ def _due(cfg: TeachConfig, since: int, obs: Observation, last_image: np.ndarray,
 class TeachRunConfig:
     """Everything `vtr teach` needs."""
 
-    sim: str  # endpoint of the simulator server
-    route: str  # ROUTE.json path
-    out: str  # where the Route .npz goes
-    teach: TeachConfig  # spacing and control step
-    timeout_s: float = 5.0  # per-reply timeout
-    retries: int = 3  # tries per request
+    sim: str = opt(help=f"simulator endpoint, e.g. {EXAMPLE}")
+    route: str = opt(help="ROUTE.json: start pose and (v, w, duration) segments")
+    out: str = opt(help="where to write the route (.npz)")
+    teach: TeachConfig = field(default_factory=TeachConfig)  # spacing and control step
+    timeout_s: float = opt(
+        5.0,
+        "seconds to wait for hello and reset; a step waits its duration + 0.3 s, then a stop",
+        flag="--timeout",
+    )
+    retries: int = opt(3, "tries per request before giving up")
 
     def __post_init__(self) -> None:
-        if "://" not in self.sim:
-            raise ValueError(f"sim must be a ZeroMQ endpoint like tcp://127.0.0.1:5555, got {self.sim!r}")
+        check_endpoint(self.sim)
         if not self.out:
-            raise ValueError("out must be a file path")
+            raise ValueError("--out must be a file path")
+        if not self.timeout_s > 0:
+            raise ValueError(f"--timeout must be > 0 seconds, got {self.timeout_s}")
+        if self.retries < 1:
+            raise ValueError(f"--retries must be >= 1, got {self.retries}")
 
 
 def run(cfg: TeachRunConfig) -> Route:
@@ -179,44 +190,36 @@ def run(cfg: TeachRunConfig) -> Route:
     from vtr.runtime.route_script import load_route_script
 
     script = load_route_script(cfg.route)
-    with SimClient(cfg.sim, cfg.timeout_s, cfg.retries) as client:
+    # a silent robot gets its stop 0.3 s after a step's duration, whatever --timeout allows hello/reset
+    with SimClient(cfg.sim, retries=cfg.retries, setup_timeout_s=cfg.timeout_s) as client:
         route = teach(client, script, cfg.teach)
     route.save(cfg.out)
     return route
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--sim", required=True, help="simulator endpoint, e.g. tcp://127.0.0.1:5555")
-    parser.add_argument("--route", required=True, help="ROUTE.json: start pose and (v, w, duration) segments")
-    parser.add_argument("--out", required=True, help="where to write the route (.npz)")
-    parser.add_argument("--dt", type=float, default=CONTROL_DT, help="control step in seconds")
-    parser.add_argument("--spacing", choices=SPACING_RULES, default="steps", help="subgoal spacing rule")
-    parser.add_argument("--every", type=int, default=2, help="'steps': a subgoal every k control steps")
-    parser.add_argument(
-        "--min-distance", type=float, default=0.05, help="'distance': metres between subgoals"
-    )
-    parser.add_argument("--min-angle", type=float, default=0.1, help="'distance': radians between subgoals")
-    parser.add_argument("--min-image-change", type=float, default=20.0, help="'image': pixel change (0..255)")
-    parser.add_argument("--seed", type=int, default=0, help="simulator noise seed at reset")
-    parser.add_argument("--timeout", type=float, default=5.0, help="seconds to wait for each reply")
+    add_config_arguments(parser, TeachRunConfig, skip=("sim", "route"))  # optional with --bag
+    parser.add_argument("--sim", default=None, help=f"robot endpoint, e.g. {EXAMPLE} (or --bag)")
+    parser.add_argument("--route", default=None, help="ROUTE.json: start pose and (v, w, duration) segments")
+    add_config_arguments(parser, TeachConfig)
+    from vtr.runtime import bag_teach
+
+    bag_teach.add_arguments(parser)
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    cfg = TeachRunConfig(
-        sim=args.sim,
-        route=args.route,
-        out=args.out,
-        teach=TeachConfig(
-            dt=args.dt,
-            spacing=args.spacing,
-            every=args.every,
-            min_distance=args.min_distance,
-            min_angle=args.min_angle,
-            min_image_change=args.min_image_change,
-            seed=args.seed,
-        ),
-        timeout_s=args.timeout,
-    )
+    try:
+        teach_cfg = config_from_args(TeachConfig, args)
+        if args.bag:  # a route from a recorded drive instead of a live robot
+            from vtr.runtime import bag_teach
+
+            return bag_teach.run_cli(args, teach_cfg)
+        if not (args.sim and args.route):
+            raise ValueError("needs --sim and --route (a live robot), or --bag (a recorded drive)")
+        cfg = config_from_args(TeachRunConfig, args, teach=teach_cfg)
+    except ValueError as exc:
+        print(f"vtr teach: {exc}", file=sys.stderr)
+        return 2
     try:
         route = run(cfg)
     except (OSError, ValueError, RobotError) as exc:  # bad ROUTE.json, unreachable or refusing simulator

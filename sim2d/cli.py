@@ -1,7 +1,7 @@
 """`vtr sim`: the simulator from the command line.
 
-vtr sim snapshot --out house.png [--house random:SEED] [--x X --y Y --yaw YAW] [--start NAME] [--change SPEC]
-vtr sim serve --bind tcp://127.0.0.1:5555 [--noise 0.05] [--house random:SEED] [--change SPEC ...]
+vtr sim snapshot --out house.png [--x X --y Y --yaw YAW] [--start NAME]
+vtr sim serve --bind tcp://127.0.0.1:5555 [--noise 0.05]
 """
 
 from __future__ import annotations
@@ -10,36 +10,36 @@ import argparse
 import math
 import sys
 from dataclasses import dataclass
+from pathlib import Path
+
+from vtr.runtime.address import check_endpoint
+from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 
 
 @dataclass(frozen=True)
 class SnapshotConfig:
     """What `vtr sim snapshot` draws."""
 
-    out: str = "house.png"
-    """Output PNG path."""
-    house: str = "house"
-    """Map name or path."""
-    x: float | None = None
-    """Robot x (m); None: the start pose's."""
-    y: float | None = None
-    """Robot y (m); None: the start pose's."""
-    yaw: float | None = None
-    """Robot yaw (rad); None: the start pose's."""
-    start: str | None = None
-    """Name of a start pose in the map to use instead of the first one."""
-    brightness: float = 1.0
-    """Camera brightness multiplier."""
-    changes: tuple[str, ...] = ()
-    """Appearance changes (sim2d.appearance)."""
+    out: str = opt("house.png", "output picture (PNG)")
+    house: str = opt("house", "map name in sim2d/maps, a path, or random:SEED (a procedural house)")
+    x: float | None = opt(None, "robot x in metres (default: the start pose's)")
+    y: float | None = opt(None, "robot y in metres (default: the start pose's)")
+    yaw: float | None = opt(
+        None, "robot yaw in radians, counter-clockwise from +x (default: the start pose's)"
+    )
+    start: str | None = opt(None, "name of a start pose of the map (e.g. kitchen) instead of the first one")
+    brightness: float = opt(1.0, "camera brightness multiplier")
+    changes: tuple[str, ...] = ()  # appearance changes (sim2d.appearance); the CLI's repeatable --change
 
     def __post_init__(self) -> None:
         if not self.out:
-            raise ValueError("SnapshotConfig.out must be a file path, got an empty string")
+            raise ValueError("--out must be a file path, got an empty string")
+        if Path(self.out).suffix.lower() != ".png":
+            raise ValueError(f"--out {self.out!r}: the snapshot is written as PNG; give a .png file name")
         for name in ("x", "y", "yaw"):
             value = getattr(self, name)
             if value is not None and not math.isfinite(value):
-                raise ValueError(f"SnapshotConfig.{name} must be finite, got {value!r}")
+                raise ValueError(f"--{name} must be finite, got {value!r}")
 
 
 def run_snapshot(cfg: SnapshotConfig) -> int:
@@ -80,6 +80,7 @@ def run_serve(
     house: str,
     brightness: float,
     mode: str = "lockstep",
+    cmd_vel_timeout: float = 0.5,
     changes: tuple[str, ...] = (),
 ) -> int:
     from vtr.sim2d.config import CameraConfig, SimConfig
@@ -91,8 +92,17 @@ def run_serve(
             f"vtr sim serve: the simulator server (sim2d/server.py) is not available: {err}", file=sys.stderr
         )
         return 3
+    import zmq
+
+    check_endpoint(bind, bind=True)
     sim_cfg = SimConfig(house=house, noise=noise, changes=changes, camera=CameraConfig(brightness=brightness))
-    return int(serve(ServerConfig(bind=bind, sim=sim_cfg, mode=mode)) or 0)
+    try:
+        return int(
+            serve(ServerConfig(bind=bind, sim=sim_cfg, mode=mode, cmd_vel_timeout=cmd_vel_timeout)) or 0
+        )
+    except zmq.ZMQError as err:  # the port is taken, or the interface does not exist
+        print(f"vtr sim serve: cannot bind {bind}: {err}; choose another --bind", file=sys.stderr)
+        return 2
 
 
 _CHANGE_HELP = (
@@ -107,24 +117,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     snap = sub.add_parser(
         "snapshot", help="write a top-down picture of the house beside the robot's camera image"
     )
-    snap.add_argument("--out", default="house.png", help="output PNG (default: house.png)")
-    snap.add_argument(
-        "--house",
-        default="house",
-        help="map name in sim2d/maps, a path, or random:SEED (a procedural house) (default: house)",
-    )
+    add_config_arguments(snap, SnapshotConfig)
     snap.add_argument("--change", action="append", default=[], metavar="SPEC", help=_CHANGE_HELP)
-    snap.add_argument("--x", type=float, default=None, help="robot x in metres (default: the start pose)")
-    snap.add_argument("--y", type=float, default=None, help="robot y in metres")
-    snap.add_argument(
-        "--yaw", type=float, default=None, help="robot yaw in radians, counter-clockwise from +x"
-    )
-    snap.add_argument("--start", default=None, help="name of a start pose of the map (e.g. kitchen)")
-    snap.add_argument("--brightness", type=float, default=1.0, help="camera brightness multiplier")
     serve = sub.add_parser("serve", help="serve the simulator over ZeroMQ (runtime/protocol.py)")
-    serve.add_argument("--bind", default="tcp://127.0.0.1:5555", help="ZeroMQ endpoint to bind")
     serve.add_argument(
-        "--noise", type=float, default=0.0, help="actuation noise level (SimConfig.noise), 0 = off"
+        "--bind",
+        default="tcp://127.0.0.1:5555",
+        help="ZeroMQ endpoint to bind (default: tcp://127.0.0.1:5555)",
+    )
+    serve.add_argument(
+        "--noise",
+        type=float,
+        default=0.0,
+        help="actuation noise level (SimConfig.noise), 0 = off (default: 0)",
     )
     serve.add_argument(
         "--house",
@@ -132,30 +137,37 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="map name in sim2d/maps, a path, or random:SEED (a procedural house) (default: house)",
     )
     serve.add_argument("--change", action="append", default=[], metavar="SPEC", help=_CHANGE_HELP)
-    serve.add_argument("--brightness", type=float, default=1.0, help="camera brightness multiplier")
+    serve.add_argument(
+        "--brightness", type=float, default=1.0, help="camera brightness multiplier (default: 1.0)"
+    )
     serve.add_argument(
         "--mode",
         choices=("lockstep", "realtime"),
         default="lockstep",
-        help="lockstep: time advances only in step requests (deterministic); realtime: follows the wall clock",
+        help="lockstep: time advances only in step requests (deterministic); realtime: follows the wall clock "
+        "(default: lockstep)",
+    )
+    serve.add_argument(
+        "--cmd-vel-timeout",
+        type=float,
+        default=0.5,
+        help="realtime: stop the robot when no step arrived for this many seconds; 0 disables (default: 0.5)",
     )
 
 
 def run_cli(args: argparse.Namespace) -> int:
     try:
         if args.sim_command == "snapshot":
-            cfg = SnapshotConfig(
-                out=args.out,
-                house=args.house,
-                x=args.x,
-                y=args.y,
-                yaw=args.yaw,
-                start=args.start,
-                brightness=args.brightness,
-                changes=tuple(args.change),
-            )
-            return run_snapshot(cfg)
-        return run_serve(args.bind, args.noise, args.house, args.brightness, args.mode, tuple(args.change))
+            return run_snapshot(config_from_args(SnapshotConfig, args, changes=tuple(args.change)))
+        return run_serve(
+            args.bind,
+            args.noise,
+            args.house,
+            args.brightness,
+            args.mode,
+            args.cmd_vel_timeout,
+            tuple(args.change),
+        )
     except ValueError as err:  # bad configuration values or a bad map file
         print(f"vtr sim {args.sim_command}: {err}", file=sys.stderr)
         return 2

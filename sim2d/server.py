@@ -6,11 +6,15 @@ One REP socket, one simulator. Two clocks (``ServerConfig.mode``):
   deterministic whatever the client's speed; ``stop`` only records the zero twist.
 - ``"realtime"``: simulated time follows the wall clock (times ``realtime_factor``). The last twist keeps
   driving the robot between requests until ``stop``, and a ``step`` reply is sent once ``duration``
-  has passed. This is how a real robot behaves, and what makes the daemon's continuous mode (no zero
-  command while the next command is computed) differ from stop-and-go.
- Every request gets exactly one reply; a bad request
-gets ``{"ok": false, "error": ...}`` naming the problem and the server keeps serving. The loop polls
-with a timeout and checks a stop flag, so SIGINT/SIGTERM shut it down cleanly.
+  has passed. A watchdog (``cmd_vel_timeout``, 0.5 s by default, 0 disables; the idea of ros2_controllers'
+  diff_drive_controller) brings the robot to zero when no new step arrived within
+  ``max(duration, cmd_vel_timeout)`` of the last one, so a client killed mid-route leaves a robot at rest.
+
+Every request gets exactly one reply; a bad request, a request for another session (a step meant for the
+robot before a restart) or any exception while handling one gets an error reply naming the problem, and
+the server keeps serving. The loop polls with a timeout and checks a stop flag, so SIGINT/SIGTERM shut it
+down cleanly. ``hello`` announces the camera, limits and clock (docs/PROTOCOL.md); it names the map, never
+its path on this machine.
 
 Only this module (and ``local_robot.py``) couples sim2d to the runtime; the simulator core never
 imports ZeroMQ.
@@ -18,20 +22,23 @@ imports ZeroMQ.
 
 from __future__ import annotations
 
+import logging
 import math
-import multiprocessing
 import signal
 import threading
 import time
 import uuid
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import zmq
 
 from vtr.runtime import protocol
-from vtr.runtime.protocol import Limits, ProtocolError
+from vtr.runtime.protocol import ProtocolError
+from vtr.sim2d.server_config import ServerConfig
+
+log = logging.getLogger(__name__)
 
 
 class _Pose(NamedTuple):
@@ -49,57 +56,6 @@ def make_pose(x: float, y: float, yaw: float) -> Any:
     except ImportError:
         return _Pose(x, y, yaw)
     return Pose(x, y, yaw)
-
-
-@dataclass
-class ServerConfig:
-    """How the simulator server listens and what it accepts."""
-
-    #: ZeroMQ endpoint to bind; ``tcp://127.0.0.1:*`` picks a free port (see ``SimServer.endpoint``).
-    bind: str = "tcp://127.0.0.1:5555"
-    #: sim2d.SimConfig for the simulator ``serve`` builds; None means SimConfig() defaults.
-    sim: Any = None
-    #: Requests larger than this (all frames together) get an error reply.
-    max_message_bytes: int = protocol.MAX_MESSAGE_BYTES
-    #: Hard cap handed to ZeroMQ (ZMQ_MAXMSGSIZE): a peer sending more is disconnected without a reply.
-    hard_max_message_bytes: int = 64 * 1024 * 1024
-    #: Linear speed limit in m/s; faster step requests are rejected (the paper's robot: 0.5).
-    v_max: float = protocol.V_MAX
-    #: Angular speed limit in rad/s (the paper's robot: 1.0).
-    w_max: float = protocol.W_MAX
-    #: Longest simulated duration one step request may ask for, in seconds.
-    max_step_duration: float = protocol.MAX_DURATION
-    #: How often the loop wakes up to check for shutdown, in milliseconds.
-    poll_ms: int = 100
-    #: "lockstep": time advances only in step requests; "realtime": time follows the wall clock.
-    mode: str = "lockstep"
-    #: "realtime" only: simulated seconds per wall-clock second.
-    realtime_factor: float = 1.0
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.bind, str) or "://" not in self.bind:
-            raise ValueError(f"bind must be a ZeroMQ endpoint like tcp://127.0.0.1:5555, got {self.bind!r}")
-        if self.max_message_bytes < 1024:
-            raise ValueError(f"max_message_bytes must be >= 1024, got {self.max_message_bytes}")
-        if self.hard_max_message_bytes < self.max_message_bytes:
-            raise ValueError(
-                f"hard_max_message_bytes={self.hard_max_message_bytes} must be >= "
-                f"max_message_bytes={self.max_message_bytes}"
-            )
-        for name in ("v_max", "w_max", "max_step_duration"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-        if self.poll_ms < 1:
-            raise ValueError(f"poll_ms must be >= 1, got {self.poll_ms}")
-        if self.mode not in ("lockstep", "realtime"):
-            raise ValueError(f"mode must be 'lockstep' or 'realtime', got {self.mode!r}")
-        if not (math.isfinite(self.realtime_factor) and self.realtime_factor > 0):
-            raise ValueError(f"realtime_factor must be a positive number, got {self.realtime_factor!r}")
-
-    @property
-    def limits(self) -> Limits:
-        return Limits(v_max=self.v_max, w_max=self.w_max, max_duration=self.max_step_duration)
 
 
 @dataclass
@@ -129,6 +85,10 @@ class SimServer:
         self.errors = 0
         #: The last twist commanded (v, w); stop sets it to zero. In lockstep it matters only for the record.
         self.twist = (0.0, 0.0)
+        #: Realtime: wall-clock instant at which the watchdog zeroes the twist (None: not armed).
+        self.twist_deadline: float | None = None
+        #: Realtime: times the watchdog stopped the robot.
+        self.watchdog_stops = 0
         #: Command of the last well-formed request (for logs and tests).
         self.last_cmd: str | None = None
         self.endpoint: str | None = None
@@ -141,10 +101,21 @@ class SimServer:
         return self.cfg.mode == "realtime"
 
     def catch_up(self, now: float | None = None) -> None:
-        """Realtime: drive the simulator with the current twist up to wall-clock instant ``now``."""
+        """Realtime: drive the simulator with the current twist up to wall-clock instant ``now``; the
+        watchdog zeroes the twist at ``twist_deadline``."""
         now = self.clock() if now is None else now
-        remaining = (now - self._wall) * self.cfg.realtime_factor
-        self._wall = max(self._wall, now)
+        while self._wall < now:
+            until = now
+            if self.twist_deadline is not None and self.twist_deadline < now:
+                until = max(self._wall, self.twist_deadline)
+            self._advance((until - self._wall) * self.cfg.realtime_factor)
+            self._wall = until
+            if until < now or (self.twist_deadline is not None and self.twist_deadline <= now):
+                if self.twist != (0.0, 0.0):
+                    self.watchdog_stops += 1
+                self.twist, self.twist_deadline = (0.0, 0.0), None
+
+    def _advance(self, remaining: float) -> None:
         advance = getattr(self.sim, "advance", None)  # no render when the simulator offers it
         while remaining > 1e-9:
             chunk = min(remaining, self.cfg.max_step_duration)
@@ -170,34 +141,58 @@ class SimServer:
             self.catch_up(max(deferred.deadline, self.clock()))
             return self._image_reply(deferred.req, self.sim.observe())
         except Exception as exc:
-            self.errors += 1
             req = deferred.req
-            return protocol.encode_error(
-                f"simulator error on {req.cmd!r}: {exc}", req.cmd, req.seq, self.session
-            )
+            return self._error(f"simulator error on {req.cmd!r}: {exc}", req.cmd, req.seq, "robot_error")
+
+    def _stamp(self) -> float | None:
+        try:
+            stamp = float(self.sim.time)
+        except Exception:
+            return None
+        return stamp if math.isfinite(stamp) else None
+
+    def _error(self, message: str, cmd: object, seq: object, code: str = "bad_request") -> list[bytes]:
+        self.errors += 1
+        return protocol.encode_error(message, cmd, seq, self.session, self._stamp(), code)
 
     def handle_deferred(self, frames: list[bytes]) -> list[bytes] | Deferred:
         """Like :meth:`handle`, but a realtime step returns a :class:`Deferred` instead of waiting."""
         self.requests += 1
         try:
+            return self._handle(frames)
+        except Exception as exc:  # whatever went wrong with this request, the server answers and serves on
+            log.warning("request %d failed: %s: %s", self.requests, type(exc).__name__, exc)
+            cmd, seq = protocol.peek_cmd_seq(frames)
+            return self._error(f"server error: {type(exc).__name__}: {exc}", cmd, seq, "robot_error")
+
+    def _handle(self, frames: list[bytes]) -> list[bytes] | Deferred:
+        try:
             req = protocol.decode_request(frames, self.cfg.limits, self.cfg.max_message_bytes)
         except ProtocolError as exc:
-            self.errors += 1
+            log.debug("refused request %d: %s", self.requests, exc)
             cmd, seq = protocol.peek_cmd_seq(frames)
-            return protocol.encode_error(str(exc), cmd, seq, self.session)
+            return self._error(str(exc), cmd, seq)
         self.last_cmd = req.cmd
+        if req.session is not None and req.session != self.session and req.cmd in protocol.GUARDED_COMMANDS:
+            return self._error(
+                f"session mismatch: this is session {self.session}, the request was for {req.session} "
+                "(the robot restarted); not executed",
+                req.cmd,
+                req.seq,
+                "session_mismatch",
+            )
         try:
             if self.realtime:
                 self.catch_up()
                 if req.cmd == "step":
                     self.twist = (req.fields["v"], req.fields["w"])
-                    return Deferred(self._wall + req.fields["duration"] / self.cfg.realtime_factor, req)
+                    duration = req.fields["duration"] / self.cfg.realtime_factor
+                    if self.cfg.cmd_vel_timeout > 0:
+                        self.twist_deadline = self._wall + max(duration, self.cfg.cmd_vel_timeout)
+                    return Deferred(self._wall + duration, req)
             return self._dispatch(req)
         except Exception as exc:  # a simulator failure must not kill the server
-            self.errors += 1
-            return protocol.encode_error(
-                f"simulator error on {req.cmd!r}: {exc}", req.cmd, req.seq, self.session
-            )
+            return self._error(f"simulator error on {req.cmd!r}: {exc}", req.cmd, req.seq, "robot_error")
 
     def _image_reply(self, req: protocol.Request, image: Any) -> list[bytes]:
         return protocol.encode_image_reply(
@@ -213,23 +208,11 @@ class SimServer:
     def _dispatch(self, req: protocol.Request) -> list[bytes]:
         sim = self.sim
         if req.cmd == "hello":
-            info = protocol.jsonable(sim.info())
-            return protocol.encode_ok(
-                "hello",
-                req.seq,
-                self.session,
-                float(sim.time),
-                protocol_version=protocol.VERSION,
-                camera=info.get("camera") if isinstance(info, dict) else None,
-                limits=self.cfg.limits.to_dict(),
-                time=float(sim.time),
-                mode=self.cfg.mode,
-                info=info,
-            )
+            return protocol.encode_ok("hello", req.seq, self.session, float(sim.time), **self.announce())
         if req.cmd == "reset":
             pose = req.fields.get("pose")
             image = sim.reset(pose=None if pose is None else make_pose(*pose), seed=req.fields.get("seed"))
-            self.twist = (0.0, 0.0)
+            self.twist, self.twist_deadline = (0.0, 0.0), None
             self._wall = self.clock()
             return self._image_reply(req, image)
         if req.cmd == "observe":
@@ -240,8 +223,31 @@ class SimServer:
             image = sim.step(v, w, duration)
             return self._image_reply(req, image)
         # stop: from now on the robot stands still (realtime); in lockstep no time runs between requests.
-        self.twist = (0.0, 0.0)
+        self.twist, self.twist_deadline = (0.0, 0.0), None
         return protocol.encode_ok("stop", req.seq, self.session, float(sim.time))
+
+    def announce(self) -> dict[str, object]:
+        """The hello fields (docs/PROTOCOL.md): camera, limits, clock; the map's name, never its path."""
+        info = protocol.jsonable(self.sim.info())
+        info = info if isinstance(info, dict) else {}
+        info.pop("map_source", None)
+        cam = info.get("camera") if isinstance(info.get("camera"), dict) else {}
+        camera = {k: cam.get(k) for k in ("width", "height", "fov_deg")}
+        camera["height_m"] = cam.get("height_m", cam.get("camera_height"))
+        fields: dict[str, object] = {
+            "protocol_version": protocol.VERSION,
+            "robot": "vtr-sim2d",
+            "map": info.get("map") if isinstance(info.get("map"), str) else None,
+            "camera": camera,
+            "limits": self.cfg.limits.to_dict(),
+            "dt": float(info.get("physics_dt") or 0.02),
+            "mode": self.cfg.mode,
+            "realtime_factor": self.cfg.realtime_factor,
+            "cmd_vel_timeout": self.cfg.cmd_vel_timeout if self.realtime else 0.0,
+            "time": float(self.sim.time),
+            "info": info,
+        }
+        return fields
 
     # ------------------------------------------------------------------ socket loop
     def stop(self) -> None:
@@ -254,6 +260,28 @@ class SimServer:
             raise TimeoutError(f"server did not bind {self.cfg.bind} within {timeout} s")
         assert self.endpoint is not None
         return self.endpoint
+
+    def _serve_once(self, sock: zmq.Socket, poller: zmq.Poller, pending: Deferred | None) -> Deferred | None:
+        """One turn of the loop: finish a due realtime step, or wait for and answer one request."""
+        if pending is not None:  # realtime step: wait for its deadline, still watching the flag
+            wait = pending.deadline - self.clock()
+            if wait > 0:
+                time.sleep(min(wait, self.cfg.poll_ms / 1000))
+                return pending
+            sock.send_multipart(self.finish(pending))
+            return None
+        timeout_ms = self.cfg.poll_ms
+        if self.realtime and self.twist_deadline is not None:  # wake up when the watchdog is due
+            timeout_ms = max(1, min(timeout_ms, int((self.twist_deadline - self.clock()) * 1000) + 1))
+        if not poller.poll(timeout_ms):
+            if self.realtime:
+                self.catch_up()
+            return None
+        result = self.handle_deferred(sock.recv_multipart())
+        if isinstance(result, Deferred):
+            return result
+        sock.send_multipart(result)
+        return None
 
     def serve_forever(self) -> None:
         """Bind, answer requests until :meth:`stop`, then close the socket."""
@@ -269,23 +297,11 @@ class SimServer:
             poller.register(sock, zmq.POLLIN)
             pending: Deferred | None = None
             while not self._stop.is_set():
-                if pending is not None:  # realtime step: wait for its deadline, still watching the flag
-                    wait = pending.deadline - self.clock()
-                    if wait > 0:
-                        time.sleep(min(wait, self.cfg.poll_ms / 1000))
-                        continue
-                    sock.send_multipart(self.finish(pending))
+                try:
+                    pending = self._serve_once(sock, poller, pending)
+                except zmq.ZMQError as exc:  # a failed send/recv loses one message, never the server
+                    log.warning("socket error, serving on: %s", exc)
                     pending = None
-                    continue
-                if not poller.poll(self.cfg.poll_ms):
-                    if self.realtime:
-                        self.catch_up()
-                    continue
-                result = self.handle_deferred(sock.recv_multipart())
-                if isinstance(result, Deferred):
-                    pending = result
-                else:
-                    sock.send_multipart(result)
         finally:
             sock.close(linger=0)
             ctx.term()
@@ -322,100 +338,15 @@ def _announce(server: SimServer) -> None:
     print(f"vtr sim serve: listening on {endpoint} (session {server.session}, {server.cfg.mode})", flush=True)
 
 
-# ---------------------------------------------------------------------------------------- background runs
+# Background runs (threads, child processes) live in server_launch; their names stay importable from here.
+from vtr.sim2d.server_launch import ServerProcess, ServerThread, start_server_process  # noqa: E402
 
-
-class ServerThread:
-    """Run a SimServer in a daemon thread (tests, notebooks). Use as a context manager."""
-
-    def __init__(self, simulator: Any, cfg: ServerConfig | None = None) -> None:
-        self.server = SimServer(simulator, cfg or ServerConfig(bind="tcp://127.0.0.1:*"))
-        self._thread = threading.Thread(target=self.server.serve_forever, daemon=True)
-
-    def start(self, timeout: float = 10.0) -> ServerThread:
-        self._thread.start()
-        self.server.wait_ready(timeout)
-        return self
-
-    @property
-    def endpoint(self) -> str:
-        assert self.server.endpoint is not None
-        return self.server.endpoint
-
-    def stop(self, timeout: float = 5.0) -> None:
-        self.server.stop()
-        self._thread.join(timeout)
-
-    def __enter__(self) -> ServerThread:
-        return self.start()
-
-    def __exit__(self, *exc: object) -> None:
-        self.stop()
-
-
-def _process_main(cfg: ServerConfig, factory: Callable[[], Any] | None, conn: Any) -> None:
-    simulator = factory() if factory is not None else None
-    if simulator is None:
-        from vtr.sim2d import SimConfig, Simulator  # type: ignore[attr-defined]
-
-        simulator = Simulator(cfg.sim if cfg.sim is not None else SimConfig())
-        simulator.reset()
-    server = SimServer(simulator, cfg)
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: server.stop())
-    threading.Thread(target=lambda: conn.send(server.wait_ready()), daemon=True).start()
-    server.serve_forever()
-
-
-@dataclass
-class ServerProcess:
-    """A server running in a child process; ``endpoint`` is where it listens."""
-
-    process: Any
-    endpoint: str
-    _closed: bool = field(default=False, repr=False)
-
-    def terminate(self, timeout: float = 5.0) -> int | None:
-        """SIGTERM (clean shutdown), then SIGKILL if it does not exit; returns the exit code."""
-        if self.process.is_alive():
-            self.process.terminate()
-            self.process.join(timeout)
-        if self.process.is_alive():
-            self.process.kill()
-            self.process.join(timeout)
-        return self.process.exitcode
-
-    def kill(self, timeout: float = 5.0) -> int | None:
-        """SIGKILL: the server dies without closing anything (a crash)."""
-        if self.process.is_alive():
-            self.process.kill()
-            self.process.join(timeout)
-        return self.process.exitcode
-
-    def __enter__(self) -> ServerProcess:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.terminate()
-
-
-def start_server_process(
-    cfg: ServerConfig, simulator_factory: Callable[[], Any] | None = None, timeout: float = 30.0
-) -> ServerProcess:
-    """Start a server in a fresh (spawned) process and wait until it listens.
-
-    ``simulator_factory`` must be picklable (a module-level function); None builds
-    ``sim2d.Simulator(cfg.sim)``. ``cfg.bind`` may use port ``*``: the real endpoint is returned.
-    """
-    ctx = multiprocessing.get_context("spawn")
-    parent, child = ctx.Pipe(duplex=False)
-    process = ctx.Process(target=_process_main, args=(cfg, simulator_factory, child), daemon=True)
-    process.start()
-    child.close()
-    deadline = time.monotonic() + timeout
-    while not parent.poll(0.1):
-        if not process.is_alive() or time.monotonic() > deadline:
-            process.kill()
-            process.join(1.0)
-            raise RuntimeError(f"simulator server did not start on {cfg.bind} (exit code {process.exitcode})")
-    return ServerProcess(process=process, endpoint=parent.recv())
+__all__ = [
+    "Deferred",
+    "ServerConfig",
+    "ServerProcess",
+    "ServerThread",
+    "SimServer",
+    "serve",
+    "start_server_process",
+]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from vtr.runtime import cli
+from vtr import cli
 
 
 def test_top_level_help_lists_every_command(capsys: pytest.CaptureFixture[str]) -> None:

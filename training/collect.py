@@ -240,6 +240,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     houses.add_argument(
         "--workers", type=int, default=0, help="worker processes (default 0: one per CPU core)"
     )
+    from vtr.training import collect_robot
+
+    collect_robot.add_arguments(parser)
+    from vtr.runtime import bag_read
+
+    bag_read.add_arguments(parser, "a dataset from teleoperated drives")
 
 
 def run_cli(args: argparse.Namespace) -> int:
@@ -253,6 +259,14 @@ def run_cli(args: argparse.Namespace) -> int:
         except ValueError as err:
             print(f"vtr collect: {err}", file=sys.stderr)
             return 2
+    if args.sim is not None:  # a protocol robot instead of the in-process simulator
+        from vtr.training import collect_robot
+
+        return collect_robot.run_cli(args)
+    if args.bag:  # teleoperated drives recorded in ROS bags
+        from vtr.training import collect_bag
+
+        return collect_bag.run_cli(args)
 
     cfg = CollectConfig(
         out=args.out,

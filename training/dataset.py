@@ -85,8 +85,9 @@ def load_dataset(path: str | os.PathLike, image_size: int | None = None) -> Fram
     except DatasetError:
         raise
     except (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError) as err:
+        why = "not a NumPy .npz archive" if "pickle" in str(err) else f"{type(err).__name__}: {err}"
         raise DatasetError(
-            f"dataset {path} is corrupt or not a .npz file ({type(err).__name__}: {err})"
+            f"dataset {path} is corrupt or not a .npz file ({why}); record one with `vtr collect`"
         ) from err
     try:
         meta = json.loads(str(arrays["meta"]))

@@ -18,7 +18,7 @@ from vtr.training.config import MPCLossConfig
 from vtr.training.losses import mpc_loss
 
 if TYPE_CHECKING:
-    from vtr.training.train import Windows
+    from vtr.training.windows import Windows
 
 
 def _ratio(model: float, baseline: float) -> float:

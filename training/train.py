@@ -1,12 +1,13 @@
-"""Training loops for ViewNet and VelocityNet (offline MPC), single process or under torchrun/DDP.
+"""The fit loop for ViewNet and VelocityNet (offline MPC), single process or under torchrun/DDP.
 
-Each stage writes into its output folder:
+Each stage writes into its output folder (names in ``training.checkpoint``):
     checkpoint.pt   resumable state (model, optimiser, step), rewritten atomically every val_every steps
     model.pt        the trained model (kind, config, weights), written once at the end
     metrics.jsonl   one JSON object per log line (train and val)
     report.json     the offline quality report (training/report.py)
 
-Batches are a pure function of (seed, step, rank), so a resumed run sees the same batches it would have.
+Data windows live in ``training.windows``, the process group in ``training.distributed``, checkpoint
+reading and writing in ``training.checkpoint``; this module is only the loop.
 """
 
 from __future__ import annotations
@@ -15,8 +16,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,227 +24,26 @@ import numpy as np
 import torch
 from torch import nn
 
-from vtr.runtime.atomic import atomic_path, write_text_atomic
+from vtr.runtime.atomic import write_text_atomic
 from vtr.runtime.preprocess import PREPROCESSING
-from vtr.training.config import (
-    MPCLossConfig,
-    TrainConfig,
-    VelocityNetConfig,
-    ViewNetConfig,
-    from_dict,
-    to_dict,
+from vtr.training.checkpoint import (
+    CHECKPOINT,
+    METRICS,
+    MODEL,
+    REPORT,
+    load_model,
+    read_checkpoint,
+    save_checkpoint,
 )
-from vtr.training.dataset import DatasetError, FrameData, load_dataset, window_starts
+from vtr.training.config import MPCLossConfig, TrainConfig, VelocityNetConfig, ViewNetConfig, to_dict
+from vtr.training.dataset import FrameData, load_dataset
+from vtr.training.distributed import Dist, barrier, setup_dist
 from vtr.training.losses import mpc_loss, viewnet_loss
 from vtr.training.models import VelocityNet, ViewNet
-from vtr.training.transfer import init_weights, split_for
+from vtr.training.transfer import init_weights
+from vtr.training.windows import Windows
 
-CHECKPOINT = "checkpoint.pt"
-MODEL = "model.pt"
-METRICS = "metrics.jsonl"
-REPORT = "report.json"
-_SCALE = np.float32(1.0 / 255.0)
-
-
-def images_to_float(images: torch.Tensor) -> torch.Tensor:
-    """uint8 (..., H, W, 3) -> float32 (..., 3, H, W) in [0, 1]: runtime.preprocess.to_nchw in torch.
-
-    Kept bit-identical to ``to_nchw`` (a test checks) so training and the runtime cannot drift.
-    """
-    assert PREPROCESSING == "rgb8_hwc_to_float32_nchw_div255"
-    return images.movedim(-1, -3).float() * float(_SCALE)
-
-
-# ---------------------------------------------------------------------------------------------------
-# Distributed setup
-
-
-@dataclass
-class Dist:
-    rank: int = 0
-    world: int = 1
-    local_rank: int = 0
-    device: torch.device = torch.device("cpu")
-
-    @property
-    def main(self) -> bool:
-        return self.rank == 0
-
-
-def resolve_device(pref: str, local_rank: int = 0) -> torch.device:
-    if pref == "auto":
-        pref = "cuda" if torch.cuda.is_available() else "cpu"
-    if pref == "cuda":
-        if not torch.cuda.is_available():
-            raise RuntimeError("device 'cuda' requested but torch.cuda.is_available() is False")
-        return torch.device("cuda", local_rank)
-    return torch.device(pref)
-
-
-def setup_dist(cfg: TrainConfig) -> Dist:
-    """Single process, or the process group torchrun describes in its environment variables."""
-    world = int(os.environ.get("WORLD_SIZE", "1"))
-    rank = int(os.environ.get("RANK", "0"))
-    local_rank = int(os.environ.get("LOCAL_RANK", "0"))
-    device = resolve_device(cfg.device, local_rank)
-    if cfg.num_threads > 0:
-        torch.set_num_threads(cfg.num_threads)
-    if world > 1 and not torch.distributed.is_initialized():
-        backend = "nccl" if device.type == "cuda" else "gloo"
-        if device.type == "cuda":
-            torch.cuda.set_device(device)
-        torch.distributed.init_process_group(backend=backend)
-    return Dist(rank, world, local_rank, device)
-
-
-def _barrier(dist: Dist) -> None:
-    if dist.world > 1:
-        torch.distributed.barrier()
-
-
-# ---------------------------------------------------------------------------------------------------
-# Data
-
-
-class Windows:
-    """The dataset as tensors plus the train/val windows of one length (2 = pairs, N + 1 = triples)."""
-
-    def __init__(self, data: FrameData, length: int, cfg: TrainConfig, dist: Dist) -> None:
-        self.length = length
-        train_ids, self.val_ids = split_for(data, cfg)  # whole houses held out when there are several
-        self.train_starts = window_starts(data.episodes, length, train_ids)
-        self.val_starts = window_starts(data.episodes, length, self.val_ids)
-        if len(self.train_starts) == 0 or len(self.val_starts) == 0:
-            raise DatasetError(
-                f"no {length}-frame windows in the {'training' if len(self.train_starts) == 0 else 'validation'}"
-                " episodes; record longer episodes or more frames"
-            )
-        if cfg.data_on_device == "auto":
-            on_device = True  # on CPU the "device" is host memory
-            if dist.device.type == "cuda":
-                free, _ = torch.cuda.mem_get_info(dist.device)
-                on_device = data.images.nbytes < 0.25 * free
-        else:
-            on_device = cfg.data_on_device == "yes"
-        self.device = dist.device
-        self.on_device = on_device
-        target = dist.device if on_device else torch.device("cpu")
-        if isinstance(data.images, np.ndarray):
-            self.images = torch.from_numpy(data.images).to(target)  # (T, H, W, 3) uint8
-        else:  # a sharded dataset (training.shards): frames are gathered per batch from memory maps
-            self.images = data.images
-        self.commands = torch.from_numpy(data.commands.astype(np.float32)).to(target)  # (T, 2)
-        self.pin = not on_device and dist.device.type == "cuda"
-        self.mean_command = data.commands[self.train_starts].mean(axis=0).astype(np.float32)
-
-    def gather_raw(self, starts: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
-        """Window starts (B,) -> uint8 frames (B, L, H, W, 3) and commands (B, L-1, 2), where the data lives."""
-        idx = torch.as_tensor(starts, dtype=torch.long)[:, None] + torch.arange(self.length)  # (B, L)
-        if not isinstance(self.images, torch.Tensor):
-            return torch.from_numpy(self.images[idx.numpy()]), self.commands[
-                idx[:, :-1].to(self.commands.device)
-            ]
-        idx = idx.to(self.images.device)
-        return self.images[idx], self.commands[idx[:, :-1]]
-
-    def to_device(self, frames: torch.Tensor, commands: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """uint8 frames -> float (B, L, 3, H, W) on the training device (async copy from pinned memory)."""
-        frames = frames.to(self.device, non_blocking=True)
-        commands = commands.to(self.device, non_blocking=True)
-        return images_to_float(frames), commands
-
-    def gather(self, starts: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
-        """Window starts (B,) -> frames (B, L, 3, H, W) float on the device, commands (B, L-1, 2)."""
-        return self.to_device(*self.gather_raw(starts))
-
-    def loader(
-        self, batches: Iterator[np.ndarray], steps: int, workers: int
-    ) -> Iterator[tuple[torch.Tensor, torch.Tensor]]:
-        """Training batches on the device. Data held on the device is indexed in place; otherwise a
-        DataLoader gathers batches in ``workers`` processes into pinned memory, overlapping the copy."""
-        if self.on_device:
-            for _ in range(steps):
-                yield self.gather(next(batches))
-            return
-        plan = [next(batches) for _ in range(steps)]  # the batch order is fixed up front (deterministic)
-        dl = torch.utils.data.DataLoader(
-            _BatchList(self, plan),
-            batch_size=None,
-            shuffle=False,
-            num_workers=workers,
-            pin_memory=self.pin,
-            persistent_workers=False,
-        )
-        for frames, commands in dl:
-            yield self.to_device(frames, commands)
-
-    def steps_per_epoch(self, batch: int, world: int) -> int:
-        return max(1, len(self.train_starts) // (batch * world))
-
-    def train_batches(self, batch: int, seed: int, start_step: int, dist: Dist) -> Iterator[np.ndarray]:
-        """Batches of window starts for steps start_step, start_step+1, ...; a pure function of the step."""
-        per_epoch = self.steps_per_epoch(batch, dist.world)
-        step = start_step
-        while True:
-            epoch, k = divmod(step, per_epoch)
-            perm = np.random.default_rng([seed, epoch]).permutation(len(self.train_starts))
-            if len(perm) < batch * dist.world:  # tiny datasets: repeat the permutation
-                perm = np.resize(perm, batch * dist.world)
-            mine = perm[dist.rank :: dist.world]
-            yield self.train_starts[mine[k * batch : (k + 1) * batch]]
-            step += 1
-
-    def val_batches(self, batch: int, limit: int | None) -> Iterator[np.ndarray]:
-        n = math.ceil(len(self.val_starts) / batch)
-        for k in range(n if limit is None else min(n, limit)):
-            yield self.val_starts[k * batch : (k + 1) * batch]
-
-
-class _BatchList(torch.utils.data.Dataset):
-    """Pre-planned batches of window starts, gathered on the host (DataLoader workers)."""
-
-    def __init__(self, windows: Windows, plan: list[np.ndarray]) -> None:
-        self.windows, self.plan = windows, plan
-
-    def __len__(self) -> int:
-        return len(self.plan)
-
-    def __getitem__(self, k: int) -> tuple[torch.Tensor, torch.Tensor]:
-        return self.windows.gather_raw(self.plan[k])
-
-
-# ---------------------------------------------------------------------------------------------------
-# Checkpoints
-
-
-def atomic_save(obj: Any, path: Path) -> None:
-    with atomic_path(path) as tmp:
-        torch.save(obj, tmp)
-
-
-def load_model(
-    path: str | os.PathLike, map_location: str | torch.device = "cpu"
-) -> tuple[str, nn.Module, dict]:
-    """(kind, model in eval mode, the whole file) from a model.pt or checkpoint.pt."""
-    path = Path(path)
-    if path.is_dir():
-        path = path / MODEL
-    if not path.is_file():
-        raise FileNotFoundError(f"no model checkpoint at {path}")
-    ckpt = torch.load(path, map_location=map_location, weights_only=False)
-    kind = ckpt.get("kind")
-    if kind == "viewnet":
-        model: nn.Module = ViewNet(from_dict(ViewNetConfig, ckpt["model_config"]))
-    elif kind == "velocitynet":
-        model = VelocityNet(from_dict(VelocityNetConfig, ckpt["model_config"]))
-    else:
-        raise ValueError(f"{path} is not a vtr model checkpoint (kind={kind!r})")
-    model.load_state_dict(ckpt["state_dict"])
-    return kind, model.eval(), ckpt
-
-
-# ---------------------------------------------------------------------------------------------------
-# The loop
+__all__ = ["CHECKPOINT", "METRICS", "MODEL", "REPORT", "train_velocitynet", "train_viewnet"]
 
 
 def _jsonable(d: dict[str, Any]) -> dict[str, Any]:
@@ -280,7 +79,7 @@ def _fit(
             raise FileExistsError(
                 f"{ckpt_path} exists: pass --resume to continue it, or choose another --out"
             )
-        ckpt = torch.load(ckpt_path, map_location=dist.device, weights_only=False)
+        ckpt = read_checkpoint(ckpt_path, map_location=dist.device)
         if ckpt.get("kind") != kind or ckpt.get("model_config") != to_dict(model_cfg):
             raise ValueError(
                 f"{ckpt_path} is a different model ({ckpt.get('kind')}); cannot resume it as {kind}"
@@ -297,7 +96,7 @@ def _fit(
 
     def save(at: int) -> None:
         if dist.main:
-            atomic_save(
+            save_checkpoint(
                 {
                     "kind": kind,
                     "model_config": to_dict(model_cfg),
@@ -370,7 +169,7 @@ def _fit(
                     log({"step": step, "split": "val", **metrics})
                     bar.write(f"{kind} step {step}: val loss {metrics['loss']:.5f}")
                 save(step)
-                _barrier(dist)
+                barrier(dist)
     except KeyboardInterrupt:
         if step > 0:
             save(step)  # Ctrl-C keeps the progress: --resume continues from this step
@@ -385,7 +184,7 @@ def _finish(
     kind: str, model: nn.Module, model_cfg: Any, out: Path, dist: Dist, extra: dict[str, Any]
 ) -> None:
     if dist.main:
-        atomic_save(
+        save_checkpoint(
             {
                 "kind": kind,
                 "model_config": to_dict(model_cfg),
@@ -410,15 +209,19 @@ def train_viewnet(
     model_cfg: ViewNetConfig,
     cfg: TrainConfig,
     resume: bool = False,
+    data: FrameData | None = None,
     init: str | os.PathLike | None = None,
 ) -> dict[str, Any]:
-    """Train ViewNet on forward and reversed pairs (from the weights in `init` if given); returns the
-    offline quality report."""
+    """Train ViewNet on forward and reversed pairs; returns the offline quality report.
+
+    ``data``: the dataset at ``data_path`` already loaded (``vtr train all`` loads it once).
+    ``init``: start from the weights of this ViewNet checkpoint (fine-tuning, training.transfer)."""
     from vtr.training.report import viewnet_report
 
     out = Path(out)
     dist = setup_dist(cfg)
-    data = load_dataset(data_path, image_size=model_cfg.image_size)
+    if data is None:
+        data = load_dataset(data_path, image_size=model_cfg.image_size)
     windows = Windows(data, 2, cfg, dist)
     extra = {"data": str(data_path), "data_meta": data.meta, "val_episodes": windows.val_ids.tolist()}
     model = ViewNet(model_cfg)
@@ -436,7 +239,7 @@ def train_viewnet(
         extra["report"] = report
         _finish("viewnet", model, model_cfg, out, dist, extra)
         _write_report(out, report)
-    _barrier(dist)
+    barrier(dist)
     return report
 
 
@@ -448,10 +251,13 @@ def train_velocitynet(
     loss_cfg: MPCLossConfig,
     cfg: TrainConfig,
     resume: bool = False,
+    data: FrameData | None = None,
     init: str | os.PathLike | None = None,
 ) -> dict[str, Any]:
-    """Train VelocityNet with the offline MPC loss through a frozen ViewNet (from the weights in `init` if
-    given); returns the quality report."""
+    """Train VelocityNet with the offline MPC loss through a frozen ViewNet; returns the quality report.
+
+    ``data``: the dataset at ``data_path`` already loaded (``vtr train all`` loads it once).
+    ``init``: start from the weights of this VelocityNet checkpoint (fine-tuning, training.transfer)."""
     from vtr.training.report import velocitynet_report
 
     out = Path(out)
@@ -463,10 +269,12 @@ def train_velocitynet(
         raise ValueError(f"{viewnet_path} holds a {kind}, not a ViewNet")
     if viewnet.cfg.image_size != model_cfg.image_size:
         raise ValueError(
-            f"ViewNet image size {viewnet.cfg.image_size} != VelocityNet's {model_cfg.image_size}"
+            f"the ViewNet at {viewnet_path} takes {viewnet.cfg.image_size}px images but this preset's VelocityNet "
+            f"takes {model_cfg.image_size}px; train with the preset the ViewNet was trained with (--preset)"
         )
     viewnet.to(dist.device).eval().requires_grad_(False)  # frozen: eval BN statistics, no weight updates
-    data = load_dataset(data_path, image_size=model_cfg.image_size)
+    if data is None:
+        data = load_dataset(data_path, image_size=model_cfg.image_size)
     windows = Windows(data, loss_cfg.horizon + 1, cfg, dist)
     extra = {
         "data": str(data_path),
@@ -493,5 +301,5 @@ def train_velocitynet(
         extra["report"] = report
         _finish("velocitynet", model, model_cfg, out, dist, extra)
         _write_report(out, report)
-    _barrier(dist)
+    barrier(dist)
     return report

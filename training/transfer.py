@@ -103,10 +103,12 @@ def evaluate(
     """Offline report of given models on every episode of `data_path` (nothing is trained)."""
     import torch
 
+    from vtr.training.checkpoint import load_model
     from vtr.training.config import get_preset
     from vtr.training.dataset import load_dataset
+    from vtr.training.distributed import setup_dist
     from vtr.training.report import velocitynet_report, viewnet_report
-    from vtr.training.train import Windows, load_model, setup_dist
+    from vtr.training.windows import Windows
 
     cfgs = get_preset(preset)
     dist = setup_dist(cfgs.train_viewnet)

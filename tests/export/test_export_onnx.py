@@ -11,16 +11,16 @@ import onnxruntime as ort
 import pytest
 import torch
 
+from vtr import cli
 from vtr.export.cli import ExportConfig, int8_path
 from vtr.export.cli import run as export_run
 from vtr.export.onnx_export import ParityError, check_parity, export_onnx, velocitynet_meta
 from vtr.export.quantize import calibration_pairs, compare, quantize_int8
-from vtr.runtime import cli
 from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
+from vtr.training.checkpoint import save_checkpoint
 from vtr.training.config import VelocityNetConfig, ViewNetConfig, to_dict
 from vtr.training.dataset import save_dataset, synthetic_dataset
 from vtr.training.models import VelocityNet, ViewNet
-from vtr.training.train import atomic_save
 
 SIZE = 32
 
@@ -161,14 +161,14 @@ def test_int8_model_loads_and_stays_close(exported: tuple[Path, VelocityNet, dic
 def test_export_cli_writes_fp32_int8_and_viewnet(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     net = _velocitynet()
     ckpt = tmp_path / "velocitynet.pt"
-    atomic_save(
+    save_checkpoint(
         {"kind": "velocitynet", "model_config": to_dict(net.cfg), "state_dict": net.state_dict()}, ckpt
     )
     vcfg = ViewNetConfig(
         image_size=SIZE, encoder_channels=(4,) * 8, decoder_channels=(4, 4), flow_resolution=16
     )
     vckpt = tmp_path / "viewnet.pt"
-    atomic_save(
+    save_checkpoint(
         {"kind": "viewnet", "model_config": to_dict(vcfg), "state_dict": ViewNet(vcfg).state_dict()}, vckpt
     )
     data = tmp_path / "d.npz"
@@ -189,9 +189,16 @@ def test_export_cli_writes_fp32_int8_and_viewnet(tmp_path: Path, capsys: pytest.
     assert cli.main(args) == 0
     report = json.loads(capsys.readouterr().out)
     assert out.exists() and int8_path(out).exists() and (out.parent / "viewnet.onnx").exists()
+    # ViewNet's ONNX says what it is and does not pass for a policy
+    vprops = {p.key: p.value for p in onnx.load(out.parent / "viewnet.onnx").metadata_props}
+    assert vprops["vtr.kind"] == "viewnet" and "vtr.horizon" not in vprops
+    from vtr.runtime.policy import ModelMismatchError, OnnxPolicy
+
+    with pytest.raises(ModelMismatchError, match="horizon"):
+        OnnxPolicy(out.parent / "viewnet.onnx")
     assert report["fp32"]["max_abs_err_real"] <= 1e-4
     assert "speedup" in report["int8"]
     # int8 without calibration frames, or a ViewNet given as the policy, are clear errors
-    assert cli.main(["export", "--checkpoint", str(ckpt), "--out", str(out), "--int8"]) == 1
+    assert cli.main(["export", "--checkpoint", str(ckpt), "--out", str(out), "--int8"]) == 2
     with pytest.raises(ValueError, match="holds a viewnet"):
         export_run(ExportConfig(checkpoint=str(vckpt), out=str(out)))

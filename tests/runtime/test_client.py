@@ -1,9 +1,10 @@
-"""SimClient over real ZeroMQ on 127.0.0.1: round trips, Lazy Pirate retries, and rejected frames."""
+"""SimClient over real ZeroMQ on 127.0.0.1: round trips, seq matching, stop-first timeouts, stamps, sessions."""
 
 from __future__ import annotations
 
 import json
 import threading
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -13,18 +14,22 @@ from runtime_fakes import FakeSim, render
 
 from vtr.runtime import protocol
 from vtr.runtime.client import SimClient
-from vtr.runtime.protocol import BadFrameError
-from vtr.runtime.robot import Robot, RobotError
+from vtr.runtime.protocol import BadFrameError, ProtocolError
+from vtr.runtime.robot import Interrupted, LinkLost, Robot, RobotError, RobotRestarted
 from vtr.sim2d.server import ServerConfig, ServerThread
+
+Reply = list[bytes] | tuple[list[bytes], ...] | None
 
 
 class ScriptedServer:
-    """A REP socket answering each request with ``respond(request) -> frames`` (None: stay silent)."""
+    """A ROUTER answering each request with ``respond(request)``: None stays silent, a list of frames is one
+    reply, a tuple of them is several (a duplicating robot). ``arrivals`` records (monotonic time, request)."""
 
-    def __init__(self, respond: Callable[[protocol.Request], list[bytes] | None]) -> None:
+    def __init__(self, respond: Callable[[protocol.Request], Reply]) -> None:
         self.respond = respond
+        self.arrivals: list[tuple[float, protocol.Request]] = []
         self.ctx = zmq.Context()
-        self.sock = self.ctx.socket(zmq.ROUTER)  # ROUTER so that it may leave a request unanswered
+        self.sock = self.ctx.socket(zmq.ROUTER)
         self.sock.setsockopt(zmq.LINGER, 0)
         self.sock.bind("tcp://127.0.0.1:*")
         self.endpoint = self.sock.getsockopt_string(zmq.LAST_ENDPOINT)
@@ -34,18 +39,29 @@ class ScriptedServer:
 
     def _loop(self) -> None:
         while not self._stop.is_set():
-            if not self.sock.poll(20):
+            if not self.sock.poll(5):
                 continue
             ident, empty, *frames = self.sock.recv_multipart()
-            reply = self.respond(protocol.decode_request(frames))
-            if reply is not None:
+            req = protocol.decode_request(frames, None)
+            self.arrivals.append((time.monotonic(), req))
+            out = self.respond(req)
+            for reply in [] if out is None else (list(out) if isinstance(out, tuple) else [out]):
                 self.sock.send_multipart([ident, empty, *reply])
+
+    def cmds(self) -> list[str]:
+        return [r.cmd for _, r in self.arrivals]
 
     def close(self) -> None:
         self._stop.set()
         self.thread.join(2)
         self.sock.close()
         self.ctx.term()
+
+    def __enter__(self) -> ScriptedServer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 def image_reply(
@@ -59,6 +75,12 @@ def image_reply(
     return frames
 
 
+def ok(req: protocol.Request, stamp: float = 0.0, session: str = "s1") -> list[bytes]:
+    if req.cmd in protocol.IMAGE_COMMANDS:
+        return image_reply(req, stamp, session=session)
+    return protocol.encode_ok(req.cmd, req.seq, session, stamp)
+
+
 def test_client_round_trips_against_the_server():
     sim = FakeSim()
     with (
@@ -66,8 +88,9 @@ def test_client_round_trips_against_the_server():
         SimClient(server.endpoint, timeout_s=5.0, expect_shape=(16, 16)) as client,
     ):
         assert isinstance(client, Robot)
-        hello = client.hello()
-        assert hello["protocol_version"] == 1 and hello["camera"]["width"] == 16
+        hello = client.handshake()
+        assert hello.protocol_version == 1 and hello.camera.width == 16 and hello.limits.v_max == 0.5
+        assert hello.map == "corridor" and hello.mode == "lockstep"
         obs = client.reset(pose=(0.1, 0.0, 0.0), seed=3)
         assert obs.stamp == 0.0 and obs.pose == pytest.approx((0.1, 0.0, 0.0))
         np.testing.assert_array_equal(obs.image, render(0.1))
@@ -76,42 +99,60 @@ def test_client_round_trips_against_the_server():
         client.stop()
         assert client.observe().stamp == pytest.approx(0.2)
         assert set(client.last_timing_ms) == {"receive", "decode"}
-        with pytest.raises(protocol.ProtocolError, match="v_max"):
-            client.step(0.7, 0.0, 0.1)  # refused before it is sent
+        with pytest.raises(ProtocolError, match="v_max"):
+            client.step(0.7, 0.0, 0.1)  # the limits hello announced: refused before it is sent
         assert client.bad_frames == 0 and client.timeouts == 0
     assert sim.calls[0][0] == "reset" and sim.calls[0][2] == 3
 
 
+def test_limits_announced_in_hello_replace_the_defaults():
+    sim = FakeSim()
+    cfg = ServerConfig(bind="tcp://127.0.0.1:*", v_max=0.8, w_max=0.3)
+    with ServerThread(sim, cfg) as server, SimClient(server.endpoint, timeout_s=5.0) as client:
+        client.handshake()
+        client.step(0.7, 0.0, 0.1)  # over the paper's 0.5, under this robot's 0.8
+        with pytest.raises(ProtocolError, match="w_max=0.3"):
+            client.step(0.0, 0.5, 0.1)
+    assert [c[1] for c in sim.calls if c[0] == "step"] == [0.7]
+
+
 def test_refused_command_raises_robot_error_naming_the_reason():
-    server = ScriptedServer(lambda req: protocol.encode_error("no map loaded", req.cmd, req.seq))
-    try:
-        with (
-            SimClient(server.endpoint, timeout_s=2.0) as client,
-            pytest.raises(RobotError, match="no map loaded"),
-        ):
-            client.observe()
-    finally:
-        server.close()
+    with (
+        ScriptedServer(
+            lambda req: protocol.encode_error("no map loaded", req.cmd, req.seq, "s1", 0.0)
+        ) as server,
+        SimClient(server.endpoint) as client,
+        pytest.raises(RobotError, match="no map loaded"),
+    ):
+        client.observe()
 
 
-def test_lazy_pirate_resends_after_a_lost_reply_and_gives_up_clearly():
-    calls = []
-
+def test_a_missed_observe_is_followed_by_a_stop_then_retried():
     def respond(req):
-        calls.append(req.seq)
-        return None if len(calls) == 1 else image_reply(req, 1.0)  # the first request is "lost"
+        return None if len(server.arrivals) == 1 else ok(req, 1.0)  # the first request is "lost"
 
-    server = ScriptedServer(respond)
-    try:
-        with SimClient(server.endpoint, timeout_s=0.3, retries=3) as client:
-            assert client.observe().stamp == 1.0
-            assert client.timeouts == 1 and calls == [1, 2]  # resent on a fresh socket with a new seq
-    finally:
-        server.close()
-    with SimClient("tcp://127.0.0.1:1", timeout_s=0.1, retries=2) as client:
-        with pytest.raises(RobotError, match="no reply from tcp://127.0.0.1:1 to 'observe' after 2 tries"):
+    with ScriptedServer(respond) as server, SimClient(server.endpoint, timeout_s=0.2) as client:
+        assert client.observe().stamp == 1.0
+        assert client.timeouts == 1 and server.cmds() == ["observe", "stop", "observe"]
+        assert [r.seq for _, r in server.arrivals] == [1, 2, 3]
+    with SimClient("tcp://127.0.0.1:1", timeout_s=0.05, retries=2) as client:
+        with pytest.raises(LinkLost, match="no reply from tcp://127.0.0.1:1 to 'observe' after 2 tries"):
             client.observe()
-        assert client.timeouts == 2
+
+
+def test_a_silent_robot_gets_a_stop_within_half_a_second_and_never_the_step_again():
+    silent_to_steps = lambda req: None if req.cmd == "step" else ok(req, 1.0)  # noqa: E731
+    with ScriptedServer(silent_to_steps) as server, SimClient(server.endpoint) as client:
+        with pytest.raises(BadFrameError, match="the robot was sent a stop"):
+            client.step(0.3, 0.0, 0.1)
+        assert server.cmds() == ["step", "stop"]
+        (t_step, _), (t_stop, _) = server.arrivals
+        assert t_stop - t_step < 0.5  # dt 0.1 + timeout 0.3 + delivery
+        assert client.observe().stamp == 1.0  # the link is alive: the next exchange is clean
+    with ScriptedServer(lambda req: None) as server, SimClient(server.endpoint) as client:
+        with pytest.raises(LinkLost, match="nor to the stop"):
+            client.step(0.3, 0.0, 0.1)
+        assert server.cmds() == ["step", "stop", "stop", "stop"]  # stops are retried, the step never
 
 
 BAD_FRAME_CASES = {
@@ -122,58 +163,127 @@ BAD_FRAME_CASES = {
         "truncated",
     ),
     "unknown version": (lambda req: image_reply(req, 1.0, version=2), "version 2"),
-    "out-of-order seq": (lambda req: image_reply(req, 1.0, seq=req.seq + 5), "stale or out of order"),
+    "float version": (lambda req: image_reply(req, 1.0, version=1.0), "version 1.0"),
+    "seq from the future": (lambda req: image_reply(req, 1.0, seq=req.seq + 5), "last request sent was"),
+    "float seq": (lambda req: image_reply(req, 1.0, seq=float(req.seq)), "must be an integer"),
+    "huge integer": (
+        lambda req: [image_reply(req, 1.0)[0].replace(b'"stamp":1.0', b'"stamp":' + b"9" * 400)],
+        "out of range",
+    ),
+    "deep nesting": (
+        lambda req: [image_reply(req, 1.0)[0][:-1] + b',"x":' + b"[" * 900 + b"]" * 900 + b"}"],
+        "nested deeper",
+    ),
     "not JSON": (lambda req: [b"\x00\x01"], "malformed JSON"),
 }
 
 
 @pytest.mark.parametrize("name", list(BAD_FRAME_CASES))
-def test_bad_frames_are_rejected_and_counted(name):
+def test_bad_frames_are_rejected_and_counted_and_the_next_reply_is_in_sync(name):
     bad, fragment = BAD_FRAME_CASES[name]
     replies = iter([bad, lambda req: image_reply(req, 2.0)])
-    server = ScriptedServer(lambda req: next(replies)(req))
-    try:
-        with SimClient(server.endpoint, timeout_s=2.0, expect_shape=(16, 16)) as client:
-            with pytest.raises(BadFrameError, match=fragment):
-                client.observe()
-            assert client.bad_frames == 1 and fragment in client.last_bad_frame
-            assert client.observe().stamp == 2.0  # the next good frame is accepted
-    finally:
-        server.close()
+    with (
+        ScriptedServer(lambda req: next(replies)(req)) as server,
+        SimClient(server.endpoint, expect_shape=(16, 16)) as client,
+    ):
+        with pytest.raises(BadFrameError, match=fragment):
+            client.observe()
+        assert client.bad_frames == 1 and fragment in client.last_bad_frame
+        assert client.observe().stamp == 2.0  # the next good frame is accepted
 
 
-def test_stale_stamps_are_rejected_but_a_restarted_server_or_reset_starts_a_new_clock():
-    script = iter(
-        [
-            lambda req: image_reply(req, 5.0),
-            lambda req: image_reply(req, 4.0),  # older than the last: stale
-            lambda req: image_reply(req, 0.0, session="s2"),  # new session: the clock may restart
-            lambda req: image_reply(req, 0.5, session="s2"),
-            lambda req: image_reply(req, 0.0, session="s2"),  # reset: the clock restarts
-        ]
-    )
-    server = ScriptedServer(lambda req: next(script)(req))
-    try:
-        with SimClient(server.endpoint, timeout_s=2.0) as client:
-            assert client.observe().stamp == 5.0
-            with pytest.raises(BadFrameError, match="stale frame"):
-                client.observe()
-            assert client.observe().stamp == 0.0 and client.session_changes == 1
-            assert client.step(0.1, 0.0, 0.5).stamp == 0.5
-            assert client.reset().stamp == 0.0
-            assert client.bad_frames == 1
-    finally:
-        server.close()
+def test_a_duplicated_reply_is_skipped_and_costs_nothing():
+    def respond(req):
+        reply = ok(req, float(req.seq))
+        return (reply, reply) if req.seq == 1 else reply
+
+    with ScriptedServer(respond) as server, SimClient(server.endpoint) as client:
+        stamps = [client.observe().stamp for _ in range(4)]
+        assert stamps == [1.0, 2.0, 3.0, 4.0] and client.stale_replies == 1 and client.bad_frames == 0
 
 
-def test_oversized_reply_is_rejected(tmp_path):
-    server = ScriptedServer(lambda req: image_reply(req, 1.0, render(0.0, 64, 64)))
-    try:
-        with SimClient(server.endpoint, timeout_s=2.0, max_message_bytes=4096) as client:
-            with pytest.raises(BadFrameError, match="exceeds the limit of 4096"):
-                client.observe()
-    finally:
-        server.close()
+def test_a_stamp_from_the_future_is_one_bad_frame_not_the_end_of_the_run():
+    stamps = iter([1.0, 1.1, 1e9, 1.2, 1.3, 0.5, 1.4])
+    with ScriptedServer(lambda req: ok(req, next(stamps))) as server, SimClient(server.endpoint) as client:
+        assert [client.observe().stamp for _ in range(2)] == [1.0, 1.1]
+        with pytest.raises(BadFrameError, match="from the future"):
+            client.observe()
+        assert [client.observe().stamp for _ in range(2)] == [1.2, 1.3]
+        with pytest.raises(BadFrameError, match="stale frame"):
+            client.observe()
+        assert client.observe().stamp == 1.4 and client.bad_frames == 2
+
+
+def test_a_new_session_confirmed_by_hello_is_a_restart_and_reset_restarts_the_clock():
+    state = {"session": "s1", "stamp": 5.0}
+
+    def respond(req):
+        return ok(req, state["stamp"], state["session"])
+
+    with ScriptedServer(respond) as server, SimClient(server.endpoint) as client:
+        assert client.observe().stamp == 5.0
+        state.update(session="s2", stamp=0.0)  # the robot rebooted: its clock starts again
+        with pytest.raises(RobotRestarted, match="session s1 became s2"):
+            client.observe()
+        assert server.cmds()[-1] == "hello" and client.session_changes == 1 and client.session == "s2"
+        state["stamp"] = 0.5
+        assert client.step(0.1, 0.0, 0.5).stamp == 0.5
+        state["stamp"] = 0.0
+        assert client.reset().stamp == 0.0
+        step, reset = server.arrivals[-2][1], server.arrivals[-1][1]
+        assert step.session == "s2" and reset.session == "s2"  # motion commands name the session they are for
+
+
+def test_one_reply_with_a_corrupt_session_is_one_bad_frame_not_a_restart():
+    corrupt = {"left": 1}
+
+    def respond(req):
+        if req.cmd == "observe" and req.seq > 1 and corrupt["left"]:
+            corrupt["left"] -= 1
+            return ok(req, 1.0, "zz-corrupt")
+        return ok(req, 1.0, "s1")
+
+    with ScriptedServer(respond) as server, SimClient(server.endpoint) as client:
+        client.observe()
+        with pytest.raises(BadFrameError, match="still session s1"):
+            client.observe()
+        assert client.observe().stamp == 1.0 and client.session == "s1" and client.session_changes == 0
+
+
+def test_a_rebooted_server_refuses_a_step_meant_for_its_previous_life():
+    sim = FakeSim()
+    with ServerThread(sim) as server, SimClient(server.endpoint, timeout_s=5.0) as client:
+        client.handshake()
+        client.session = "before-reboot"  # as if the server had restarted since the last reply
+        with pytest.raises(RobotRestarted):
+            client.step(0.3, 0.0, 0.1)
+    assert [c for c in sim.calls if c[0] == "step"] == []  # refused, not executed
+
+
+def test_an_oversized_reply_is_dropped_by_zeromq_before_it_takes_memory():
+    big = lambda req: image_reply(req, 1.0, render(0.0, 64, 64))  # noqa: E731
+    with (
+        ScriptedServer(big) as server,
+        SimClient(server.endpoint, timeout_s=0.1, max_message_bytes=4096) as client,
+    ):
+        with pytest.raises(LinkLost):
+            client.observe()
+        assert client.bad_frames == 0 and client.timeouts >= 3
+
+
+def test_cancel_ends_a_wait_at_once_and_the_stop_still_goes_through():
+    cancel = threading.Event()
+    with (
+        ScriptedServer(lambda req: None if req.cmd == "step" else ok(req)) as server,
+        SimClient(server.endpoint, timeout_s=5.0, cancel=cancel) as client,
+    ):
+        threading.Timer(0.1, cancel.set).start()
+        t0 = time.monotonic()
+        with pytest.raises(Interrupted):
+            client.step(0.3, 0.0, 0.1)
+        assert time.monotonic() - t0 < 0.3
+        client.stop()  # exempt from the cancel: the zero command always goes
+        assert server.cmds() == ["step", "stop"]
 
 
 def test_client_argument_validation():
@@ -181,11 +291,10 @@ def test_client_argument_validation():
         SimClient("tcp://127.0.0.1:1", timeout_s=0)
     with pytest.raises(ValueError, match="retries"):
         SimClient("tcp://127.0.0.1:1", retries=0)
-
-
-def test_server_config_with_ephemeral_port_reports_the_real_endpoint():
-    with ServerThread(FakeSim(), ServerConfig(bind="tcp://127.0.0.1:*")) as server:
-        assert server.endpoint.startswith("tcp://127.0.0.1:") and not server.endpoint.endswith("*")
+    with pytest.raises(ValueError, match="no transport"):
+        SimClient("127.0.0.1:5555")
+    with pytest.raises(ValueError, match="no port"):
+        SimClient("tcp://127.0.0.1")
 
 
 def test_an_interrupted_exchange_does_not_block_the_zero_command_that_follows(monkeypatch):

@@ -197,7 +197,7 @@ def _free_endpoint() -> str:
         return probe.endpoint
 
 
-def test_server_killed_mid_route_and_restarted_the_repeat_recovers(policy_path):
+def test_server_killed_mid_route_and_restarted_the_repeat_stops_saying_so(policy_path):
     cfg = ServerConfig(bind=_free_endpoint(), poll_ms=20)
     handle = start_server_process(cfg, FakeSim)
     client = SimClient(cfg.bind, timeout_s=0.25, retries=60)  # restart takes longer than one timeout
@@ -209,7 +209,8 @@ def test_server_killed_mid_route_and_restarted_the_repeat_recovers(policy_path):
         if robot.restarter is not None:
             robot.restarter.join(30)
         robot.handle.terminate()
-    assert summary.completed and summary.subgoals_reached == 9
+    # the rebooted robot is somewhere else: the run ends rather than steering it from a stale view
+    assert summary.status == "robot_restarted" and "robot restarted" in summary.detail
     assert client.timeouts >= 1 and client.session_changes == 1
 
 
@@ -223,12 +224,12 @@ def test_server_killed_for_good_the_repeat_stops_cleanly(policy_path):
     finally:
         client.close()
         handle.terminate()
-    assert summary.status == "robot_error" and "no reply" in summary.detail and not summary.completed
+    assert summary.status == "link_lost" and "no reply" in summary.detail and not summary.completed
     assert summary.steps == 2  # step 3 reached the server, then its zero command found nobody
 
 
 def test_teach_then_repeat_over_zeromq_through_the_cli(policy_path, tmp_path, capsys):
-    from vtr.runtime.cli import main
+    from vtr.cli import main
     from vtr.runtime.route import Route
 
     script = tmp_path / "corridor.json"
@@ -286,11 +287,11 @@ def test_teach_spacing_rules(tmp_path):
 
 
 def test_repeat_config_validation():
-    with pytest.raises(ValueError, match="max_steps"):
+    with pytest.raises(ValueError, match="max-steps"):
         RepeatConfig(max_steps=0)
     with pytest.raises(ValueError, match="dt"):
         RepeatConfig(dt=-0.1)
-    with pytest.raises(ValueError, match="frame_timeout_s"):
+    with pytest.raises(ValueError, match="frame-timeout"):
         RepeatConfig(frame_timeout_s=0)
 
 
@@ -317,7 +318,7 @@ def test_camera_at_the_wrong_resolution_never_reaches_the_network(policy_path):
 
 
 def test_cli_reports_bad_inputs_without_a_traceback(policy_path, tmp_path, capsys):
-    from vtr.runtime.cli import main
+    from vtr.cli import main
 
     route = tmp_path / "route.npz"
     corridor_route(h=8, w=8).save(route)
@@ -337,3 +338,16 @@ def test_cli_reports_bad_inputs_without_a_traceback(policy_path, tmp_path, capsy
     assert main([*argv, "--timeout", "0.05"]) == 2
     assert "no reply from tcp://127.0.0.1:1" in capsys.readouterr().err
     assert not (tmp_path / "o.npz").exists()
+
+
+def test_teach_against_nothing_gives_up_after_one_round_of_tries():
+    from vtr.runtime.robot import RobotError
+    from vtr.runtime.route_script import parse_route_script
+    from vtr.runtime.teach import teach
+
+    script = parse_route_script(
+        {"start": {"x": 0, "y": 0, "yaw": 0}, "segments": [{"v": 0.1, "w": 0, "duration": 1}]}
+    )
+    with SimClient("tcp://127.0.0.1:9", timeout_s=0.05, retries=2, setup_timeout_s=0.05) as client:
+        with pytest.raises(RobotError, match="no reply .* to 'hello'"):
+            teach(client, script)  # hello's tries only: reset is not tried again against nobody

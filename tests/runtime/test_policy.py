@@ -82,3 +82,10 @@ def test_route_at_another_resolution_is_refused(model_path):
     policy.check_route(corridor_route())
     with pytest.raises(ModelMismatchError, match="route images are 8x8"):
         policy.check_route(corridor_route(h=8, w=8))
+
+
+def test_a_model_file_past_the_size_cap_is_refused_before_onnxruntime_reads_it(tmp_path):
+    big = tmp_path / "big.onnx"
+    big.write_bytes(bytes(4096))
+    with pytest.raises(ModelMismatchError, match="larger than"):
+        OnnxPolicy(big, max_bytes=1024)

@@ -36,7 +36,7 @@ def test_failed_save_leaves_the_old_file_intact(tmp_path, monkeypatch):
     def boom(*args, **kwargs):
         raise OSError("disk full")
 
-    monkeypatch.setattr(np, "savez_compressed", boom)
+    monkeypatch.setattr(np, "savez", boom)
     with pytest.raises(OSError, match="disk full"):
         corridor_route(length_m=0.2).save(path)
     assert path.read_bytes() == before and os.listdir(tmp_path) == ["r.npz"]
@@ -62,7 +62,7 @@ def test_route_validation(change, fragment):
 def test_load_refuses_bad_files(tmp_path):
     junk = tmp_path / "junk.npz"
     junk.write_bytes(b"nope")
-    with pytest.raises(RouteError, match="cannot read"):
+    with pytest.raises(RouteError, match="not an .npz archive"):
         Route.load(junk)
     partial = tmp_path / "partial.npz"
     np.savez(partial, images=np.zeros((1, 2, 2, 3), np.uint8))
@@ -84,8 +84,35 @@ def test_load_refuses_bad_files(tmp_path):
     np.savez(
         pickled, images=route.images, poses=route.poses, commands=route.commands, meta=np.array([{"a": 1}])
     )
-    with pytest.raises(RouteError):
+    with pytest.raises(RouteError, match="Python objects"):
         Route.load(pickled)
+
+
+def test_load_refuses_a_route_that_would_expand_past_the_cap_before_decompressing(tmp_path):
+    route = corridor_route()
+    bomb = tmp_path / "bomb.npz"
+    np.savez_compressed(
+        bomb,
+        images=np.zeros((2000, 64, 64, 3), np.uint8),  # 24.6 MB of zeros in a few kB
+        poses=np.zeros((2000, 3)),
+        commands=np.zeros((2000, 2)),
+        meta=np.array(json.dumps(route.meta_dict())),
+    )
+    assert bomb.stat().st_size < 100_000
+    with pytest.raises(RouteError, match="more than 4x the file"):
+        Route.load(bomb)
+    assert len(Route.load(bomb, max_expansion=1e4)) == 2000  # a caller may raise the cap on purpose
+
+
+def test_a_lying_npy_header_is_refused(tmp_path):
+    import zipfile
+
+    liar = tmp_path / "liar.npz"
+    with zipfile.ZipFile(liar, "w") as z:
+        header = b"\x93NUMPY\x01\x00v\x00{'descr': '|u1', 'fortran_order': False, 'shape': (100000000,), }"
+        z.writestr("images.npy", header.ljust(10 + 118) + b"\n" + bytes(10))
+    with pytest.raises(RouteError, match="declares 100000000 bytes"):
+        Route.load(liar)
 
 
 def test_route_script_parsing(tmp_path):

@@ -120,7 +120,12 @@ def test_lockstep_time_advances_only_on_step_and_hello_reports_the_server():
     sim = TinySim()
     server = SimServer(sim)
     hello = protocol.decode_reply(server.handle(protocol.encode_request("hello", 1)))
-    assert hello.header["protocol_version"] == 1 and hello.header["camera"] == {"width": 8, "height": 6}
+    assert hello.header["protocol_version"] == 1 and hello.header["camera"] == {
+        "width": 8,
+        "height": 6,
+        "fov_deg": None,
+        "height_m": None,
+    }
     assert hello.header["limits"] == {"v_max": 0.5, "w_max": 1.0, "max_duration": 10.0}
     assert hello.header["info"]["nan"] is None  # NaN never reaches the wire
     for seq in range(2, 5):
@@ -178,7 +183,7 @@ def test_server_process_shuts_down_cleanly_on_sigterm():
 @pytest.mark.parametrize(
     "kwargs, fragment",
     [
-        ({"bind": "localhost:5555"}, "endpoint"),
+        ({"bind": "localhost:5555"}, "no transport"),
         ({"max_message_bytes": 10}, "max_message_bytes"),
         ({"v_max": float("nan")}, "v_max"),
         ({"poll_ms": 0}, "poll_ms"),

@@ -67,7 +67,7 @@ def test_vtr_sim_serve_shuts_down_cleanly_on_signals(sig):
         endpoint = probe.endpoint
     root = Path(__file__).resolve().parents[2]
     proc = subprocess.Popen(
-        [sys.executable, "-m", "vtr.runtime.cli", "sim", "serve", "--bind", endpoint],
+        [sys.executable, "-m", "vtr.cli", "sim", "serve", "--bind", endpoint],
         cwd=root,
         env=dict(os.environ, PYTHONPATH=str(root)),
         stdout=subprocess.PIPE,

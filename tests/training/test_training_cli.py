@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 import torch
 
-from vtr.runtime import cli
+from vtr import cli
 from vtr.training.dataset import save_dataset, synthetic_dataset
 
 REPO = Path(__file__).resolve().parents[2]
@@ -36,7 +36,7 @@ def _lines(path: Path) -> list[dict]:
 
 
 def test_viewnet_stage_writes_model_metrics_and_report(viewnet: Path) -> None:
-    ckpt = torch.load(viewnet / "model.pt", weights_only=False)
+    ckpt = torch.load(viewnet / "model.pt", weights_only=True)
     assert ckpt["kind"] == "viewnet" and ckpt["model_config"]["image_size"] == 32
     rows = _lines(viewnet / "metrics.jsonl")
     assert [r["step"] for r in rows if r["split"] == "train"] == [1, 2, 3]
@@ -84,12 +84,12 @@ def test_resume_continues_where_it_stopped(
         "1",
     ]
     assert cli.main([*base, "--steps", "2"]) == 0
-    assert cli.main([*base, "--steps", "4"]) == 1  # refuses to overwrite without --resume
-    assert "--resume" in capsys.readouterr().out
+    assert cli.main([*base, "--steps", "4"]) == 2  # refuses to overwrite without --resume
+    assert "--resume" in capsys.readouterr().err
     assert cli.main([*base, "--steps", "4", "--resume"]) == 0
     steps = [r["step"] for r in _lines(out / "metrics.jsonl") if r["split"] == "train"]
     assert steps == [1, 2, 3, 4]
-    assert torch.load(out / "checkpoint.pt", weights_only=False)["step"] == 4
+    assert torch.load(out / "checkpoint.pt", weights_only=True)["step"] == 4
 
 
 def test_same_seed_same_weights(data: Path, tmp_path: Path) -> None:
@@ -99,7 +99,7 @@ def test_same_seed_same_weights(data: Path, tmp_path: Path) -> None:
         cli.main(
             ["train", "viewnet", "--preset", "tiny", "--data", str(data), "--out", str(out), "--steps", "2"]
         )
-        states.append(torch.load(out / "model.pt", weights_only=False)["state_dict"])
+        states.append(torch.load(out / "model.pt", weights_only=True)["state_dict"])
     assert all(torch.equal(states[0][k], states[1][k]) for k in states[0])
 
 
@@ -108,9 +108,9 @@ def test_bad_dataset_is_a_message_not_a_traceback(tmp_path: Path, capsys: pytest
     bad.write_bytes(b"not a zip")
     assert (
         cli.main(["train", "viewnet", "--preset", "tiny", "--data", str(bad), "--out", str(tmp_path / "o")])
-        == 1
+        == 2
     )
-    assert "corrupt" in capsys.readouterr().out
+    assert "corrupt" in capsys.readouterr().err
 
 
 def test_torchrun_two_cpu_processes(data: Path, tmp_path: Path) -> None:
@@ -123,8 +123,7 @@ def test_torchrun_two_cpu_processes(data: Path, tmp_path: Path) -> None:
         "--standalone",
         "--nproc_per_node=2",
         "-m",
-        "vtr.runtime.cli",
-        "train",
+        "vtr.training.app",
         "viewnet",
         "--preset",
         "tiny",
@@ -146,8 +145,19 @@ def test_torchrun_two_cpu_processes(data: Path, tmp_path: Path) -> None:
     assert steps == [1, 2]  # rank 0 alone writes the log
 
 
-def test_train_all_collects_trains_and_exports(tmp_path: Path) -> None:
-    pytest.importorskip("pymunk")
+def test_train_all_collects_trains_and_exports(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import vtr.training.dataset as dataset_mod
+    import vtr.training.train as train_mod
+
+    loads: list[str] = []
+    real_load = dataset_mod.load_dataset
+
+    def counting_load(path, *args, **kwargs):
+        loads.append(str(path))
+        return real_load(path, *args, **kwargs)
+
+    monkeypatch.setattr(dataset_mod, "load_dataset", counting_load)
+    monkeypatch.setattr(train_mod, "load_dataset", counting_load)
     out, models, data = tmp_path / "run", tmp_path / "models", tmp_path / "data" / "house.npz"
     args = [
         "train",
@@ -163,14 +173,20 @@ def test_train_all_collects_trains_and_exports(tmp_path: Path) -> None:
     ]
     assert cli.main(args) == 0
     assert data.exists()  # there was no dataset: `all` recorded one first
+    assert not models.exists()  # never installed without --install-models
+    assert len(loads) == 1  # one load serves both stages and the export
     for name in ("velocitynet.onnx", "velocitynet-int8.onnx", "viewnet.pt"):
-        assert (models / name).exists(), name
+        assert (out / "export" / name).exists(), name
+    args.append("--install-models")
     summary = json.loads((out / "summary.json").read_text())
     assert summary["export"]["fp32"]["max_abs_err_random"] <= 1e-4
     assert summary["viewnet"]["model"] == "viewnet" and summary["velocitynet"]["model"] == "velocitynet"
     assert {"collect_s", "viewnet_s", "velocitynet_s", "export_s", "total_s"} <= set(summary["timings"])
-    # A second run finds every stage done and only re-exports.
+    # A second run finds every stage done, only re-exports, and installs when asked.
     assert cli.main(args) == 0
+    for name in ("velocitynet.onnx", "velocitynet-int8.onnx", "viewnet.pt"):
+        assert (models / name).exists(), name
+    assert json.loads((out / "summary.json").read_text())["installed"]
 
 
 @pytest.mark.slow
@@ -221,8 +237,8 @@ def test_interrupt_saves_a_checkpoint_that_resume_continues(
     out = tmp_path / "vn"
     with pytest.raises(KeyboardInterrupt):
         train_mod.train_viewnet(data, out, preset.viewnet, cfg)
-    assert torch.load(out / "checkpoint.pt", weights_only=False)["step"] == 3
+    assert torch.load(out / "checkpoint.pt", weights_only=True)["step"] == 3
     monkeypatch.setattr(train_mod, "viewnet_loss", real_loss)
     train_mod.train_viewnet(data, out, preset.viewnet, cfg, resume=True)
-    assert torch.load(out / "checkpoint.pt", weights_only=False)["step"] == 5
+    assert torch.load(out / "checkpoint.pt", weights_only=True)["step"] == 5
     assert (out / "model.pt").exists()

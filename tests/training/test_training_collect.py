@@ -78,7 +78,7 @@ def test_same_seed_same_dataset(collected: tuple[Path, dict], tmp_path: Path) ->
 
 
 def test_collect_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from vtr.runtime import cli
+    from vtr import cli
 
     out = tmp_path / "c.npz"
     args = ["collect", "--out", str(out), "--frames", "40", "--image-size", "32", "--no-progress", "--noise"]

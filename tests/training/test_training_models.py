@@ -9,7 +9,7 @@ import torch
 from vtr.runtime.preprocess import to_nchw
 from vtr.training.config import PRESETS, TrainConfig, VelocityNetConfig, ViewNetConfig, get_preset
 from vtr.training.models import VelocityNet, ViewNet
-from vtr.training.train import images_to_float
+from vtr.training.windows import images_to_float
 
 
 def _tiny_viewnet() -> ViewNet:

@@ -10,9 +10,11 @@ import torch
 
 from vtr.training.config import get_preset
 from vtr.training.dataset import synthetic_dataset
+from vtr.training.distributed import setup_dist
 from vtr.training.shards import load_sharded, write_index, write_shard
-from vtr.training.train import Windows, setup_dist, train_velocitynet, train_viewnet
+from vtr.training.train import train_velocitynet, train_viewnet
 from vtr.training.transfer import evaluate, init_weights, split_for
+from vtr.training.windows import Windows
 
 
 def _sharded(root: Path, houses: int = 4) -> Path:

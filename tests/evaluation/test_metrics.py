@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from vtr.benchmarks import metrics
+from vtr.evaluation import metrics
 
 
 def test_nearest_point_errors_hand_computed() -> None:

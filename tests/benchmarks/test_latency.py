@@ -5,12 +5,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
-import onnxruntime as ort
 import pytest
 
 from vtr.benchmarks import latency
-from vtr.benchmarks.onnx_tools import OnnxTorchModule, count_flops, make_standin_velocitynet
+from vtr.benchmarks.backends import velocitynet_like
+from vtr.benchmarks.flops import count_flops
+from vtr.benchmarks.standin import make_standin_velocitynet
 from vtr.runtime.model_meta import ModelMeta
 
 TINY = ModelMeta(image_height=32, image_width=32, horizon=2)
@@ -30,15 +30,22 @@ def test_flop_count_matches_hand_count(tiny_model: Path) -> None:
     assert out["gflop"] == pytest.approx(2 * macs / 1e9)
 
 
-def test_torch_rebuild_matches_onnxruntime(tiny_model: Path) -> None:
-    torch = pytest.importorskip("torch")
-    rng = np.random.default_rng(1)
-    x = rng.random((1, 3, 32, 32), dtype=np.float32)
-    y = rng.random((1, 3, 32, 32), dtype=np.float32)
-    ref = ort.InferenceSession(str(tiny_model)).run(None, {"current": x, "subgoal": y})[0]
-    got = OnnxTorchModule(tiny_model)(current=torch.from_numpy(x), subgoal=torch.from_numpy(y))[0].numpy()
-    assert ref.shape == (1, 2, 2)
-    np.testing.assert_allclose(got, ref, atol=1e-5)
+def test_torch_eager_is_the_real_velocitynet_with_the_models_widths(tmp_path: Path) -> None:
+    from vtr.export.onnx_export import export_onnx, velocitynet_meta
+    from vtr.training.config import VelocityNetConfig
+    from vtr.training.models import VelocityNet
+
+    cfg = VelocityNetConfig(image_size=32, channels=(4, 4, 8, 8, 8, 8, 8), horizon=3)
+    path = tmp_path / "v.onnx"
+    export_onnx(VelocityNet(cfg), path, velocitynet_meta(cfg))
+    net = velocitynet_like(path)
+    assert type(net) is VelocityNet and net.cfg.channels == cfg.channels and net.cfg.horizon == 3
+    assert net.cfg.image_size == 32 and not net.training
+
+
+def test_torch_eager_refuses_a_graph_that_is_not_velocitynet(tiny_model: Path) -> None:
+    with pytest.raises(ValueError, match="8 convolutions"):
+        velocitynet_like(tiny_model)
 
 
 def test_latency_smoke_run(tiny_model: Path, tmp_path: Path) -> None:
@@ -65,7 +72,7 @@ def test_latency_smoke_run(tiny_model: Path, tmp_path: Path) -> None:
     on_disk = json.loads((tmp_path / "lat.json").read_text())
     assert on_disk["gflop"] == pytest.approx(result["gflop"])
     assert "targets (issue 5)" in latency.format_report(result)
-    from vtr.benchmarks import report
+    from vtr.evaluation import report
 
     md = report.build(on_disk, [])
     assert "| whole_step |" in md and "| 1 | ort_fp32 |" in md and "peak RSS" in md
@@ -76,12 +83,12 @@ def test_config_rejects_bad_values(tiny_model: Path) -> None:
         latency.LatencyConfig(model=tiny_model, threads=0)
     with pytest.raises(ValueError, match="nope"):
         latency.LatencyConfig(model=tiny_model, backends=("nope",))
-    with pytest.raises(ValueError, match="not found"):
+    with pytest.raises(FileNotFoundError, match="not found"):
         latency.LatencyConfig(model=tiny_model.with_name("missing.onnx"))
 
 
 def test_vtr_bench_latency_cli(tiny_model: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from vtr.runtime.cli import main
+    from vtr.cli import main
 
     argv = ["bench", "latency", "--model", str(tiny_model), "--steps", "3", "--warmup", "1", "--thread-counts", "1",
             "--backends", "ort_fp32", "--matmul-size", "32", "--no-zmq", "--no-memory", "--sim-steps", "0",

@@ -2,7 +2,7 @@
 
 1. start the simulator server in a child process on loopback (a free port);
 2. teach the paper's translation + rotation route over ZeroMQ (`runtime.teach`);
-3. repeat it with the shipped VelocityNet (`runtime.daemon.repeat`, ONNX on onnxruntime), and replay the
+3. repeat it with the shipped VelocityNet (`runtime.repeater.Repeater`, ONNX on onnxruntime), and replay the
    taught commands blind for comparison;
 4. print the paper-style error table and write a PNG of the taught and repeated paths;
 5. shut the server down, also on errors and Ctrl-C.
@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,43 +19,28 @@ from typing import Any
 
 import numpy as np
 
-from vtr.benchmarks import metrics
+from vtr.evaluation import metrics
+from vtr.models import find_model
 from vtr.runtime.atomic import atomic_path
+from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import Observation
 from vtr.sim2d.routes import ROUTES_DIR
 
-REPO_ROOT = Path(__file__).resolve().parent.parent
-MODEL_NAME = Path("models") / "velocitynet.onnx"
 DEFAULT_ROUTE = "translation_rotation"
-
-
-def find_model(explicit: Path | None = None) -> Path:
-    """The model to run: an explicit path, else models/velocitynet.onnx here, else beside the package."""
-    if explicit is not None:
-        if not explicit.is_file():
-            raise FileNotFoundError(f"model not found: {explicit}")
-        return explicit
-    for candidate in (Path.cwd() / MODEL_NAME, REPO_ROOT / MODEL_NAME):
-        if candidate.is_file():
-            return candidate
-    raise FileNotFoundError(
-        f"no {MODEL_NAME} in {Path.cwd()} or {REPO_ROOT}; pass --model, or train and export one (`vtr train`, "
-        "`vtr export`)"
-    )
 
 
 @dataclass
 class DemoConfig:
     """Settings of `vtr demo`."""
 
-    model: Path | None = None  # None: look for models/velocitynet.onnx (see find_model)
-    route: str = DEFAULT_ROUTE  # route name in sim2d/routes, or a ROUTE.json path
-    noise: float = 0.05  # actuation noise of the simulator (teach and repeat alike)
-    seed: int = 0  # actuation noise seed of the repeat
-    out: Path = Path("demo_out")  # where the PNG and the route file go
-    threads: int = 1  # onnxruntime intra-op threads
-    open_loop: bool = True  # also replay the taught commands blind, to show what vision corrects
-    timeout_s: float = 5.0  # client's reply timeout per request
+    model: Path | None = opt(None, "VelocityNet ONNX (default: the shipped models/velocitynet.onnx)")
+    route: str = opt(DEFAULT_ROUTE, "route name in sim2d/routes, or a ROUTE.json path")
+    noise: float = opt(0.05, "actuation noise of the simulator (teach and repeat alike)")
+    seed: int = opt(0, "actuation noise seed of the repeat")
+    out: Path = opt(Path("demo_out"), "folder for the PNG and the taught route")
+    threads: int = opt(1, "onnxruntime intra-op threads")
+    open_loop: bool = opt(True, "also replay the taught commands blind, to show what vision corrects")
+    timeout_s: float = opt(5.0, "seconds to wait for each simulator reply", flag="--timeout")
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.noise <= 1.0:
@@ -64,7 +48,10 @@ class DemoConfig:
         if self.threads < 1:
             raise ValueError(f"threads must be >= 1, got {self.threads}")
         if not self.timeout_s > 0:
-            raise ValueError(f"timeout_s must be positive, got {self.timeout_s}")
+            raise ValueError(f"timeout must be positive, got {self.timeout_s}")
+        if not _route_path(self.route).is_file():
+            names = ", ".join(p.stem for p in sorted(ROUTES_DIR.glob("*.json")))
+            raise ValueError(f"route not found: {self.route}; name one of {names} or a ROUTE.json file")
 
 
 def _route_path(route: str) -> Path:
@@ -86,6 +73,8 @@ class _Say:
 
 def run(cfg: DemoConfig) -> dict[str, Any]:
     """Run the demo; returns every number it printed."""
+    import pymunk  # noqa: F401 - the simulator runs in a child process: say it is missing here, in one line
+
     from vtr.runtime.client import SimClient
     from vtr.runtime.policy import OnnxPolicy
     from vtr.runtime.repeater import Repeater, StepRecord
@@ -110,8 +99,7 @@ def run(cfg: DemoConfig) -> dict[str, Any]:
         try:
             route = teach(client, script, TeachConfig(dt=policy.meta.dt, seed=cfg.seed + 1))
             say(f"taught {len(route)} subgoals over {script.duration:.1f} s of driving")
-            cfg.out.mkdir(parents=True, exist_ok=True)
-            route.save(cfg.out / f"{script.name}.npz")
+            route_file = cfg.out / f"{script.name}.npz"
 
             start = tuple(float(v) for v in route.poses[0])
             obs = client.reset(pose=start, seed=cfg.seed)
@@ -139,6 +127,8 @@ def run(cfg: DemoConfig) -> dict[str, Any]:
     finally:
         server.terminate()
     say("simulator server stopped")
+    cfg.out.mkdir(parents=True, exist_ok=True)  # only now: a failed demo leaves no empty folder
+    route.save(route_file)
 
     run_metrics = metrics.route_metrics(route.poses, np.asarray(poses), np.asarray(commands).reshape(-1, 2),
                                         summary.subgoals_reached)  # fmt: skip
@@ -205,7 +195,7 @@ def _open_loop(
 
 def format_table(result: dict[str, Any]) -> str:
     """The paper's Table 1 column for this route beside ours (and open loop)."""
-    from vtr.benchmarks.evaluate import PAPER
+    from vtr.evaluation.scoring import PAPER
 
     vn = result["velocitynet"]
     ol = result.get("open_loop")
@@ -274,7 +264,7 @@ def write_png(result: dict[str, Any], path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from vtr.benchmarks.evaluate import draw_house, frame_route
+    from vtr.evaluation.plots import draw_house, frame_route
 
     taught = np.asarray(result["taught_poses"])
     rep = np.asarray(result["repeated_poses"])
@@ -301,32 +291,9 @@ def write_png(result: dict[str, Any], path: Path) -> Path:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--model", type=Path, default=None, help="VelocityNet ONNX (default: models/velocitynet.onnx)"
-    )
-    parser.add_argument(
-        "--route", default=DEFAULT_ROUTE, help="route name in sim2d/routes or a ROUTE.json path"
-    )
-    parser.add_argument("--noise", type=float, default=0.05, help="actuation noise level of the simulator")
-    parser.add_argument("--seed", type=int, default=0, help="actuation noise seed")
-    parser.add_argument("--out", type=Path, default=Path("demo_out"), help="folder for the PNG and the route")
-    parser.add_argument("--threads", type=int, default=1, help="onnxruntime threads")
-    parser.add_argument("--no-open-loop", action="store_true", help="skip the open-loop comparison")
+    add_config_arguments(parser, DemoConfig)
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    try:
-        cfg = DemoConfig(
-            model=args.model,
-            route=args.route,
-            noise=args.noise,
-            seed=args.seed,
-            out=args.out,
-            threads=args.threads,
-            open_loop=not args.no_open_loop,
-        )
-        run(cfg)
-    except (FileNotFoundError, ValueError) as err:
-        print(f"vtr demo: {err}", file=sys.stderr)
-        return 2
-    return 0
+    result = run(config_from_args(DemoConfig, args))
+    return 0 if result["summary"]["completed"] else 1  # a repeat that did not finish is a failed demo

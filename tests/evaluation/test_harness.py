@@ -9,14 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vtr.benchmarks.onnx_tools import make_standin_velocitynet
+from vtr.benchmarks.standin import make_standin_velocitynet
 from vtr.runtime.model_meta import ModelMeta
-
-sim2d = pytest.importorskip("vtr.sim2d")
-if not hasattr(sim2d, "Simulator"):
-    pytest.skip("sim2d.Simulator has not landed yet", allow_module_level=True)
-pytest.importorskip("vtr.sim2d.local_robot")
-
 
 SHORT_ROUTE = {
     "name": "short",
@@ -42,7 +36,7 @@ def short_route(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_eval_quick_writes_every_output(small_model: Path, short_route: Path, tmp_path: Path) -> None:
-    from vtr.benchmarks import evaluate
+    from vtr.evaluation import harness as evaluate
 
     cfg = evaluate.EvalConfig(
         model=small_model,
@@ -71,30 +65,27 @@ def test_eval_quick_writes_every_output(small_model: Path, short_route: Path, tm
     assert "| short | velocitynet |" in md and "Bar (issue 5)" in md
     pngs = sorted(p.name for p in (tmp_path / "plots").glob("*.png"))
     assert pngs == ["short_error.png", "short_path.png"]
-    from vtr.benchmarks import report
+    from vtr.evaluation import report
 
     section = report.build(None, [on_disk])
     assert "### Closed-loop tracking" in section and f"--routes {short_route}" in section
 
 
 def test_open_loop_drifts_under_noise_and_not_without(short_route: Path) -> None:
-    from vtr.benchmarks import evaluate
+    from vtr.evaluation import harness as evaluate
+    from vtr.evaluation import runs
     from vtr.runtime.route_script import load_route_script
 
     route, script = evaluate.teach(short_route, (32, 32), 0.1)
-    clean = evaluate.repeat_open_loop(
-        evaluate.make_robot(0.0, (32, 32)), script, tuple(route.poses[0]), 0, 0.1
-    )
+    clean = runs.repeat_open_loop(evaluate.make_robot(0.0, (32, 32)), script, tuple(route.poses[0]), 0, 0.1)
     np.testing.assert_allclose(np.asarray(clean.poses)[-1], route.poses[-1], atol=1e-6)
-    noisy = evaluate.repeat_open_loop(
-        evaluate.make_robot(0.3, (32, 32)), script, tuple(route.poses[0]), 0, 0.1
-    )
+    noisy = runs.repeat_open_loop(evaluate.make_robot(0.3, (32, 32)), script, tuple(route.poses[0]), 0, 0.1)
     assert np.abs(np.asarray(noisy.poses)[-1] - route.poses[-1]).max() > 1e-4
     assert load_route_script(short_route).name == "short"
 
 
 def test_demo_runs_end_to_end(small_model: Path, short_route: Path, tmp_path: Path) -> None:
-    from vtr.benchmarks import demo
+    from vtr.evaluation import demo
 
     result = demo.run(demo.DemoConfig(model=small_model, route=str(short_route), out=tmp_path))
     assert Path(result["png"]).is_file() and (tmp_path / "short.npz").is_file()
@@ -105,7 +96,7 @@ def test_demo_runs_end_to_end(small_model: Path, short_route: Path, tmp_path: Pa
 
 def test_pose_oracle_closes_the_loop(small_model: Path, short_route: Path) -> None:
     # The harness end to end (daemon, controller, pose recording, scoring) with a policy that can succeed.
-    from vtr.benchmarks import evaluate
+    from vtr.evaluation import harness as evaluate
 
     cfg = evaluate.EvalConfig(
         model=small_model, routes=(str(short_route),), quick=True, workers=1, oracle=True, open_loop=False
@@ -117,7 +108,7 @@ def test_pose_oracle_closes_the_loop(small_model: Path, short_route: Path) -> No
 
 
 def test_vtr_eval_quick_cli(small_model: Path, short_route: Path, tmp_path: Path) -> None:
-    from vtr.runtime.cli import main
+    from vtr.cli import main
 
     out = tmp_path / "e.json"
     assert (
@@ -128,3 +119,14 @@ def test_vtr_eval_quick_cli(small_model: Path, short_route: Path, tmp_path: Path
     )
     assert json.loads(out.read_text())["routes"][0]["name"] == "short"
     assert main(["eval", "--model", str(small_model), "--noise", "2"]) == 2
+
+
+def test_demo_exit_code_says_whether_the_repeat_finished(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    from vtr.cli import main
+    from vtr.evaluation import demo
+
+    for completed, code in ((True, 0), (False, 1)):
+        monkeypatch.setattr(demo, "run", lambda cfg, c=completed: {"summary": {"completed": c}})
+        assert main(["demo", "--out", str(tmp_path / "d")]) == code

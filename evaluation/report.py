@@ -1,6 +1,6 @@
 """A README-ready Results section from the JSON files of `vtr bench latency` and `vtr eval`.
 
-python -m benchmarks.report --latency out/latency.json --eval out/eval.json [--out RESULTS.md]
+python -m vtr.evaluation.report --latency out/latency.json --eval out/eval.json [--out RESULTS.md]
 """
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ def latency_section(lat: dict[str, Any]) -> list[str]:
 
 
 def eval_section(ev: dict[str, Any]) -> list[str]:
-    from vtr.benchmarks.evaluate import markdown_report
+    from vtr.evaluation.tables import markdown_report
 
     cfg = ev["config"]
     cmd = f"vtr eval --model {cfg['model']} --noise {cfg['noise']}"

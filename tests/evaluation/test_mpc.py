@@ -26,7 +26,7 @@ def _zero_viewnet(path: Path) -> Path:
 
 
 def test_mpc_returns_bounded_plan(tmp_path: Path) -> None:
-    from vtr.benchmarks.evaluate import ViewNetMPC
+    from vtr.evaluation.mpc import ViewNetMPC
 
     ckpt = _zero_viewnet(tmp_path / "viewnet.pt")
     mpc = ViewNetMPC(ckpt, horizon=2, samples=8, iterations=2, threads=1, seed=0)
@@ -42,7 +42,7 @@ def test_mpc_returns_bounded_plan(tmp_path: Path) -> None:
 
 
 def test_mpc_rejects_a_velocitynet_checkpoint(tmp_path: Path) -> None:
-    from vtr.benchmarks.evaluate import ViewNetMPC
+    from vtr.evaluation.mpc import ViewNetMPC
 
     cfg = config.VelocityNetConfig(image_size=32, channels=(4, 4, 8, 8, 8, 8, 8))
     path = tmp_path / "vel.pt"

@@ -1,0 +1,145 @@
+"""What a repeat produces and how it is set up: :class:`RepeatStatus`, :class:`StepRecord`,
+:class:`Summary` and :class:`RepeatConfig` (the loop itself is ``runtime.repeater.Repeater``)."""
+
+from __future__ import annotations
+
+import enum
+import math
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from vtr.runtime.cliargs import opt
+from vtr.runtime.controller import Action, ControllerConfig, Decision
+
+
+class RepeatStatus(str, enum.Enum):
+    """How a repeat ended (see the module docstring for which are produced today)."""
+
+    FINISHED = "finished"  # past the last subgoal
+    STALLED = "stalled"  # the stall guard found no subgoal close enough
+    LOST = "lost"  # reserved: matching says the robot is off the route
+    COLLIDED = "collided"  # reserved: the robot reports a collision
+    ROBOT_RESTARTED = "robot_restarted"  # the robot's session changed under us (it rebooted)
+    LINK_LOST = "link_lost"  # no valid frame within frame_timeout_s
+    INTERRUPTED = "interrupted"  # stop_event or KeyboardInterrupt
+    STEP_LIMIT = "step_limit"  # max_steps commands sent
+    ROBOT_ERROR = "robot_error"  # the robot cannot be reached or refused a command
+
+
+@dataclass
+class RepeatConfig:
+    """Repeat-loop settings."""
+
+    #: Subgoal switching (Algorithm 1 and its extensions).
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
+    #: Seconds each command is applied for; None takes the model's metadata dt (the paper's 0.1 s).
+    dt: float | None = None
+    #: Control steps (commands sent) before giving up: a lost robot must stop.
+    max_steps: int = opt(2000, "stop after this many control steps (a lost robot must stop)")
+    #: Seconds without a valid frame before the run ends.
+    frame_timeout_s: float = opt(5.0, "seconds without a valid frame before stopping", flag="--frame-timeout")
+    #: Pause between re-polls after a bad frame, in seconds.
+    bad_frame_backoff_s: float = 0.05
+
+    def __post_init__(self) -> None:
+        if self.dt is not None and not (math.isfinite(self.dt) and self.dt > 0):
+            raise ValueError(f"dt must be a positive number of seconds, got {self.dt!r}")
+        if self.max_steps < 1:
+            raise ValueError(f"--max-steps must be >= 1, got {self.max_steps}")
+        if not self.frame_timeout_s > 0:
+            raise ValueError(f"--frame-timeout must be > 0 seconds, got {self.frame_timeout_s}")
+        if self.bad_frame_backoff_s < 0:
+            raise ValueError(f"bad_frame_backoff_s must be >= 0, got {self.bad_frame_backoff_s}")
+
+
+@dataclass(frozen=True)
+class StepRecord:
+    """One judged image: the command sent on it, or how the run ended on it.
+
+    ``step``: commands sent before this one. ``from_subgoal``/``subgoal``: the index before the image
+    was judged and the one steered to; ``events``: the controller's ADVANCE/JUMP decisions on it;
+    ``error``: the image error (0..255) to ``subgoal``; ``v``, ``w``: the command applied for dt (zero
+    when ``commanded`` is False); ``pose``/``stamp``: the robot's pose (None when unknown) and clock of
+    the image; ``latency_ms``: ``error`` (controller), ``preprocess``/``inference`` (policy stages),
+    ``policy`` (predict), ``compute`` (image in to command ready), ``robot`` (step round trip plus the
+    zero command) and what the robot reports itself (SimClient: ``receive``, ``decode``), ``total``.
+    ``status`` is set on the record that ended the run (then no command was sent on it); ``image`` is
+    None only when the run ended before any valid frame.
+    """
+
+    step: int
+    from_subgoal: int
+    subgoal: int
+    action: Action | None
+    events: tuple[Decision, ...]
+    error: float
+    e_m: float
+    v: float
+    w: float
+    commanded: bool
+    stamp: float | None
+    pose: tuple[float, float, float] | None
+    latency_ms: Mapping[str, float]
+    image: np.ndarray | None
+    status: RepeatStatus | None = None
+    detail: str = ""
+
+    @property
+    def advanced(self) -> int:
+        return sum(1 for e in self.events if e.action is Action.ADVANCE)
+
+    @property
+    def jumped_to(self) -> list[int]:
+        return [e.index for e in self.events if e.action is Action.JUMP]
+
+    def to_log(self) -> dict[str, Any]:
+        """The JSON-lines log record of a command (`vtr repeat --log`)."""
+        return {
+            "step": self.step,
+            "subgoal": self.subgoal,
+            "from_subgoal": self.from_subgoal,
+            "advanced": self.advanced,
+            "jumped_to": self.jumped_to,
+            "error": round(self.error, 4),
+            "e_m": round(self.e_m, 4),
+            "v": self.v,
+            "w": self.w,
+            "stamp": self.stamp,
+            "pose": list(self.pose) if self.pose is not None else None,
+            "latency_ms": {k: round(x, 4) for k, x in self.latency_ms.items()},
+        }
+
+
+@dataclass(frozen=True)
+class Summary:
+    """How a repeat ended, with its counters."""
+
+    status: RepeatStatus
+    detail: str
+    subgoals_reached: int
+    subgoals_total: int
+    steps: int
+    e_m: float
+    sim_time_s: float
+    wall_time_s: float
+    bad_frames: int
+    nonfinite_outputs: int
+    jumps: int
+    localised_to: int | None
+    plateaus: int = 0  # subgoals the stall guard accepted next to, at error <= jump_factor * e_m
+    robot_restarts: int = 0  # restarts survived by re-localising (localise only)
+    mean_latency_ms: Mapping[str, float] = field(default_factory=dict)
+
+    @property
+    def completed(self) -> bool:
+        return self.status is RepeatStatus.FINISHED
+
+    def to_dict(self) -> dict[str, Any]:
+        out = asdict(self)
+        out["status"] = self.status.value
+        out["completed"] = self.completed
+        out["mean_latency_ms"] = dict(self.mean_latency_ms)
+        return out

@@ -1,0 +1,150 @@
+"""Bounded JSON for the wire: whatever the bytes, parsing returns a value or raises :class:`ProtocolError`.
+
+A hostile or broken peer controls every byte of a header, so nesting depth, integer size and float range
+are checked before or while Python builds objects: a 400-digit integer never becomes a Python int, a
+header nested 1,000 deep never reaches the recursive parser, ``NaN``/``Infinity`` are refused.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from typing import Any
+
+#: A header larger than this is refused before parsing.
+MAX_HEADER_BYTES = 64 * 1024
+#: Deepest JSON nesting accepted in a header (objects and arrays together).
+MAX_DEPTH = 16
+#: Integers on the wire lie in [-MAX_INT, MAX_INT] (exact in a double: what every JSON library can read).
+MAX_INT = 2**53
+#: Any number on the wire has |x| <= MAX_ABS_NUMBER.
+MAX_ABS_NUMBER = 1e15
+
+
+class ProtocolError(ValueError):
+    """A message that does not follow this protocol; the message says what is wrong."""
+
+
+class BadFrameError(ProtocolError):
+    """A reply the client must reject (counted by the client, never fed to the network)."""
+
+
+_STRING = re.compile(rb'"(?:[^"\\]|\\.)*"')
+_NOT_BRACKET = re.compile(rb"[^\[\]{}]")
+
+
+def _depth(raw: bytes) -> int:
+    """Deepest nesting of objects/arrays in a JSON text, brackets inside strings ignored."""
+    depth = deepest = 0
+    for ch in _NOT_BRACKET.sub(b"", _STRING.sub(b"", raw)):
+        depth += 1 if ch in b"[{" else -1
+        if depth > deepest:
+            deepest = depth
+            if deepest > MAX_DEPTH:
+                break
+    return deepest
+
+
+def _parse_int(text: str) -> int:
+    # Checked on the digits before int(): a 400-digit integer never becomes a Python int.
+    if len(text.lstrip("-")) > 16 or abs(int(text)) > MAX_INT:
+        raise ValueError(
+            f"integer {text[:24]}{'...' if len(text) > 24 else ''} is out of range (|n| <= 2**53)"
+        )
+    return int(text)
+
+
+def _parse_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value) or abs(value) > MAX_ABS_NUMBER:
+        raise ValueError(f"number {text[:24]} is out of range (|x| <= {MAX_ABS_NUMBER:g})")
+    return value
+
+
+def _reject_constant(token: str) -> float:
+    raise ValueError(f"non-finite number {token} in JSON")
+
+
+def parse_json(raw: bytes, err: type[ProtocolError] = ProtocolError) -> Any:
+    """Bytes -> a JSON value with bounded depth and numbers; anything else raises ``err``."""
+    if len(raw) > MAX_HEADER_BYTES:
+        raise err(f"header frame of {len(raw)} bytes exceeds the limit of {MAX_HEADER_BYTES} bytes")
+    if _depth(raw) > MAX_DEPTH:
+        raise err(f"JSON header nested deeper than {MAX_DEPTH} levels")
+    try:
+        return json.loads(
+            raw.decode("utf-8"),
+            parse_int=_parse_int,
+            parse_float=_parse_float,
+            parse_constant=_reject_constant,
+        )
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:  # JSONDecodeError is a ValueError
+        raise err(f"malformed JSON header: {exc}") from None
+
+
+def show(value: Any) -> str:
+    """A short repr for error messages (a hostile peer may send a 60 KiB string)."""
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def number(obj: dict[str, Any], key: str, err: type[ProtocolError] = ProtocolError, where: str = "") -> float:
+    """``obj[key]`` as a float: a JSON number (not a bool), finite, |x| <= MAX_ABS_NUMBER."""
+    if key not in obj:
+        raise err(f"missing field {where}{key!r}")
+    value = obj[key]
+    if type(value) not in (int, float):
+        raise err(f"field {where}{key!r} must be a number, got {show(value)}")
+    if not (math.isfinite(value) and abs(value) <= MAX_ABS_NUMBER):
+        raise err(f"field {where}{key!r} is out of range, got {show(value)}")
+    return float(value)
+
+
+def integer(obj: dict[str, Any], key: str, err: type[ProtocolError] = ProtocolError, where: str = "") -> int:
+    """``obj[key]`` as an int: a JSON integer only (``5.0`` and ``true`` are refused), |n| <= MAX_INT."""
+    if key not in obj:
+        raise err(f"missing field {where}{key!r}")
+    value = obj[key]
+    if type(value) is not int:
+        raise err(f"field {where}{key!r} must be an integer, got {show(value)}")
+    if abs(value) > MAX_INT:
+        raise err(f"field {where}{key!r} is out of range, got {show(value)}")
+    return value
+
+
+def jsonable(value: Any) -> Any:
+    """The simulator's info() as plain JSON (dataclasses/tuples/numpy scalars flattened, NaN -> None)."""
+
+    def default(obj: Any) -> Any:
+        if hasattr(obj, "__dataclass_fields__"):
+            return {k: getattr(obj, k) for k in obj.__dataclass_fields__}
+        if hasattr(obj, "tolist"):
+            return obj.tolist()
+        return str(obj)
+
+    def clean(obj: Any) -> Any:
+        if isinstance(obj, float) and not math.isfinite(obj):
+            return None
+        if isinstance(obj, dict):
+            return {str(k): clean(v) for k, v in obj.items()}
+        if isinstance(obj, list):
+            return [clean(v) for v in obj]
+        return obj
+
+    return clean(json.loads(json.dumps(value, default=default)))
+
+
+__all__ = [
+    "MAX_ABS_NUMBER",
+    "MAX_DEPTH",
+    "MAX_HEADER_BYTES",
+    "MAX_INT",
+    "BadFrameError",
+    "ProtocolError",
+    "integer",
+    "jsonable",
+    "number",
+    "parse_json",
+    "show",
+]

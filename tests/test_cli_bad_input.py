@@ -1,0 +1,157 @@
+"""Bad input, as a new user types it: one line on stderr naming the problem, no traceback, the right exit
+code (2 usage/input, 1 failed run, 130 interrupt), no hang (every subprocess runs under a timeout) and no
+empty output left behind."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from vtr.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+MODEL = str(ROOT / "models" / "velocitynet.onnx")
+VIEWNET = str(ROOT / "models" / "viewnet.pt")
+ROUTE_JSON = str(ROOT / "sim2d" / "routes" / "translation.json")
+NO_SERVER = "tcp://127.0.0.1:9"  # discard port: nothing answers
+
+
+def _garbage(tmp_path: Path, name: str) -> str:
+    path = tmp_path / name
+    path.write_bytes(bytes(range(256)) * 3)
+    return str(path)
+
+
+def _one_line(err: str) -> str:
+    assert "Traceback" not in err, err
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+def _in_process(capsys: pytest.CaptureFixture[str], argv: list[str]) -> tuple[int, str]:
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse's own exit (a usage error)
+        code = int(exc.code or 0)
+    return code, _one_line(capsys.readouterr().err)
+
+
+CASES = {
+    # name: (argv with {tmp} and {garbage.*} placeholders, words the message must hold)
+    "repeat: http address": (["repeat", "--sim", "http://127.0.0.1:5601", "--model", MODEL, "--route", "r.npz"],
+                             "http://"),
+    "repeat: no port": (["repeat", "--sim", "tcp://127.0.0.1", "--model", MODEL, "--route", "r.npz"], "no port"),
+    "repeat: no transport": (["repeat", "--sim", "127.0.0.1:5555", "--model", MODEL, "--route", "r.npz"],
+                             "tcp://"),
+    "repeat: threads 0": (["repeat", "--sim", NO_SERVER, "--model", MODEL, "--route", "r.npz", "--threads", "0"],
+                          "--threads"),
+    "repeat: max steps -1": (["repeat", "--sim", NO_SERVER, "--model", MODEL, "--route", "r.npz",
+                              "--max-steps", "-1"], "--max-steps"),
+    "repeat: timeout 0": (["repeat", "--sim", NO_SERVER, "--model", MODEL, "--route", "r.npz", "--timeout", "0"],
+                          "--timeout"),
+    "repeat: frame timeout 0": (["repeat", "--sim", NO_SERVER, "--model", MODEL, "--route", "r.npz",
+                                 "--frame-timeout", "0"], "--frame-timeout"),
+    "repeat: garbage model": (["repeat", "--sim", NO_SERVER, "--model", "{garbage.onnx}", "--route", "r.npz"],
+                              "garbage.onnx"),
+    "repeat: garbage route": (["repeat", "--sim", NO_SERVER, "--model", MODEL, "--route", "{garbage.npz}",
+                               "--log", "{tmp}/run.jsonl"], "garbage.npz"),
+    "teach: timeout 0": (["teach", "--sim", NO_SERVER, "--route", ROUTE_JSON, "--out", "{tmp}/t.npz",
+                          "--timeout", "0"], "--timeout"),
+    "teach: garbage route script": (["teach", "--sim", NO_SERVER, "--route", "{garbage.json}", "--out",
+                                     "{tmp}/t.npz"], "garbage.json"),
+    "collect: frames 0": (["collect", "--frames", "0", "--out", "{tmp}/d.npz"], "frames"),
+    "eval: unknown route": (["eval", "--routes", "nowhere", "--quick"], "nowhere"),
+    "eval: garbage route file": (["eval", "--routes", "{garbage.json}", "--quick"], "garbage.json"),
+    "eval: garbage model": (["eval", "--model", "{garbage.onnx}", "--quick"], "garbage.onnx"),
+    "eval: noise 2": (["eval", "--noise", "2", "--quick"], "noise"),
+    "bench latency: garbage model": (["bench", "latency", "--model", "{garbage.onnx}"], "garbage.onnx"),
+    "bench latency: missing model": (["bench", "latency", "--model", "{tmp}/missing.onnx"], "missing.onnx"),
+    "export: garbage checkpoint": (["export", "--checkpoint", "{garbage.pt}", "--out", "{tmp}/o.onnx"],
+                                   "garbage.pt"),
+    "train: garbage viewnet": (["train", "velocitynet", "--preset", "tiny", "--data", "{tmp}/d.npz", "--viewnet",
+                                "{garbage.pt}", "--out", "{tmp}/run"], "garbage.pt"),
+    "train: tiny preset with the shipped viewnet": (["train", "velocitynet", "--preset", "tiny", "--data",
+                                                     "{tmp}/d.npz", "--viewnet", VIEWNET, "--out", "{tmp}/run"],
+                                                    "--preset"),
+    "train: garbage dataset": (["train", "viewnet", "--preset", "tiny", "--data", "{garbage.npz}", "--out",
+                                "{tmp}/run"], "garbage.npz"),
+    "sim snapshot: jpeg": (["sim", "snapshot", "--out", "{tmp}/x.jpg"], ".png"),
+    "demo: unknown route": (["demo", "--route", "nowhere", "--out", "{tmp}/demo"], "nowhere"),
+    "demo: garbage model": (["demo", "--model", "{garbage.onnx}", "--out", "{tmp}/demo"], "garbage.onnx"),
+    "unknown command": (["fly"], "unknown command"),
+    "unknown option": (["repeat", "--sim", NO_SERVER, "--model", MODEL, "--route", "r.npz", "--speed", "3"],
+                       "--speed"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_bad_input_is_one_line_and_exit_code_2(
+    name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    argv, words = CASES[name]
+    subs = {"{tmp}": str(tmp_path)}
+    for ext in ("onnx", "npz", "pt", "json"):
+        subs[f"{{garbage.{ext}}}"] = _garbage(tmp_path, f"garbage.{ext}")
+    argv = [subs.get(a, a).replace("{tmp}", str(tmp_path)) for a in argv]
+    code, line = _in_process(capsys, argv)
+    assert code == 2, line
+    assert words in line and "allow_pickle" not in line
+    left = sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("garbage."))
+    assert left == [], f"{name} left {left} behind"
+
+
+def _subprocess(
+    args: list[str], block: tuple[str, ...] = (), timeout: float = 60
+) -> subprocess.CompletedProcess:
+    prelude = (
+        f"import sys\nfor n in {block!r}:\n    sys.modules[n] = None\n"
+        "from vtr.cli import main\nsys.exit(main(sys.argv[1:]))\n"
+    )
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run(
+        [sys.executable, "-c", prelude, *args],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
+
+
+def test_nothing_answering_is_one_line_in_bounded_time(tmp_path: Path) -> None:
+    out = tmp_path / "t.npz"
+    args = ["teach", "--sim", NO_SERVER, "--route", ROUTE_JSON, "--out", str(out), "--timeout", "0.2"]
+    proc = _subprocess([*args, "--retries", "2"], timeout=30)
+    assert proc.returncode == 2 and "no reply" in _one_line(proc.stderr)
+    assert not out.exists()
+
+
+def test_a_busy_port_is_one_line(tmp_path: Path) -> None:
+    from vtr.sim2d.server import ServerThread
+    from vtr.sim2d.simulator import Simulator
+
+    with ServerThread(Simulator()) as server:
+        proc = _subprocess(["sim", "serve", "--bind", server.endpoint], timeout=30)
+    assert proc.returncode == 2 and "--bind" in _one_line(proc.stderr)
+
+
+def test_demo_on_the_robot_board_install_says_what_to_install(tmp_path: Path) -> None:
+    proc = _subprocess(
+        ["demo", "--out", str(tmp_path / "demo")], block=("pymunk", "cv2", "torch"), timeout=60
+    )
+    assert proc.returncode == 2 and "pip install 'vtr-mpc[sim]'" in _one_line(proc.stderr)
+    assert not (tmp_path / "demo").exists()
+
+
+def test_the_robot_board_entry_refuses_a_bad_address_in_one_line() -> None:
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    code = "import sys\nfrom vtr.runtime.cli import main\nsys.exit(main(sys.argv[1:]))\n"
+    args = ["repeat", "--sim", "tcp://127.0.0.1", "--model", MODEL, "--route", "r.npz"]
+    proc = subprocess.run([sys.executable, "-c", code, *args], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=30)  # fmt: skip
+    assert proc.returncode == 2 and "no port" in _one_line(proc.stderr)

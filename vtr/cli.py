@@ -1,0 +1,38 @@
+"""`vtr`: the application's one entry point. It alone knows every package; the libraries export functions
+and their own ``add_arguments``/``run_cli`` and never import a CLI of another package.
+
+Dispatch, exit codes and the one-line errors are ``runtime.cli.dispatch`` (shared with the robot
+board's lean `vtr-robot`).
+"""
+
+from __future__ import annotations
+
+import sys
+
+from vtr.runtime.cli import ROBOT_COMMANDS, Command, dispatch
+
+COMMANDS: dict[str, Command] = {
+    "demo": Command(
+        "vtr.evaluation.demo", "start the simulator, teach a route, repeat it with the shipped model", "sim"
+    ),
+    "sim": Command("vtr.sim2d.cli", "simulator: serve over ZeroMQ, snapshot the house", "sim"),
+    **ROBOT_COMMANDS,
+    "collect": Command(
+        "vtr.training.collect",
+        "record a training dataset: simulator, protocol robot (--sim) or ROS bags (--bag)",
+        "sim",
+    ),
+    "train": Command("vtr.pipeline", "train ViewNet, VelocityNet, or all (collect, train, export)", "train"),
+    "export": Command("vtr.export.cli", "export a VelocityNet checkpoint to ONNX (fp32, int8)", "train"),
+    "bench": Command("vtr.benchmarks.cli", "latency per control step, simulator throughput", None),
+    "eval": Command("vtr.evaluation.harness", "closed-loop tracking against the paper's tables", "sim"),
+}
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    return dispatch("vtr", "Visual teach & repeat with an offline deep-MPC VelocityNet.", COMMANDS, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
