@@ -100,7 +100,7 @@ def test_cli_snapshot_reports_bad_change_in_one_line(tmp_path):
         [
             sys.executable,
             "-m",
-            "vtr.runtime.cli",
+            "vtr.cli",
             "sim",
             "snapshot",
             "--change",
