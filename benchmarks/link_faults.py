@@ -16,14 +16,14 @@ from __future__ import annotations
 import argparse
 import json
 import random
-import threading
 import time
 from typing import Any
 
 import zmq
 
-from vtr.benchmarks.link_fuzz import fuzz_reply, fuzz_request
-from vtr.benchmarks.link_robot import DrivingPolicy, FakeRobot, good_reply, unreachable_route
+from vtr.benchmarks.link_fuzz import HARMLESS, FaultInjector, fuzz_request
+from vtr.benchmarks.link_robot import FakeRobot
+from vtr.benchmarks.link_trials import restart, run_repeat, silent
 from vtr.runtime import protocol
 from vtr.runtime.client import SimClient
 from vtr.runtime.protocol import ProtocolError
@@ -117,28 +117,11 @@ def client_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.5) -> dict[str,
     An exchange is *clean* when every request in it got only the correct reply (and no late reply was
     pending); a clean exchange the client fails, or one that returns anything but that reply, is a desync.
     """
-    rng = random.Random(seed)
-    state: dict[str, Any] = {"faults": 0, "kinds": {}, "late": None, "previous": None, "dirty": False}
+    inject = FaultInjector(random.Random(seed), n, p_fault, harmless=("duplicate", "stale_then_good"))
 
     def behaviour(robot: FakeRobot, req: protocol.Request) -> list[list[bytes]]:
         robot.pose_x = float(req.seq)  # a pose that names the request it answers
-        good = good_reply(robot, req)
-        out: list[list[bytes]] = []
-        if state["late"] is not None:
-            out.append(state["late"])
-            state["late"], state["dirty"] = None, True
-        if state["faults"] < n and rng.random() < p_fault:
-            kind, replies = fuzz_reply(rng, good, state["previous"])
-            state["faults"] += 1
-            state["kinds"][kind] = state["kinds"].get(kind, 0) + 1
-            state["dirty"] = state["dirty"] or kind not in ("duplicate", "stale_then_good")
-            if kind == "late":
-                state["late"] = good
-            out += replies
-        else:
-            out.append(good)
-        state["previous"] = good
-        return out
+        return inject(robot, req)
 
     robot = FakeRobot(behaviour)
     tracebacks: list[str] = []
@@ -147,9 +130,9 @@ def client_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.5) -> dict[str,
     calls = ("observe", "step", "stop")
     with SimClient(robot.endpoint, timeout_s=0.05, retries=2, expect_shape=(16, 16)) as client:
         t0 = time.perf_counter()
-        while state["faults"] < n:
+        while len(inject.faults) < n:
             call = calls[exchanges % 3]
-            state["dirty"] = False
+            inject.dirty = False
             result: Any = None
             failure = ""
             try:
@@ -165,7 +148,7 @@ def client_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.5) -> dict[str,
             except Exception as exc:  # a traceback in a real run
                 tracebacks.append(f"{type(exc).__name__}: {exc}")
             exchanges += 1
-            if not state["dirty"]:
+            if not inject.dirty:
                 clean += 1
                 ok = result == "stopped" or (result is not None and result.pose[0] == client._seq)
                 if not ok:
@@ -180,8 +163,8 @@ def client_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.5) -> dict[str,
         }
     robot.close()
     return {
-        "fuzzed_replies": state["faults"],
-        "fault_kinds": dict(sorted(state["kinds"].items())),
+        "fuzzed_replies": len(inject.faults),
+        "fault_kinds": inject.kinds(),
         "exchanges": exchanges,
         "clean_exchanges": clean,
         "desyncs": desyncs,
@@ -197,55 +180,13 @@ def client_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.5) -> dict[str,
 # ------------------------------------------------------------------------------------------- the repeat loop
 
 
-def run_repeat(client: SimClient, stop_event: threading.Event | None = None, max_steps: int = 10_000) -> Any:
-    """The real repeat loop with a policy that always drives, on a route it never reaches."""
-    from vtr.runtime.controller import ControllerConfig
-    from vtr.runtime.repeater import RepeatConfig, Repeater
-
-    cfg = RepeatConfig(controller=ControllerConfig(stall_steps=0), max_steps=max_steps, frame_timeout_s=2.0)
-    return Repeater(client, DrivingPolicy(), unreachable_route(), config=cfg, stop_event=stop_event).run()
-
-
-#: Not a bad frame to the client: skipped by seq matching, or a mutation that left the reply valid.
-HARMLESS = ("duplicate", "stale_then_good", "mutated_but_valid")
-
-
-def _acceptable(frames: list[bytes], good: list[bytes], req: protocol.Request) -> bool:
-    """Whether a mutated reply is still a correct answer to ``req`` (same stamp and session as ``good``)."""
-    try:
-        got = protocol.decode_reply(frames, expect_cmd=req.cmd, expect_seq=req.seq, expect_shape=(16, 16))
-    except ProtocolError:
-        return False
-    want = protocol.decode_reply(good)
-    return got.ok and (got.stamp, got.session) == (want.stamp, want.session)
-
-
 def loop_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.3) -> dict[str, Any]:
     """The repeat loop (Repeater over SimClient) while the robot sends ``n`` faulty replies in all: what is
     the next request after each fault? A step there is a motion command sent on a bad frame."""
-    rng = random.Random(seed)
-    faults: list[tuple[int, str]] = []  # (index of the faulty reply's request in arrivals, kind)
-    state: dict[str, Any] = {"previous": None, "late": None}
+    inject = FaultInjector(random.Random(seed), n, p_fault, harmless=HARMLESS)
+    faults = inject.faults
 
-    def behaviour(robot: FakeRobot, req: protocol.Request) -> list[list[bytes]]:
-        good = good_reply(robot, req)
-        out: list[list[bytes]] = []
-        if state["late"] is not None:
-            out.append(state["late"])
-            state["late"] = None
-        if len(faults) < n and rng.random() < p_fault:
-            kind, replies = fuzz_reply(rng, good, state["previous"])
-            if kind == "mutated" and _acceptable(replies[0], good, req):
-                kind = "mutated_but_valid"  # e.g. a changed field the reply's kind ignores
-            faults.append((len(robot.arrivals) - 1, kind))
-            state["late"] = good if kind == "late" else None
-            out += replies
-        else:
-            out.append(good)
-        state["previous"] = good
-        return out
-
-    robot = FakeRobot(behaviour)
+    robot = FakeRobot(inject)
     tracebacks: list[str] = []
     endings: dict[str, int] = {}
     run_starts: set[int] = set()  # the first request of each run: what follows a run's end is not a reaction
@@ -286,77 +227,6 @@ def loop_fuzz(n: int = 2000, seed: int = 0, p_fault: float = 0.3) -> dict[str, A
         "run_endings": endings,
         "seed": seed,
         "seconds": round(seconds, 1),
-    }
-
-
-def silent(trials: int = 20, seed: int = 0) -> dict[str, Any]:
-    """The robot stops answering after k steps; robot-side delay from that step to the first stop after it."""
-    rng = random.Random(seed)
-    delays, reasons = [], []
-    for _ in range(trials):
-        k = rng.randint(2, 8)
-
-        def behaviour(robot: FakeRobot, req: protocol.Request, k: int = k) -> list[list[bytes]]:
-            if req.cmd == "step" and len(robot.executed_steps) >= k:
-                robot.mute = True  # from this step on it hears everything and answers nothing
-            return [] if robot.mute else [good_reply(robot, req)]
-
-        robot = FakeRobot(behaviour)
-        with SimClient(robot.endpoint, expect_shape=(16, 16)) as client:
-            summary = run_repeat(client)
-        robot.close()
-        cmds = robot.commands()
-        last = max(i for i, a in enumerate(cmds) if a.req.cmd == "step")
-        stop = next(a for a in cmds[last + 1 :] if a.req.cmd == "stop")
-        delays.append(stop.t - cmds[last].t)
-        reasons.append(summary.status.value)
-    return _delay_summary(delays, trials, reasons, "step_to_zero_s")
-
-
-def restart(trials: int = 20, seed: int = 0) -> dict[str, Any]:
-    """The robot reboots (new session, same address) after k steps, mid-route."""
-    rng = random.Random(seed)
-    said, executed_after, steps_reaching = 0, 0, 0
-    details = []
-    for _ in range(trials):
-        k = rng.randint(2, 8)
-        robot = FakeRobot()
-        with SimClient(robot.endpoint, expect_shape=(16, 16)) as client:
-            timer = threading.Thread(target=_reboot_after, args=(robot, k), daemon=True)
-            timer.start()
-            summary = run_repeat(client)
-            timer.join(5)
-        robot.close()
-        text = f"{summary.status.value}: {summary.detail}"
-        said += int("restarted" in text)
-        details.append(text.strip()[:120])
-        new = robot.session
-        executed_after += sum(1 for s, *_ in robot.executed_steps if s == new)
-        steps_reaching += sum(1 for a in robot.commands() if a.session == new and a.req.cmd == "step")
-    return {
-        "trials": trials,
-        "ended_saying_restarted": said,
-        "steps_executed_by_rebooted_robot": executed_after,
-        "steps_reaching_rebooted_robot_refused_by_session_guard": steps_reaching - executed_after,
-        "examples": details[:3],
-    }
-
-
-def _reboot_after(robot: FakeRobot, k: int) -> None:
-    deadline = time.monotonic() + 10
-    while len(robot.executed_steps) < k and time.monotonic() < deadline:
-        time.sleep(0.001)
-    robot.restart()
-
-
-def _delay_summary(delays: list[float], trials: int, reasons: list[str], name: str) -> dict[str, Any]:
-    delays = sorted(delays)
-    return {
-        "trials": trials,
-        f"{name}_p50": round(delays[len(delays) // 2], 3),
-        f"{name}_p100": round(delays[-1], 3),
-        f"{name}_all": [round(d, 3) for d in delays],
-        "run_endings": sorted(set(reasons)),
     }
 
 

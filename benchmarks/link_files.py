@@ -117,7 +117,7 @@ def files() -> dict[str, Any]:
                 results[name] = {"probe_failed": out.stderr.strip().splitlines()[-1:]}
                 continue
             probe = json.loads(out.stdout.strip().splitlines()[-1])
-            size = path.stat().st_blocks * 512 if kind == "model" else path.stat().st_size
+            size = path.stat().st_size  # the model is a sparse file: 300 MiB long, nothing on disk
             results[name] = {
                 "file_bytes": size,
                 "refused": probe["refused"] or None,

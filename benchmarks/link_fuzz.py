@@ -9,8 +9,7 @@ import json
 import random
 from typing import Any
 
-import numpy as np
-
+from vtr.benchmarks.link_robot import FakeRobot, good_reply
 from vtr.runtime import protocol
 
 FIELDS = ("proto", "version", "cmd", "seq", "stamp", "v", "w", "duration", "pose", "seed", "session")
@@ -152,5 +151,53 @@ def fuzz_reply(
     return "mutated", [[with_fields(header, REPLY_FIELDS, rng), *good[1:]]]
 
 
-def rgb(shape: tuple[int, int]) -> np.ndarray:
-    return np.full((*shape, 3), 128, dtype=np.uint8)
+#: Not a bad frame to the client: skipped by seq matching, or a mutation that left the reply valid.
+HARMLESS = ("duplicate", "stale_then_good", "mutated_but_valid")
+
+
+def _acceptable(frames: list[bytes], good: list[bytes], req: protocol.Request) -> bool:
+    """Whether a mutated reply still is the correct answer to ``req`` (same stamp, session and pose)."""
+    try:
+        got = protocol.decode_reply(frames, expect_cmd=req.cmd, expect_seq=req.seq, expect_shape=(16, 16))
+    except protocol.ProtocolError:
+        return False
+    want = protocol.decode_reply(good)
+    return got.ok and (got.stamp, got.session, got.pose) == (want.stamp, want.session, want.pose)
+
+
+class FaultInjector:
+    """A FakeRobot behaviour: the correct reply, or with probability ``p_fault`` (until ``n`` faults) a
+    fuzzed one. ``faults`` lists (index of the request in the robot's arrivals, kind); ``dirty`` turns
+    true when a fault that is not ``harmless`` (or a late reply) was sent since the caller cleared it."""
+
+    def __init__(self, rng: random.Random, n: int, p_fault: float, harmless: tuple[str, ...]) -> None:
+        self.rng, self.n, self.p_fault, self.harmless = rng, n, p_fault, harmless
+        self.faults: list[tuple[int, str]] = []
+        self.dirty = False
+        self._late: list[bytes] | None = None
+        self._previous: list[bytes] | None = None
+
+    def __call__(self, robot: FakeRobot, req: protocol.Request) -> list[list[bytes]]:
+        good = good_reply(robot, req)
+        out: list[list[bytes]] = []
+        if self._late is not None:
+            out.append(self._late)
+            self._late, self.dirty = None, True
+        if len(self.faults) < self.n and self.rng.random() < self.p_fault:
+            kind, replies = fuzz_reply(self.rng, good, self._previous)
+            if kind == "mutated" and _acceptable(replies[0], good, req):
+                kind = "mutated_but_valid"  # e.g. a changed field the reply's kind ignores
+            self.faults.append((len(robot.arrivals) - 1, kind))
+            self.dirty = self.dirty or kind not in self.harmless
+            self._late = good if kind == "late" else None
+            out += replies
+        else:
+            out.append(good)
+        self._previous = good
+        return out
+
+    def kinds(self) -> dict[str, int]:
+        counts: dict[str, int] = {}
+        for _, kind in self.faults:
+            counts[kind] = counts.get(kind, 0) + 1
+        return dict(sorted(counts.items()))

@@ -18,28 +18,22 @@ import time
 from dataclasses import asdict, dataclass
 
 from vtr.runtime.atomic import write_text_atomic
+from vtr.runtime.cliargs import OneLineParser, add_config_arguments, config_from_args, opt
+from vtr.runtime.contracts import CAMERA, CONTROL_DT
 
 
 @dataclass(frozen=True)
 class SimBenchConfig:
     """What the simulator throughput benchmark runs."""
 
-    steps: int = 2000
-    """Timed steps (after warm-up)."""
-    warmup: int = 50
-    """Untimed steps first (caches, allocator)."""
-    width: int = 128
-    """Camera width (pixels)."""
-    height: int = 128
-    """Camera height (pixels)."""
-    supersample: int = 1
-    """Camera supersampling factor."""
-    duration: float = 0.1
-    """Simulated seconds per step (the paper's control step)."""
-    house: str = "house"
-    """Map to benchmark."""
-    json_path: str | None = None
-    """Write the results as JSON here (atomically)."""
+    steps: int = opt(2000, "timed steps (after the warm-up)")
+    warmup: int = opt(50, "untimed steps first (caches, allocator)")
+    width: int = opt(CAMERA.width, "camera width in pixels")
+    height: int = opt(CAMERA.height, "camera height in pixels")
+    supersample: int = opt(1, "camera supersampling factor")
+    duration: float = opt(CONTROL_DT, "simulated seconds per step (the paper's control step)")
+    house: str = opt("house", "map to benchmark")
+    json_path: str | None = opt(None, "write the results as JSON here (atomically)", flag="--json")
 
     def __post_init__(self) -> None:
         for name in ("steps", "width", "height", "supersample"):
@@ -166,35 +160,17 @@ def format_table(r: dict) -> str:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--steps", type=int, default=2000, help="timed steps (default 2000)")
-    parser.add_argument("--warmup", type=int, default=50, help="untimed warm-up steps")
-    parser.add_argument("--width", type=int, default=128)
-    parser.add_argument("--height", type=int, default=128)
-    parser.add_argument("--supersample", type=int, default=1)
-    parser.add_argument("--duration", type=float, default=0.1, help="simulated seconds per step")
-    parser.add_argument("--house", default="house")
-    parser.add_argument(
-        "--json", dest="json_path", default=None, metavar="FILE", help="write results as JSON"
-    )
+    add_config_arguments(parser, SimBenchConfig)
 
 
 def run_cli(args: argparse.Namespace) -> int:
     _limit_threads()
-    cfg = SimBenchConfig(
-        steps=args.steps,
-        warmup=args.warmup,
-        width=args.width,
-        height=args.height,
-        supersample=args.supersample,
-        duration=args.duration,
-        house=args.house,
-        json_path=args.json_path,
-    )
+    cfg = config_from_args(SimBenchConfig, args)
     print(format_table(run(cfg)))
     return 0
 
 
 if __name__ == "__main__":
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = OneLineParser(description=__doc__.splitlines()[0])
     add_arguments(p)
     sys.exit(run_cli(p.parse_args()))

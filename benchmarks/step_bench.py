@@ -2,8 +2,9 @@
 whose link is a loopback.
 
 ``LoopbackRobot`` does what ``runtime.client.SimClient`` does for each call minus the socket: encode the
-request (``protocol.encode_request``) and validate a real encoded image reply (``protocol.decode_reply``
-with the expected command, sequence number and shape). So one timed ``Repeater.step`` is the whole step
+request (``protocol.encode_request``, with the limits and the session guard) and validate a real encoded
+reply (``protocol.decode_reply`` with the expected command, sequence number and shape), the zero
+command's reply included. So one timed ``Repeater.step`` is the whole step
 the daemon runs (decode, image error, preprocess, inference, postprocess, encode of the command and of
 the zero command), without the simulator. Imports no torch, OpenCV or pymunk: the runtime-only memory
 probe runs it with those blocked.
@@ -29,19 +30,26 @@ class LoopbackRobot:
     def __init__(self, image: np.ndarray) -> None:
         self.shape = image.shape[:2]
         self._seq = 0
+        self._limits = protocol.Limits()
         self._replies = {
             cmd: protocol.encode_image_reply(cmd, 1, SESSION, 1.0, image, pose=None)
             for cmd in ("observe", "step")
         }
+        self._replies["stop"] = protocol.encode_ok("stop", 1, SESSION, 1.0)
 
     def _exchange(self, cmd: str, **fields: Any) -> Observation:
         self._seq += 1
-        protocol.encode_request(cmd, self._seq, stamp=time.time(), **fields)
+        self._encode(cmd, **fields)
         reply = protocol.decode_reply(
             self._replies[cmd], expect_cmd=cmd, expect_seq=1, expect_shape=self.shape
         )
         assert reply.image is not None and reply.stamp is not None
         return Observation(image=reply.image, stamp=reply.stamp, pose=reply.pose, collided=reply.collided)
+
+    def _encode(self, cmd: str, **fields: Any) -> list[bytes]:
+        """As SimClient: checked against the robot's limits, guarded by its session."""
+        guard = {"session": SESSION} if cmd in protocol.GUARDED_COMMANDS else {}
+        return protocol.encode_request(cmd, self._seq, time.time(), self._limits, **guard, **fields)
 
     def decode(self) -> np.ndarray:
         """Only the reply validation (the ``frame_decode`` stage)."""
@@ -53,7 +61,7 @@ class LoopbackRobot:
 
     def encode_command(self, v: float, w: float) -> list[bytes]:
         """Only the command encode (the ``command_encode`` stage)."""
-        return protocol.encode_request("step", 2, stamp=time.time(), v=v, w=w, duration=CONTROL_DT)
+        return self._encode("step", v=v, w=w, duration=CONTROL_DT)
 
     def observe(self) -> Observation:
         return self._exchange("observe")
@@ -63,7 +71,8 @@ class LoopbackRobot:
 
     def stop(self) -> None:
         self._seq += 1
-        protocol.encode_request("stop", self._seq, stamp=time.time())
+        self._encode("stop")
+        protocol.decode_reply(self._replies["stop"], expect_cmd="stop", expect_seq=1)
 
 
 class BenchStep:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -15,6 +15,10 @@ from vtr.runtime.controller import Action
 
 if TYPE_CHECKING:
     from vtr.evaluation.harness import EvalConfig
+    from vtr.runtime.controller import Controller, ControllerConfig
+    from vtr.runtime.route import Route
+    from vtr.runtime.route_script import RouteScript
+    from vtr.sim2d.local_robot import LocalRobot
 
 
 @dataclass
@@ -51,11 +55,11 @@ class PoseOracle:
         self.v_max, self.w_max, self.horizon, self.dt = v_max, w_max, horizon, dt
         self.image_shape = image_shape
         self.position_tolerance = 0.01  # m: closer than this, only the heading is corrected
-        self.robot: Any = None
-        self.controller: Any = None
-        self.route: Any = None
+        self.robot: LocalRobot | None = None
+        self.controller: Controller | None = None
+        self.route: Route | None = None
 
-    def bind(self, robot: Any, controller: Any, route: Any) -> None:
+    def bind(self, robot: LocalRobot, controller: Controller, route: Route) -> None:
         self.robot, self.controller, self.route = robot, controller, route
 
     def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
@@ -81,13 +85,13 @@ class PoseOracle:
 
 
 def repeat_closed_loop(
-    robot: Any,
+    robot: LocalRobot,
     policy: Policy,
-    route: Any,
+    route: Route,
     start: tuple[float, float, float],
     cfg: EvalConfig,
     seed: int,
-    controller_cfg: Any = None,
+    controller_cfg: ControllerConfig | None = None,
 ) -> RunLog:
     """The runtime's Repeater (Algorithm 1 + controller) on images; poses are kept for scoring only.
 
@@ -130,7 +134,7 @@ def repeat_closed_loop(
 
 
 def repeat_open_loop(
-    robot: Any, script: Any, start: tuple[float, float, float], seed: int, dt: float
+    robot: LocalRobot, script: RouteScript, start: tuple[float, float, float], seed: int, dt: float
 ) -> RunLog:
     """Replay the taught commands blind (the script's segments, step by step as taught): no correction."""
     log = RunLog()

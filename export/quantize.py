@@ -7,7 +7,6 @@ them: a frame and a frame a few steps later in the same episode, preprocessed by
 from __future__ import annotations
 
 import os
-import tempfile
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -15,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from vtr.runtime.atomic import temp_dir
 from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
 from vtr.runtime.preprocess import PREPROCESSING, to_nchw
 
@@ -74,7 +74,7 @@ def quantize_int8(
         pass
 
     out_path = Path(out_path)
-    with tempfile.TemporaryDirectory(dir=out_path.parent) as tmpdir:
+    with temp_dir(out_path.parent) as tmpdir:  # a kill -9 leftover is removed by the next run
         pre = os.path.join(tmpdir, "pre.onnx")
         quant_pre_process(str(fp32_path), pre, skip_symbolic_shape=True)
         tmp = os.path.join(tmpdir, "int8.onnx")

@@ -13,7 +13,6 @@ that did not finish), 2 a usage or input error (one line on stderr naming the pr
 from __future__ import annotations
 
 import importlib
-import importlib.util
 import sys
 from collections.abc import Mapping
 from typing import NamedTuple
@@ -35,13 +34,10 @@ ROBOT_COMMANDS: dict[str, Command] = {
     "repeat": Command(
         "vtr.runtime.daemon", "follow a taught route from camera images alone (the robot daemon)", None
     ),
+    "check-robot": Command(
+        "vtr.runtime.check_robot", "check that a robot bridge speaks the protocol correctly", None
+    ),
 }
-# Registration point for `check-robot` (issue 10: runtime/check_robot.py exposing add_arguments/run_cli):
-# listed as soon as the module exists, so this entry needs no edit when it lands.
-if importlib.util.find_spec("vtr.runtime.check_robot") is not None:
-    ROBOT_COMMANDS["check-robot"] = Command(
-        "vtr.runtime.check_robot", "check that a robot bridge speaks the protocol and streams frames", None
-    )
 
 #: Third-party module -> the extra that installs it (for the "not installed" message).
 EXTRA_OF_MODULE = {
@@ -53,6 +49,8 @@ EXTRA_OF_MODULE = {
     "onnxscript": "train",
     "tqdm": "train",
     "gymnasium": "dev",
+    "rosbags": "ros",
+    "foxglove": "foxglove",
 }
 
 
@@ -85,13 +83,16 @@ def dispatch(prog: str, description: str, commands: Mapping[str, Command], argv:
     if name not in commands:
         print(f"{prog}: unknown command {name!r}; choose one of {', '.join(commands)}", file=sys.stderr)
         return EXIT_USAGE
-    command = commands[name]
-    where = f"{prog} {name}"
+    return run_command(f"{prog} {name}", commands[name], rest)
+
+
+def run_command(where: str, command: Command, argv: list[str]) -> int:
+    """Parse ``argv`` for ``command`` and run it, turning errors into exit codes (see the module docstring)."""
     try:
         module = importlib.import_module(command.module)
         parser = OneLineParser(prog=where, description=command.summary)
         module.add_arguments(parser)
-        args = parser.parse_args(rest)
+        args = parser.parse_args(argv)
         return int(module.run_cli(args) or 0)
     except ModuleNotFoundError as err:
         if err.name and err.name.split(".")[0] in EXTRA_OF_MODULE:

@@ -174,9 +174,8 @@ class SimClient:
         """Send once and wait; the reply, or None on timeout. Raises on a bad reply or a cancel."""
         guard = self.session if cmd in protocol.GUARDED_COMMANDS else None
         if guard is not None and self._peer_dropped():
-            self._attempt(
-                "hello", {}
-            )  # the robot went away and came back: same session? (else RobotRestarted)
+            # the connection dropped: a hello says whether the same robot is back (else RobotRestarted)
+            self._attempt("hello", {})
             guard = self.session
         self._seq += 1
         seq = self._seq

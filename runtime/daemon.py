@@ -34,6 +34,7 @@ from vtr.runtime.controller import ControllerConfig
 from vtr.runtime.hello import check_robot_fits
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus, StepRecord, Summary
 from vtr.runtime.robot import RobotError
+from vtr.runtime.run_outputs import RunOutputs
 
 
 def log_writer(stream: IO[str]) -> Callable[[StepRecord], None]:
@@ -77,6 +78,16 @@ class RepeatRunConfig:
         True,
         "recolour the current image to the subgoal's light before the policy (runtime/light.py; off with --paper)",
     )
+    mcap: str | None = opt(
+        None,
+        "also write the run as a ROS 2 MCAP bag for Foxglove and ros2 bag play (PATH.mcap: one file, else a "
+        "bag folder); needs pip install 'vtr-mpc[ros]'",
+        metavar="PATH",
+    )
+    foxglove: int | None = opt(
+        None, "serve the run live to Foxglove on ws://127.0.0.1:PORT; needs pip install 'vtr-mpc[foxglove]'",
+        metavar="PORT",
+    )  # fmt: skip
     repeat: RepeatConfig = field(default_factory=RepeatConfig)
 
     def __post_init__(self) -> None:
@@ -115,13 +126,17 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
                 raise ValueError("the route's first pose is unknown; use --start here")
             client.reset(pose=(float(pose[0]), float(pose[1]), float(pose[2])), seed=cfg.seed)
         repeater = Repeater(client, policy, route, config=cfg.repeat, stop_event=stop_event)
-        if cfg.log is None:
-            return repeater.run()
-        # opened only now, with the model, route and robot checked: a refused start leaves no empty log
-        with open(cfg.log, "w", encoding="utf-8") as log_file:
-            repeater.on_step = log_writer(log_file)
-            summary = repeater.run()
-            log_file.write(json.dumps({"summary": summary.to_dict()}, default=float) + "\n")
+        with RunOutputs(cfg.mcap, cfg.foxglove, route.images) as outputs:  # MCAP bag, live view
+            if cfg.log is None:
+                repeater.on_step = outputs.chain()
+                summary = repeater.run()
+            else:
+                # opened only now, with the model, route and robot checked: a refused start leaves no empty log
+                with open(cfg.log, "w", encoding="utf-8") as log_file:
+                    repeater.on_step = outputs.chain(log_writer(log_file))
+                    summary = repeater.run()
+                    log_file.write(json.dumps({"summary": summary.to_dict()}, default=float) + "\n")
+            outputs.finish(summary.to_dict())
         return summary
 
 

@@ -83,6 +83,8 @@ def parse_hello(reply: Reply) -> Hello:
     if mode not in MODES:
         raise BadFrameError(f"hello field 'mode' must be one of {MODES}, got {mode!r:.60}")
     timeout = number(h, "cmd_vel_timeout", BadFrameError) if h.get("cmd_vel_timeout") is not None else None
+    if mode == "realtime" and (timeout is None or timeout < 0):
+        raise BadFrameError("a realtime robot must announce 'cmd_vel_timeout' (seconds, 0 when it has none)")
     rate = number(h, "realtime_factor", BadFrameError) if h.get("realtime_factor") is not None else 1.0
     if rate <= 0:
         raise BadFrameError(f"hello field 'realtime_factor' must be > 0, got {rate}")

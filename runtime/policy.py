@@ -8,13 +8,16 @@ from __future__ import annotations
 
 import os
 import time
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import onnxruntime as ort
 
 from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
 from vtr.runtime.preprocess import PREPROCESSINGS, to_nchw
+
+if TYPE_CHECKING:
+    from vtr.runtime.route import Route
 
 #: A VelocityNet is a few MB; a file past this is refused before onnxruntime reads it.
 MAX_MODEL_BYTES = 256 * 1024 * 1024
@@ -52,7 +55,10 @@ class OnnxPolicy:
         try:
             self.session = ort.InferenceSession(self.path, options, providers=["CPUExecutionProvider"])
         except Exception as exc:
-            raise ModelMismatchError(f"onnxruntime cannot load {self.path!r}: {exc}") from exc
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise ModelMismatchError(
+                f"onnxruntime cannot load {self.path!r} ({first[:160]}); pass a VelocityNet ONNX from `vtr export`"
+            ) from exc
         try:
             self.meta = ModelMeta.from_props(dict(self.session.get_modelmeta().custom_metadata_map))
         except ValueError as exc:
@@ -111,7 +117,7 @@ class OnnxPolicy:
         """(H, W) the model takes."""
         return (self.meta.image_height, self.meta.image_width)
 
-    def check_route(self, route: Any) -> None:
+    def check_route(self, route: Route) -> None:
         """Refuse a route whose images are not at the model's resolution."""
         shape = tuple(route.images.shape[1:3])
         if shape != self.image_shape:

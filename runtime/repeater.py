@@ -114,7 +114,11 @@ class Repeater:
                 "teach the route again with the model's dt"
             )
         self.dt = float(self.config.dt if self.config.dt is not None else (model_dt or CONTROL_DT))
-        self.controller = controller or Controller(route.images, self.config.controller, route.commands)
+        self.controller = (
+            controller
+            if controller is not None
+            else Controller(route.images, self.config.controller, route.commands)
+        )
         # one view object per subgoal, passed again while it is steered to (OnnxPolicy keeps its tensor)
         self._views = list(self.controller.subgoals)
         self._last = len(self._views) - 1
@@ -226,7 +230,12 @@ class Repeater:
             safe_stop(self.robot)
             raise
         if self.on_step is not None:
-            self.on_step(record)
+            try:
+                self.on_step(record)
+            except BaseException:  # the observer failed (a full disk, Ctrl-C in it): the robot stops first
+                self._crashed = True
+                safe_stop(self.robot)
+                raise
         return record
 
     def _step(self) -> StepRecord:

@@ -142,7 +142,11 @@ class Route:
         except FileNotFoundError:
             raise
         except Exception as exc:
-            raise RouteError(f"{path}: cannot read as a route .npz: {exc}") from exc
+            # numpy's own text for a random file suggests allow_pickle, which must never be the fix here
+            why = "not a NumPy .npz archive" if "pickle" in str(exc) else str(exc)
+            raise RouteError(
+                f"{path}: cannot read as a route .npz ({why}); pass a route written by `vtr teach`"
+            ) from exc
         try:
             meta = json.loads(str(meta_raw.item()))
         except (ValueError, TypeError) as exc:

@@ -78,12 +78,21 @@ def _wrap(angle: float) -> float:
 
 def _robot_info(robot: Any) -> dict[str, Any]:
     """Camera/map description from the robot, when it offers one (SimClient.hello, LocalRobot.sim.info)."""
+    timeouts = getattr(robot, "timeouts", 0)
     try:
         if hasattr(robot, "hello"):
-            return dict(robot.hello().get("info") or {})
+            header = robot.hello()
+            info = dict(header.get("info") or {})
+            # the hello schema (docs/PROTOCOL.md) puts camera and map at the top level; info is free-form
+            info.update({k: header[k] for k in ("camera", "map") if header.get(k) is not None})
+            return info
         sim = getattr(robot, "sim", None)
         if sim is not None and hasattr(sim, "info"):
             return dict(jsonable(sim.info()))
+    except RobotError:
+        if getattr(robot, "timeouts", 0) > timeouts:
+            raise  # nothing answers: say so now, not after a second round of tries on reset
+        return {}  # a bridge that does not implement hello
     except Exception:
         return {}
     return {}
@@ -159,7 +168,11 @@ class TeachRunConfig:
     route: str = opt(help="ROUTE.json: start pose and (v, w, duration) segments")
     out: str = opt(help="where to write the route (.npz)")
     teach: TeachConfig = field(default_factory=TeachConfig)  # spacing and control step
-    timeout_s: float = opt(5.0, "seconds to wait for each reply", flag="--timeout")
+    timeout_s: float = opt(
+        5.0,
+        "seconds to wait for hello and reset; a step waits its duration + 0.3 s, then a stop",
+        flag="--timeout",
+    )
     retries: int = opt(3, "tries per request before giving up")
 
     def __post_init__(self) -> None:
@@ -177,20 +190,33 @@ def run(cfg: TeachRunConfig) -> Route:
     from vtr.runtime.route_script import load_route_script
 
     script = load_route_script(cfg.route)
-    with SimClient(cfg.sim, cfg.timeout_s, cfg.retries) as client:
+    # a silent robot gets its stop 0.3 s after a step's duration, whatever --timeout allows hello/reset
+    with SimClient(cfg.sim, retries=cfg.retries, setup_timeout_s=cfg.timeout_s) as client:
         route = teach(client, script, cfg.teach)
     route.save(cfg.out)
     return route
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    add_config_arguments(parser, TeachRunConfig)
+    add_config_arguments(parser, TeachRunConfig, skip=("sim", "route"))  # optional with --bag
+    parser.add_argument("--sim", default=None, help=f"robot endpoint, e.g. {EXAMPLE} (or --bag)")
+    parser.add_argument("--route", default=None, help="ROUTE.json: start pose and (v, w, duration) segments")
     add_config_arguments(parser, TeachConfig)
+    from vtr.runtime import bag_teach
+
+    bag_teach.add_arguments(parser)
 
 
 def run_cli(args: argparse.Namespace) -> int:
     try:
-        cfg = config_from_args(TeachRunConfig, args, teach=config_from_args(TeachConfig, args))
+        teach_cfg = config_from_args(TeachConfig, args)
+        if args.bag:  # a route from a recorded drive instead of a live robot
+            from vtr.runtime import bag_teach
+
+            return bag_teach.run_cli(args, teach_cfg)
+        if not (args.sim and args.route):
+            raise ValueError("needs --sim and --route (a live robot), or --bag (a recorded drive)")
+        cfg = config_from_args(TeachRunConfig, args, teach=teach_cfg)
     except ValueError as exc:
         print(f"vtr teach: {exc}", file=sys.stderr)
         return 2

@@ -9,14 +9,14 @@ from __future__ import annotations
 
 import sys
 
-from vtr.runtime.cli import Command, dispatch
+from vtr.runtime.cli import Command, run_command
 
-STAGES = {"train": Command("vtr.training.cli", "train ViewNet or VelocityNet", "train")}
+STAGES = Command("vtr.training.cli", "train ViewNet or VelocityNet", "train")
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    return dispatch("python -m vtr.training.app", "Train a stage.", STAGES, ["train", *argv])
+    return run_command("python -m vtr.training.app", STAGES, argv)
 
 
 if __name__ == "__main__":

@@ -18,7 +18,9 @@ COMMANDS: dict[str, Command] = {
     "sim": Command("vtr.sim2d.cli", "simulator: serve over ZeroMQ, snapshot the house", "sim"),
     **ROBOT_COMMANDS,
     "collect": Command(
-        "vtr.training.collect", "drive the simulated robot and record a training dataset", "sim"
+        "vtr.training.collect",
+        "record a training dataset: simulator, protocol robot (--sim) or ROS bags (--bag)",
+        "sim",
     ),
     "train": Command("vtr.pipeline", "train ViewNet, VelocityNet, or all (collect, train, export)", "train"),
     "export": Command("vtr.export.cli", "export a VelocityNet checkpoint to ONNX (fp32, int8)", "train"),

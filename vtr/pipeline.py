@@ -150,7 +150,7 @@ def run_cli(args: argparse.Namespace) -> int:
 if __name__ == "__main__":  # torchrun -m vtr.pipeline all ...: the whole pipeline under DDP
     import sys
 
-    from vtr.runtime.cli import Command, dispatch
+    from vtr.runtime.cli import Command, run_command
 
-    sys.exit(dispatch("python -m vtr.pipeline", "Train.", {"train": Command("vtr.pipeline", "train", "train")},
-                      ["train", *sys.argv[1:]]))  # fmt: skip
+    command = Command("vtr.pipeline", "train ViewNet, VelocityNet, or all", "train")
+    sys.exit(run_command("python -m vtr.pipeline", command, sys.argv[1:]))

@@ -3,7 +3,7 @@ the issue's closing note, not here)."""
 
 from __future__ import annotations
 
-from vtr.benchmarks import link_faults
+from vtr.benchmarks import link_faults, link_trials
 
 
 def test_client_and_loop_fuzz_count_faults_and_find_no_desync_or_motion_after_a_bad_frame():
@@ -16,8 +16,8 @@ def test_client_and_loop_fuzz_count_faults_and_find_no_desync_or_motion_after_a_
 
 
 def test_silent_and_restart_trials_measure_from_the_robot_side():
-    silent = link_faults.silent(trials=2, seed=1)
+    silent = link_trials.silent(trials=2, seed=1)
     assert len(silent["step_to_zero_s_all"]) == 2 and 0.1 < silent["step_to_zero_s_p100"] < 0.5
     assert silent["run_endings"] == ["link_lost"]
-    restart = link_faults.restart(trials=2, seed=1)
+    restart = link_trials.restart(trials=2, seed=1)
     assert restart["ended_saying_restarted"] == 2 and restart["steps_executed_by_rebooted_robot"] == 0

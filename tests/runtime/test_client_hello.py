@@ -42,6 +42,7 @@ def test_a_complete_hello_parses():
         ({"dt": 0}, "'dt' must be > 0"),
         ({"mode": "turbo"}, "'mode' must be one of"),
         ({"protocol_version": "1"}, "protocol_version"),
+        ({"mode": "realtime"}, "must announce 'cmd_vel_timeout'"),
     ],
 )
 def test_a_hello_missing_or_mistyping_a_field_is_refused_naming_it(changes, fragment):
@@ -90,3 +91,24 @@ def test_the_model_records_its_camera_and_older_models_without_it_still_load():
     older = {k: v for k, v in props.items() if "camera" not in k}
     assert ModelMeta.from_props(older).camera == CameraSpec(128, 128, None, None)
     assert json.dumps(ModelMeta().to_props())  # every value a string
+
+
+def test_vtr_repeat_refuses_in_one_line_a_robot_whose_camera_differs_from_the_route(tmp_path, capsys):
+    from runtime_fakes import FakeSim, build_velocitynet_onnx, corridor_route
+
+    from vtr.runtime.cli import main
+    from vtr.sim2d.server import ServerThread
+
+    model = build_velocitynet_onnx(str(tmp_path / "tiny.onnx"))
+    route = corridor_route()
+    route.camera = {"width": 16, "height": 16, "fov_deg": 60.0}  # taught with a narrower lens
+    route.save(tmp_path / "route.npz")
+    sim = FakeSim()
+    with ServerThread(sim) as server:
+        code = main(
+            ["repeat", "--sim", server.endpoint, "--model", model, "--route", str(tmp_path / "route.npz")]
+        )
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and err.count("\n") == 0
+    assert "field of view is 90 deg but the route was made with 60 deg" in err
+    assert [c for c in sim.calls if c[0] in ("reset", "step")] == []  # refused before anything moved

@@ -341,3 +341,16 @@ def test_cli_reports_bad_inputs_without_a_traceback(policy_path, tmp_path, capsy
     assert main([*argv, "--timeout", "0.05"]) == 2
     assert "no reply from tcp://127.0.0.1:1" in capsys.readouterr().err
     assert not (tmp_path / "o.npz").exists()
+
+
+def test_teach_against_nothing_gives_up_after_one_round_of_tries():
+    from vtr.runtime.robot import RobotError
+    from vtr.runtime.route_script import parse_route_script
+    from vtr.runtime.teach import teach
+
+    script = parse_route_script(
+        {"start": {"x": 0, "y": 0, "yaw": 0}, "segments": [{"v": 0.1, "w": 0, "duration": 1}]}
+    )
+    with SimClient("tcp://127.0.0.1:9", timeout_s=0.05, retries=2, setup_timeout_s=0.05) as client:
+        with pytest.raises(RobotError, match="no reply .* to 'hello'"):
+            teach(client, script)  # hello's tries only: reset is not tried again against nobody

@@ -144,3 +144,14 @@ def test_every_status_has_a_distinct_value():
     values = [s.value for s in RepeatStatus]
     assert len(set(values)) == len(values) == 9
     assert RepeatStatus("link_lost") is RepeatStatus.LINK_LOST
+
+
+def test_a_failing_on_step_callback_stops_the_robot_and_propagates():
+    def broken(record: StepRecord) -> None:
+        raise OSError("disk full")
+
+    robot = Frames([250] * 5)
+    rep = Repeater(robot, Constant(), flat_route(0, 100), config=RepeatConfig(PAPER), on_step=broken)
+    with pytest.raises(OSError, match="disk full"):
+        rep.run()
+    assert robot.calls[-1] == "stop" and rep.done and rep.steps == 1

@@ -1,0 +1,57 @@
+"""`vtr eval --run RUN.mcap --taught ROUTE.npz`: score a run recorded with `vtr repeat --mcap` on any robot.
+
+The run's poses (where the robot reported them) are compared with the taught route's poses by the same metrics
+as the simulator evaluation (evaluation.metrics.route_metrics); completion comes from the run's summary.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from vtr.evaluation import metrics
+from vtr.runtime.mcap_log import RecordedRun, read_run
+from vtr.runtime.route import Route
+
+
+def score_recorded_run(run: RecordedRun, route: Route) -> dict[str, Any]:
+    """Metrics of a recorded run against its taught route; ValueError when either lacks poses."""
+    known = np.isfinite(run.poses).all(axis=1)
+    if not known.any():
+        raise ValueError("the run has no poses (the robot reported none): only its summary can be shown")
+    if not np.isfinite(route.poses).all():
+        raise ValueError("the taught route has unknown poses: nothing to compare the run with")
+    summary = run.summary or {}
+    reached = int(summary.get("subgoals_reached", max((s.get("subgoal", 0) for s in run.steps), default=0)))
+    out = metrics.route_metrics(route.poses, run.poses[known], run.commands, reached)
+    out.update(
+        status=summary.get("status"),
+        subgoals_reached=reached,
+        subgoals=len(route),
+        steps=int(summary.get("steps", len(run.commands))),
+        poses_known=int(known.sum()),
+        images=run.image_count,
+    )
+    return out
+
+
+def run_cli(args: Any) -> int:
+    if args.taught is None:
+        print("vtr eval: --run needs --taught ROUTE.npz (the route the run repeated)", file=sys.stderr)
+        return 2
+    try:
+        result = score_recorded_run(read_run(args.run), Route.load(args.taught))
+    except (OSError, ValueError) as exc:
+        print(f"vtr eval: {exc}", file=sys.stderr)
+        return 2
+    text = json.dumps(result, indent=2, default=float)
+    if args.json_path is not None:
+        from vtr.runtime.atomic import write_text_atomic
+
+        write_text_atomic(Path(args.json_path), text)
+    print(text)
+    return 0

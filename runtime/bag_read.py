@@ -1,0 +1,348 @@
+"""A teleoperated drive from ROS 1 / ROS 2 bags (sqlite3 or MCAP), resampled to the control step dt.
+
+Used by `vtr collect --bag` (a training dataset) and `vtr teach --bag` (a route). Needs the optional extra
+``[ros]`` (the pure-Python ``rosbags``), imported only here and only when a bag is read; ROS itself is not needed.
+
+Messages understood: camera ``sensor_msgs/Image`` (rgb8, bgr8, mono8, rgba8, bgra8) or ``CompressedImage``
+(decoded with OpenCV or Pillow, whichever is installed); command ``geometry_msgs/Twist`` or ``TwistStamped``
+(v = linear.x, w = angular.z, REP-103); optional pose ``nav_msgs/Odometry`` or ``geometry_msgs/PoseStamped``.
+
+Resampling (all times are the bag's receive timestamps, one clock for every topic): frames lie on a grid of step
+dt from the first moment both a camera frame and a command exist. Frame k takes the camera frame nearest to its
+time if it lies within dt/2 and was not used by frame k-1, and the command active at its time (the last one
+received; older than ``cmd_timeout`` means the robot's controller has stopped it, so zero, as ros2_controllers'
+``cmd_vel_timeout`` does). A frame without a camera frame, before the first command, with a command beyond the
+limits or a picture that does not decode is skipped, with the reason counted; a skipped frame splits the drive
+into segments (a training pair never spans a gap). Images are centre-cropped to a square and resized.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from vtr.runtime import protocol
+
+IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
+COMMAND_TYPES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped")
+POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped")
+_CHANNELS = {
+    "rgb8": (3, False),
+    "bgr8": (3, True),
+    "rgba8": (4, False),
+    "bgra8": (4, True),
+    "mono8": (1, False),
+}
+
+
+class BagError(ValueError):
+    """A bag that cannot be used: missing topics, wrong message types, nothing usable; the message says which."""
+
+
+def import_rosbags() -> Any:
+    """The rosbags modules, or a one-line error naming the extra to install."""
+    try:
+        from rosbags import highlevel, typesys
+    except ModuleNotFoundError:
+        raise BagError("reading ROS bags needs the package rosbags: pip install 'vtr-mpc[ros]'") from None
+    return highlevel, typesys
+
+
+@dataclass
+class BagDrive:
+    """A drive resampled to dt. Frame k: ``images[k]``, the command active at its time, the pose (NaN if unknown)."""
+
+    images: np.ndarray  # (T, S, S, 3) uint8
+    commands: np.ndarray  # (T, 2) float64 (v, w)
+    poses: np.ndarray  # (T, 3) float64, NaN without odometry
+    segments: np.ndarray  # (T,) int: runs of consecutive frames (no gap inside)
+    dt: float
+    skipped: dict[str, int] = field(default_factory=dict)  # reason -> frames
+    source: dict[str, Any] = field(
+        default_factory=dict
+    )  # bag paths, topics, types, message counts, camera size
+
+    def __len__(self) -> int:
+        return int(self.images.shape[0])
+
+    def camera(self, fov_deg: float | None = None, height_m: float | None = None) -> dict[str, Any]:
+        """The camera of the resampled images (docs/PROTOCOL.md's hello camera): the square crop narrows the
+        horizontal field of view of a wide camera, so ``fov_deg`` (the native one) is converted."""
+        size = int(self.images.shape[2]) if len(self) else 0
+        native = self.source.get("camera") or {}
+        fov = None
+        if fov_deg is not None and native:
+            ratio = min(native["width"], native["height"]) / native["width"]
+            fov = math.degrees(2 * math.atan(math.tan(math.radians(fov_deg) / 2) * ratio))
+        return {"width": size, "height": size, "fov_deg": fov, "height_m": height_m, "native": native}
+
+    def report(self) -> str:
+        lines = [
+            f"{self.source.get('images', 0)} camera frames and {self.source.get('commands', 0)} commands over "
+            f"{self.source.get('seconds', 0.0):.1f} s -> {len(self)} frames at dt {self.dt} s in "
+            f"{len(np.unique(self.segments)) if len(self) else 0} segments"
+        ]
+        lines += [
+            f"  skipped {n} frames: {reason}"
+            for reason, n in sorted(self.skipped.items(), key=lambda x: -x[1])
+        ]
+        return "\n".join(lines)
+
+
+def _connections(reader: Any, topic: str | None, types: tuple[str, ...], role: str) -> list[Any]:
+    if topic is None:
+        return []
+    found = [c for c in reader.connections if c.topic == topic]
+    if not found:
+        known = ", ".join(sorted(f"{c.topic} ({c.msgtype})" for c in reader.connections)) or "none"
+        raise BagError(f"no topic {topic!r} in the bag for the {role}; topics: {known}")
+    wrong = [c.msgtype for c in found if c.msgtype not in types]
+    if wrong:
+        raise BagError(f"{role} topic {topic!r} carries {wrong[0]}; expected one of {', '.join(types)}")
+    return found
+
+
+def _yaw(q: Any) -> float:
+    return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+
+
+def _square_resize(image: np.ndarray, size: int) -> np.ndarray:
+    """Centre-crop to a square, then resize to size x size (area averaging when OpenCV is there)."""
+    h, w = image.shape[:2]
+    side = min(h, w)
+    image = image[(h - side) // 2 : (h - side) // 2 + side, (w - side) // 2 : (w - side) // 2 + side]
+    if side == size:
+        return np.ascontiguousarray(image)
+    try:
+        import cv2
+
+        return cv2.resize(image, (size, size), interpolation=cv2.INTER_AREA)
+    except ImportError:
+        idx = ((np.arange(size) + 0.5) * side / size).astype(int)  # nearest neighbour, numpy only
+        return np.ascontiguousarray(image[idx][:, idx])
+
+
+def decode_image(msg: Any, msgtype: str) -> np.ndarray:
+    """A ROS image message as (H, W, 3) uint8 RGB; ValueError naming what cannot be read."""
+    if msgtype.endswith("CompressedImage"):
+        data = np.asarray(msg.data, dtype=np.uint8).tobytes()
+        try:
+            import cv2
+
+            bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+            if bgr is None:
+                raise ValueError(f"a {msg.format!r} CompressedImage that does not decode")
+            return bgr[:, :, ::-1]
+        except ImportError:
+            pass
+        try:
+            import io
+
+            from PIL import Image
+        except ImportError:
+            raise BagError("CompressedImage needs opencv-python-headless or pillow installed") from None
+        try:
+            return np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))
+        except Exception as exc:
+            raise ValueError(f"a {msg.format!r} CompressedImage that does not decode") from exc
+    if msg.encoding not in _CHANNELS:
+        raise ValueError(f"image encoding {msg.encoding!r} (supported: {', '.join(_CHANNELS)})")
+    channels, bgr = _CHANNELS[msg.encoding]
+    data = np.asarray(msg.data, dtype=np.uint8)
+    if msg.step < msg.width * channels or data.size < msg.step * msg.height:
+        raise ValueError(f"an image whose data ({data.size} bytes) does not fit {msg.height}x{msg.width}")
+    rows = data[: msg.step * msg.height].reshape(msg.height, msg.step)[:, : msg.width * channels]
+    image = rows.reshape(msg.height, msg.width, channels)
+    if channels == 1:
+        return np.repeat(image, 3, axis=2)
+    image = image[:, :, :3]
+    return image[:, :, ::-1] if bgr else image
+
+
+def read_bag(
+    paths: list[str | Path],
+    image_topic: str,
+    cmd_topic: str,
+    odom_topic: str | None = None,
+    dt: float = 0.1,
+    image_size: int = 128,
+    cmd_timeout: float = 0.5,
+    limits: protocol.Limits | None = None,
+) -> BagDrive:
+    """Read one drive from ``paths`` (bag folders or .mcap/.db3/.bag files read as one); see the module docstring."""
+    if not (dt > 0 and image_size > 0 and cmd_timeout > 0):
+        raise BagError(f"dt, image_size and cmd_timeout must be > 0, got {dt}, {image_size}, {cmd_timeout}")
+    limits = limits or protocol.Limits()  # the model's limits: commands beyond them make no training pairs
+    highlevel, typesys = import_rosbags()
+    store = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
+    missing = [str(p) for p in paths if not Path(p).exists()]
+    if missing:
+        raise BagError(f"no bag at {', '.join(missing)}")
+    try:
+        reader = highlevel.AnyReader([Path(p) for p in paths], default_typestore=store)
+        reader.open()
+    except Exception as exc:  # rosbags raises its own errors for unreadable files
+        raise BagError(f"cannot open {', '.join(map(str, paths))} as a ROS bag: {exc}") from None
+    try:
+        image_conns = _connections(reader, image_topic, IMAGE_TYPES, "camera")
+        cmd_conns = _connections(reader, cmd_topic, COMMAND_TYPES, "command")
+        pose_conns = _connections(reader, odom_topic, POSE_TYPES, "pose")
+        image_t, cmd_t, cmds, pose_t, poses = [], [], [], [], []
+        for conn, stamp, raw in reader.messages(connections=image_conns + cmd_conns + pose_conns):
+            t = stamp * 1e-9
+            if conn.topic == image_topic:
+                image_t.append(t)
+                continue
+            msg = reader.deserialize(raw, conn.msgtype)
+            if conn.topic == cmd_topic:
+                twist = msg.twist if conn.msgtype.endswith("TwistStamped") else msg
+                cmd_t.append(t)
+                cmds.append((twist.linear.x, twist.angular.z))
+            else:
+                pose = msg.pose.pose if conn.msgtype.endswith("Odometry") else msg.pose
+                pose_t.append(t)
+                poses.append((pose.position.x, pose.position.y, _yaw(pose.orientation)))
+        if not image_t or not cmd_t:
+            raise BagError(
+                f"the bag has {len(image_t)} camera frames and {len(cmd_t)} commands: nothing to use"
+            )
+        plan, skipped = _plan(np.array(image_t), np.array(cmd_t), np.array(cmds), dt, cmd_timeout, limits)
+        images, native = _decode_planned(reader, image_conns, plan, image_size, skipped)
+    finally:
+        reader.close()
+    keep = [k for k in sorted(plan) if k in images]
+    seg = np.cumsum([1] + [int(b - a != 1) for a, b in zip(keep, keep[1:], strict=False)]) - 1 if keep else []
+    frame_t = np.array([plan[k][0] for k in keep])
+    return BagDrive(
+        images=np.stack([images[k] for k in keep])
+        if keep
+        else np.zeros((0, image_size, image_size, 3), np.uint8),
+        commands=np.array([plan[k][2] for k in keep], np.float64).reshape(-1, 2),
+        poses=_poses_at(frame_t, np.array(pose_t), np.array(poses).reshape(-1, 3), dt),
+        segments=np.asarray(seg, np.int64),
+        dt=dt,
+        skipped=dict(skipped),
+        source={
+            "bags": [str(p) for p in paths],
+            "topics": {"image": image_topic, "cmd": cmd_topic, "odom": odom_topic},
+            "types": {"image": image_conns[0].msgtype, "cmd": cmd_conns[0].msgtype},
+            "images": len(image_t),
+            "commands": len(cmd_t),
+            "seconds": round(max(image_t[-1], cmd_t[-1]) - min(image_t[0], cmd_t[0]), 3),
+            "camera": {"width": native[1], "height": native[0]} if native else {},
+        },
+    )
+
+
+def _plan(
+    image_t: np.ndarray,
+    cmd_t: np.ndarray,
+    cmds: np.ndarray,
+    dt: float,
+    cmd_timeout: float,
+    limits: protocol.Limits,
+) -> tuple[dict[int, tuple[float, int, tuple[float, float]]], Counter]:
+    """Grid frame k -> (time, camera frame index, command); reasons for the frames left out."""
+    skipped: Counter = Counter()
+    start = max(image_t[0], cmd_t[0])
+    skipped["camera frames before the first command"] = int(np.sum(image_t < cmd_t[0] - dt / 2))
+    plan: dict[int, tuple[float, int, tuple[float, float]]] = {}
+    last_image = -1
+    for k in range(int(math.floor((image_t[-1] - start) / dt + 0.5)) + 1):
+        t = start + k * dt
+        j = int(np.searchsorted(image_t, t))
+        j = min((i for i in (j - 1, j) if 0 <= i < len(image_t)), key=lambda i: abs(image_t[i] - t))
+        if abs(image_t[j] - t) > dt / 2 or j == last_image:
+            skipped["no camera frame within dt/2 of the frame time (camera slower than 1/dt, or a gap)"] += 1
+            continue
+        i = int(np.searchsorted(cmd_t, t, side="right")) - 1
+        v, w = cmds[i] if t - cmd_t[i] <= cmd_timeout else (0.0, 0.0)
+        if not (math.isfinite(v) and math.isfinite(w)):
+            skipped["non-finite command"] += 1
+            continue
+        if abs(v) > limits.v_max or abs(w) > limits.w_max:
+            skipped[
+                f"command beyond the limits (|v| <= {limits.v_max} m/s, |w| <= {limits.w_max} rad/s)"
+            ] += 1
+            continue
+        last_image = j
+        plan[k] = (t, j, (float(v), float(w)))
+    return plan, Counter({r: n for r, n in skipped.items() if n})
+
+
+def _decode_planned(
+    reader: Any, conns: list[Any], plan: dict, size: int, skipped: Counter
+) -> tuple[dict[int, np.ndarray], tuple[int, int] | None]:
+    """Second pass over the camera topic: decode only the frames the plan uses."""
+    wanted = {j: k for k, (_, j, _) in plan.items()}
+    images: dict[int, np.ndarray] = {}
+    native = None
+    for j, (conn, _, raw) in enumerate(reader.messages(connections=conns)):
+        if j not in wanted:
+            continue
+        try:
+            image = decode_image(reader.deserialize(raw, conn.msgtype), conn.msgtype)
+        except ValueError as exc:
+            skipped[f"camera frame not usable: {exc}"] += 1
+            continue
+        native = native or image.shape[:2]
+        images[wanted[j]] = _square_resize(image, size)
+    return images, native
+
+
+def _poses_at(frame_t: np.ndarray, pose_t: np.ndarray, poses: np.ndarray, dt: float) -> np.ndarray:
+    """The pose nearest each frame time within dt, NaN elsewhere."""
+    out = np.full((len(frame_t), 3), np.nan)
+    if len(pose_t) == 0 or len(frame_t) == 0:
+        return out
+    j = (
+        np.clip(np.searchsorted(pose_t, frame_t), 1, len(pose_t) - 1)
+        if len(pose_t) > 1
+        else np.zeros(len(frame_t), int)
+    )
+    if len(pose_t) > 1:
+        j = np.where(np.abs(pose_t[j - 1] - frame_t) < np.abs(pose_t[j] - frame_t), j - 1, j)
+    near = np.abs(pose_t[j] - frame_t) <= dt
+    out[near] = poses[j[near]]
+    return out
+
+
+def add_arguments(parser: Any, what: str) -> None:
+    """The bag options shared by `vtr collect --bag` and `vtr teach --bag`."""
+    group = parser.add_argument_group(f"from a ROS 1/2 bag (--bag, needs pip install 'vtr-mpc[ros]'): {what}")
+    group.add_argument(
+        "--bag",
+        action="append",
+        default=None,
+        metavar="PATH",
+        help="bag folder or file (repeat to join several)",
+    )
+    group.add_argument("--image-topic", default=None, help="sensor_msgs/Image or CompressedImage topic")
+    group.add_argument("--cmd-topic", default=None, help="geometry_msgs/Twist or TwistStamped topic")
+    group.add_argument("--odom-topic", default=None, help="optional nav_msgs/Odometry or PoseStamped topic")
+    group.add_argument(
+        "--cmd-timeout",
+        type=float,
+        default=0.5,
+        help="a command older than this counts as zero, s (default 0.5)",
+    )
+    group.add_argument(
+        "--camera-fov", type=float, default=None, help="the camera's horizontal field of view, deg"
+    )
+    group.add_argument(
+        "--camera-height", type=float, default=None, help="the camera's height above the floor, m"
+    )
+
+
+def read_bag_args(args: Any, dt: float, image_size: int) -> BagDrive:
+    """read_bag from parsed `--bag ...` options; BagError when a topic option is missing."""
+    if not args.image_topic or not args.cmd_topic:
+        raise BagError("--bag needs --image-topic and --cmd-topic")
+    return read_bag(
+        args.bag, args.image_topic, args.cmd_topic, args.odom_topic, dt, image_size, args.cmd_timeout
+    )

@@ -1,0 +1,287 @@
+"""`vtr check-robot ADDR`: a conformance checker for a robot bridge (or simulator) speaking runtime/protocol.py.
+
+In the spirit of gymnasium's env_checker: small named checks, each one line (PASS / WARN / FAIL / SKIP and what
+to fix), a summary, exit status 1 when anything failed. It talks raw ZeroMQ so that it can send requests the
+runtime's client would never send (malformed, beyond the limits). Every request has a timeout, a timed-out socket
+is rebuilt, and the whole run has a time budget: it never hangs.
+
+The robot moves: a zero step, a turn in place of about 0.3 rad and back, and steps the robot must refuse. It ends
+with a ``stop``. Run it with the robot in free space.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import asdict, dataclass
+
+import zmq
+
+from vtr.runtime import protocol
+from vtr.runtime.check_link import (
+    FAIL,
+    PASS,
+    SKIP,
+    WARN,
+    Check,
+    CheckFailed,
+    Context,
+    Link,
+    image_diff,
+    percentile_ms,
+)
+from vtr.runtime.check_motion import (
+    check_limits_enforced,
+    check_session_guard,
+    check_turn,
+    check_watchdog,
+    check_zero_step,
+)
+from vtr.runtime.contracts import CAMERA, CONTROL_DT
+from vtr.runtime.hello import parse_hello
+
+#: Image size (height, width) the shipped model takes.
+MODEL_IMAGE_SIZE = (CAMERA.height, CAMERA.width)
+
+
+@dataclass
+class CheckResult:
+    name: str
+    status: str
+    detail: str
+
+
+def check_hello(ctx: Context) -> tuple[str, str]:
+    reply = ctx.link.ask("hello")
+    if not reply.ok:
+        raise CheckFailed(f"hello was refused: {reply.error}; hello must always succeed")
+    ctx.note_stamp(reply)
+    try:
+        ctx.hello = parse_hello(reply)
+    except protocol.BadFrameError as exc:
+        raise CheckFailed(f"hello: {exc} (docs/PROTOCOL.md, 'hello', lists what to announce)") from None
+    hello = ctx.hello
+    ctx.camera, ctx.limits = (hello.camera.height, hello.camera.width), hello.limits
+    ctx.dt = min(max(CONTROL_DT, hello.dt), hello.limits.max_duration)
+    lim = hello.limits
+    return PASS, (
+        f"session {hello.session}; limits v_max {lim.v_max} m/s, w_max {lim.w_max} rad/s, "
+        f"max_duration {lim.max_duration} s"
+    )
+
+
+def check_hello_camera(ctx: Context) -> tuple[str, str]:
+    assert ctx.hello is not None
+    cam = ctx.hello.camera
+    text = f"{cam.width}x{cam.height}"
+    missing = [k for k in ("fov_deg", "height_m") if getattr(cam, k) is None]
+    if missing:
+        return (
+            WARN,
+            f"{text}; announce camera.{' and camera.'.join(missing)} so the runtime can compare the camera",
+        )
+    return PASS, f"{text}, fov {cam.fov_deg} deg, height {cam.height_m} m"
+
+
+def check_hello_clock(ctx: Context) -> tuple[str, str]:
+    assert ctx.hello is not None
+    h = ctx.hello
+    text = f"mode {h.mode}, dt {h.dt} s"
+    if h.mode == "realtime":
+        if not h.cmd_vel_timeout:
+            return (
+                WARN,
+                f"{text}: announce and enforce cmd_vel_timeout (0.5 s) so a lost client leaves the robot at rest",
+            )
+        text += f", cmd_vel_timeout {h.cmd_vel_timeout} s"
+    return PASS, text
+
+
+def check_reset(ctx: Context) -> tuple[str, str]:
+    reply = ctx.link.ask("reset")
+    if not reply.ok:
+        return WARN, (
+            f"reset refused ({reply.error}): fine for a real robot, but `vtr teach` needs it and "
+            "`vtr collect --sim` will drive continuously"
+        )
+    ctx.note_stamp(reply)
+    assert reply.image is not None
+    ctx._check_shape(reply.image)
+    ctx.image, ctx.resets = reply.image, True
+    return PASS, f"image {reply.image.shape[1]}x{reply.image.shape[0]}, stamp {reply.stamp}"
+
+
+def check_observe(ctx: Context) -> tuple[str, str]:
+    first = ctx.ask("observe")
+    second = ctx.ask("observe")
+    assert first.image is not None and second.image is not None
+    ctx.noise_floor = image_diff(first.image, second.image)
+    if ctx.noise_floor > 10:
+        return WARN, f"two frames of a robot at rest differ by {ctx.noise_floor:.1f}/255: is it still moving?"
+    return PASS, f"rgb8 {first.image.shape[1]}x{first.image.shape[0]}, rest noise {ctx.noise_floor:.2f}/255"
+
+
+def check_image(ctx: Context) -> tuple[str, str]:
+    image = ctx.image
+    if image is None:
+        raise CheckFailed("no image seen yet")
+    if float(image.std()) == 0.0:
+        return WARN, "the image is one flat colour: is the camera covered or not streaming?"
+    if image.shape[:2] != MODEL_IMAGE_SIZE:
+        return WARN, (
+            f"{image.shape[1]}x{image.shape[0]}: the shipped model takes 128x128; resize in the bridge "
+            "or train a model for this size"
+        )
+    return PASS, f"{image.shape[1]}x{image.shape[0]} rgb8, mean {image.mean():.0f}, std {image.std():.0f}"
+
+
+def check_stop(ctx: Context) -> tuple[str, str]:
+    reply = ctx.ask("stop")
+    return PASS, f"stamp {reply.stamp}"
+
+
+def check_stamps(ctx: Context) -> tuple[str, str]:
+    if ctx.stamp_problems:
+        raise CheckFailed("; ".join(ctx.stamp_problems[:3]) + ": stamps never go back within a session")
+    return PASS, f"{len(ctx.stamps)} replies since the last reset, stamps never decreased"
+
+
+BAD_REQUESTS: list[tuple[str, list[bytes], bool]] = [
+    # (what, frames, whether cmd and seq are readable and must be echoed)
+    ("malformed JSON", [b'{"proto": "vtr-sim", "version": 1, "cmd": '], False),
+    ("header not an object", [b"[1, 2, 3]"], False),
+    ("wrong protocol name", [b'{"proto": "ros", "version": 1, "cmd": "observe", "seq": 901, "stamp": 0}'], True),
+    ("unknown version", [b'{"proto": "vtr-sim", "version": 99, "cmd": "observe", "seq": 902, "stamp": 0}'], True),
+    ("unknown command", [b'{"proto": "vtr-sim", "version": 1, "cmd": "fly", "seq": 903, "stamp": 0}'], False),
+    ("missing field", [b'{"proto":"vtr-sim","version":1,"cmd":"step","seq":904,"stamp":0,"v":0,"duration":0.1}'], True),
+    ("wrong type", [b'{"proto":"vtr-sim","version":1,"cmd":"step","seq":905,"stamp":0,"v":"fast","w":0,"duration":0.1}'], True),
+    ("non-finite number", [b'{"proto":"vtr-sim","version":1,"cmd":"step","seq":906,"stamp":0,"v":NaN,"w":0,"duration":0.1}'], False),
+    ("extra frame", [b'{"proto": "vtr-sim", "version": 1, "cmd": "observe", "seq": 907, "stamp": 0}', b"xx"], True),
+]  # fmt: skip
+
+
+def check_errors(ctx: Context) -> tuple[str, str]:
+    warnings = []
+    for what, frames, echo in BAD_REQUESTS:
+        reply = ctx.link.raw_reply(frames, what)
+        if reply.ok:
+            raise CheckFailed(f"a request with a {what} got ok: true; answer it with ok: false and an error")
+        if echo:
+            sent = json.loads(frames[0])
+            if reply.seq != sent["seq"] or reply.cmd != sent["cmd"]:
+                warnings.append(f"{what}: cmd/seq not echoed")
+        if reply.code not in protocol.ERROR_CODES:
+            warnings.append(f"{what}: no error 'code' ({', '.join(protocol.ERROR_CODES)})")
+    ctx.ask("observe")  # still serving
+    if warnings:
+        return WARN, "; ".join(warnings[:3]) + (
+            f" (and {len(warnings) - 3} more)" if len(warnings) > 3 else ""
+        )
+    return PASS, f"{len(BAD_REQUESTS)} bad requests answered with ok: false, then served again"
+
+
+def check_latency(ctx: Context, count: int = 30) -> tuple[str, str]:
+    times = []
+    deadline = time.monotonic() + 5.0
+    while len(times) < count and time.monotonic() < deadline:
+        reply = ctx.link.ask("observe")
+        if not reply.ok:
+            raise CheckFailed(f"observe refused: {reply.error}")
+        times.append(ctx.link.last_rtt_s)
+    median, p95 = percentile_ms(times, 50), percentile_ms(times, 95)
+    text = f"observe round trip median {median:.2f} ms, p95 {p95:.2f} ms ({len(times)} requests)"
+    if p95 > 0.3 * ctx.dt * 1000:
+        return WARN, text + f": more than 30% of the {ctx.dt} s control step"
+    return PASS, text
+
+
+# (name, function, needs): a check is skipped when a check it needs did not pass or warn.
+CHECKS: list[tuple[str, Check, tuple[str, ...]]] = [
+    ("hello", check_hello, ()),
+    ("hello.camera", check_hello_camera, ("hello",)),
+    ("hello.clock", check_hello_clock, ("hello",)),
+    ("reset", check_reset, ("hello",)),
+    ("observe", check_observe, ("hello",)),
+    ("image", check_image, ("observe",)),
+    ("stop", check_stop, ("hello",)),
+    ("step.zero", check_zero_step, ("observe",)),
+    ("step.turn", check_turn, ("observe",)),
+    ("stamps", check_stamps, ("observe",)),
+    ("limits.enforced", check_limits_enforced, ("hello",)),
+    ("errors", check_errors, ("hello",)),
+    ("session.guard", check_session_guard, ("observe",)),
+    ("watchdog", check_watchdog, ("observe",)),
+    ("latency", check_latency, ("hello",)),
+]
+
+
+def run_checks(endpoint: str, timeout_s: float = 2.0, budget_s: float = 60.0) -> list[CheckResult]:
+    """Run every check against ``endpoint``; never raises for a misbehaving robot, never hangs."""
+    link = Link(endpoint, timeout_s)
+    ctx = Context(link)
+    results: list[CheckResult] = []
+    passed: set[str] = set()
+    deadline = time.monotonic() + budget_s
+    try:
+        for name, check, needs in CHECKS:
+            missing = [n for n in needs if n not in passed]
+            if missing:
+                results.append(CheckResult(name, SKIP, f"needs {', '.join(missing)}"))
+                continue
+            if time.monotonic() > deadline:
+                results.append(CheckResult(name, SKIP, f"time budget of {budget_s} s spent"))
+                continue
+            try:
+                status, detail = check(ctx)
+            except CheckFailed as exc:
+                status, detail = FAIL, str(exc)
+            except (zmq.ZMQError, OSError) as exc:
+                status, detail = FAIL, f"socket error: {exc}"
+            if status != FAIL:
+                passed.add(name)
+            results.append(CheckResult(name, status, detail))
+    finally:
+        link.stop_quietly()
+        link.close()
+    return results
+
+
+def format_report(endpoint: str, results: list[CheckResult], elapsed_s: float) -> str:
+    width = max(len(r.name) for r in results)
+    lines = [f"vtr check-robot {endpoint}"]
+    lines += [f"{r.status}  {r.name:<{width}}  {r.detail}" for r in results]
+    count = {s: sum(r.status == s for r in results) for s in (PASS, WARN, FAIL, SKIP)}
+    verdict = "conformant" if not count[FAIL] else "NOT conformant"
+    lines.append(
+        f"summary: {verdict}: {count[PASS]} passed, {count[WARN]} warnings, {count[FAIL]} failed, "
+        f"{count[SKIP]} skipped in {elapsed_s:.1f} s"
+    )
+    return "\n".join(lines)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("addr", metavar="ADDR", help="the robot's endpoint, e.g. tcp://127.0.0.1:5555")
+    parser.add_argument(
+        "--timeout", type=float, default=2.0, help="seconds to wait for each reply (default 2)"
+    )
+    parser.add_argument("--budget", type=float, default=60.0, help="seconds for the whole run (default 60)")
+    parser.add_argument("--json", default=None, help="also write the results to this JSON file")
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    if "://" not in args.addr:
+        print(f"vtr check-robot: ADDR must be a ZeroMQ endpoint like tcp://127.0.0.1:5555, got {args.addr!r}")
+        return 2
+    if not (args.timeout > 0 and args.budget > 0):
+        print("vtr check-robot: --timeout and --budget must be > 0", file=sys.stderr)
+        return 2
+    t0 = time.monotonic()
+    results = run_checks(args.addr, args.timeout, args.budget)
+    print(format_report(args.addr, results, time.monotonic() - t0))
+    if args.json:
+        from vtr.runtime.atomic import write_text_atomic
+
+        write_text_atomic(args.json, json.dumps([asdict(r) for r in results], indent=2))
+    return 1 if any(r.status == FAIL for r in results) else 0

@@ -1,0 +1,81 @@
+"""The example bridge (examples/minimal_robot_server.py), run as a user would, passes `vtr check-robot` and can be
+taught a route."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from vtr.runtime.check_robot import PASS, run_checks
+from vtr.runtime.client import SimClient
+from vtr.runtime.route_script import parse_route_script
+from vtr.runtime.teach import TeachConfig, teach
+
+SCRIPT = Path(__file__).resolve().parents[2] / "examples" / "minimal_robot_server.py"
+
+
+@pytest.fixture(scope="module")
+def endpoint() -> Iterator[str]:
+    proc = subprocess.Popen(
+        [sys.executable, str(SCRIPT), "--bind", "tcp://127.0.0.1:*"], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        line = proc.stdout.readline() if proc.stdout else ""
+        assert line.startswith("minimal robot server on tcp://"), line
+        yield line.split()[-1]
+    finally:
+        proc.terminate()
+        proc.wait(5)
+
+
+def test_the_example_passes_every_check(endpoint: str) -> None:
+    results = run_checks(endpoint, timeout_s=2.0)
+    assert all(r.status == PASS for r in results), [(r.name, r.status, r.detail) for r in results]
+
+
+def test_the_example_can_be_taught_a_route(endpoint: str) -> None:
+    script = parse_route_script(
+        {
+            "start": {"x": -1.0, "y": 0.0, "yaw": 0.0},
+            "segments": [{"v": 0.3, "w": 0.0, "duration": 2.0}, {"v": 0.0, "w": 0.5, "duration": 1.0}],
+        }
+    )
+    with SimClient(endpoint, timeout_s=2.0) as client:
+        route = teach(client, script, TeachConfig())
+    assert len(route) == 16  # 30 control steps, a subgoal every 2, plus the start
+    assert route.camera["fov_deg"] == 90.0 and route.camera["height_m"] == 0.3  # from hello, for the checks
+    assert route.poses[-1][0] == pytest.approx(-0.4, abs=1e-6)
+    assert route.poses[-1][2] == pytest.approx(0.5, abs=1e-6)
+
+
+def test_collect_repeat_and_eval_work_on_the_example_unchanged(
+    endpoint: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from vtr import cli
+    from vtr.training.dataset import load_dataset
+
+    data = tmp_path / "room.npz"
+    assert (
+        cli.main(["collect", "--sim", endpoint, "--out", str(data), "--frames", "200", "--no-progress"]) == 0
+    )
+    assert len(load_dataset(data, image_size=128)) == 200
+    script = tmp_path / "arc.json"
+    script.write_text(
+        '{"start": {"x": -1.2, "y": -0.8, "yaw": 0.3}, "segments": [{"v": 0.2, "w": 0.0, "duration": 2.0},'
+        ' {"v": 0.15, "w": 0.4, "duration": 2.0}]}'
+    )
+    route = tmp_path / "route.npz"
+    assert cli.main(["teach", "--sim", endpoint, "--route", str(script), "--out", str(route)]) == 0
+    model = Path(__file__).resolve().parents[2] / "models" / "velocitynet.onnx"
+    run = tmp_path / "run.mcap"
+    argv = ["repeat", "--sim", endpoint, "--model", str(model), "--route", str(route), "--mcap", str(run)]
+    assert cli.main(argv) == 0  # the shipped model finishes the route in a room it never saw
+    capsys.readouterr()
+    assert cli.main(["eval", "--run", str(run), "--taught", str(route)]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["status"] == "finished" and result["position_error_m"]["mean"] < 0.05

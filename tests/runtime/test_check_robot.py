@@ -1,0 +1,88 @@
+"""`vtr check-robot`: our simulator passes every check; each fault of a broken bridge fails the check meant for it."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+from faulty_robot import FaultyRobot
+
+from vtr.runtime import cli
+from vtr.runtime.check_robot import CHECKS, FAIL, PASS, SKIP, WARN, run_checks
+from vtr.sim2d import SimConfig, Simulator
+from vtr.sim2d.server import ServerConfig, ServerThread
+
+
+@pytest.fixture(scope="module")
+def simulator() -> Simulator:
+    sim = Simulator(SimConfig())
+    sim.reset()
+    return sim
+
+
+@pytest.mark.parametrize("mode", ["lockstep", "realtime"])
+def test_our_simulator_passes_every_check(simulator: Simulator, mode: str) -> None:
+    with ServerThread(simulator, ServerConfig(bind="tcp://127.0.0.1:*", mode=mode)) as server:
+        results = run_checks(server.endpoint, timeout_s=2.0)
+    assert [r.name for r in results] == [name for name, _, _ in CHECKS]
+    assert all(r.status == PASS for r in results), [(r.name, r.status, r.detail) for r in results]
+
+
+def test_the_cli_prints_one_line_per_check_and_exits_zero(
+    simulator: Simulator, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with ServerThread(simulator) as server:
+        assert cli.main(["check-robot", server.endpoint]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert len(out) == len(CHECKS) + 2
+    assert out[-1].startswith("summary: conformant:") and f"{len(CHECKS)} passed" in out[-1]
+
+
+@pytest.mark.parametrize(
+    ("fault", "check", "expected", "words"),
+    [
+        ("no_limits", "hello", FAIL, "hello field 'limits' must be an object"),
+        ("no_camera", "hello", FAIL, "camera must be an object"),
+        ("wrong_size", "reset", FAIL, "64x64 but hello announced 128x128"),
+        ("bare_errors", "errors", FAIL, "wrong protocol None"),
+        ("bare_stop", "stop", FAIL, "carries proto, version, cmd, seq"),
+        ("accepts_over_limit", "limits.enforced", FAIL, "was accepted"),
+        ("zero_step_moves", "step.zero", FAIL, "a zero step changed the image"),
+        ("frozen_camera", "step.turn", FAIL, "changed the image by only"),
+        ("clockwise", "step.turn", FAIL, "REP-103"),
+        ("stamp_back", "stamps", FAIL, "stamps never go back"),
+        ("silent_on_bad", "errors", FAIL, "no reply"),
+        ("slow", "latency", WARN, "control step"),
+        ("ignores_session", "session.guard", FAIL, "session_mismatch"),
+        ("no_watchdog", "watchdog", FAIL, "still turning"),
+    ],
+)
+def test_each_fault_fails_its_check(
+    simulator: Simulator, fault: str, check: str, expected: str, words: str
+) -> None:
+    with FaultyRobot(simulator, fault) as robot:
+        results = run_checks(robot.endpoint, timeout_s=0.5)
+    found = {r.name: r for r in results}
+    assert found[check].status == expected, found[check]
+    assert words in found[check].detail
+    if check != "hello":
+        assert found["hello"].status == PASS  # one fault does not hide the rest of the report
+    assert any(r.status == FAIL for r in results) == (expected == FAIL)
+
+
+def test_a_silent_endpoint_fails_fast_and_skips_the_rest() -> None:
+    t0 = time.monotonic()
+    results = run_checks("tcp://127.0.0.1:9", timeout_s=0.3)  # nothing listens there
+    assert time.monotonic() - t0 < 3
+    assert results[0].status == FAIL and "no reply" in results[0].detail
+    assert {r.status for r in results[1:]} == {SKIP}
+
+
+def test_cli_exit_code_is_one_on_failure(capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli.main(["check-robot", "tcp://127.0.0.1:9", "--timeout", "0.2"]) == 1
+    assert "NOT conformant" in capsys.readouterr().out
+
+
+def test_cli_refuses_an_address_that_is_not_an_endpoint(capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli.main(["check-robot", "localhost:5555"]) == 2
+    assert "ZeroMQ endpoint" in capsys.readouterr().out
