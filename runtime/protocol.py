@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from vtr.runtime import contracts as _contracts
+from vtr.runtime.request_fast import RequestTemplates
 from vtr.runtime.wire_json import (  # noqa: F401  (re-exported)
     MAX_DEPTH,
     MAX_HEADER_BYTES,
@@ -111,12 +112,15 @@ class Reply:
 def _parse_header(frames: Any, max_message_bytes: int, err: type[ProtocolError]) -> dict[str, Any]:
     if not isinstance(frames, list | tuple) or not frames:
         raise err("empty message: expected a JSON header frame")
-    if not all(isinstance(f, bytes | bytearray | memoryview) for f in frames):
-        raise err("every frame must be bytes")
-    total = sum(len(f) for f in frames)
+    total = 0
+    for frame in frames:  # a plain loop: this runs twice per control step
+        if not isinstance(frame, bytes | bytearray | memoryview):
+            raise err("every frame must be bytes")
+        total += len(frame)
     if total > max_message_bytes:
         raise err(f"message of {total} bytes exceeds the limit of {max_message_bytes} bytes")
-    header = parse_json(bytes(frames[0]), err)
+    first = frames[0]
+    header = parse_json(first if type(first) is bytes else bytes(first), err)
     if not isinstance(header, dict):
         raise err(f"header must be a JSON object, got {type(header).__name__}")
     if header.get("proto") != PROTO:
@@ -164,6 +168,8 @@ def _header_bytes(header: dict[str, Any]) -> bytes:
 
 # --------------------------------------------------------------------------------------------- requests
 
+_TEMPLATES = RequestTemplates(PROTO, VERSION, MAX_SESSION_CHARS)
+
 
 def encode_request(
     cmd: str, seq: int, stamp: float | None = None, limits: Limits | None = None, **fields: Any
@@ -175,6 +181,16 @@ def encode_request(
     """
     if cmd not in COMMANDS:
         raise ProtocolError(f"unknown command {cmd!r}; known: {', '.join(COMMANDS)}")
+    fast = _TEMPLATES.header(cmd, seq, stamp, limits, fields)
+    if fast is not None:  # what decode_request accepts, checked on the values (no JSON round trip)
+        return [fast]
+    return encode_request_checked(cmd, seq, stamp, limits, fields)
+
+
+def encode_request_checked(
+    cmd: str, seq: int, stamp: float | None, limits: Limits | None, fields: dict[str, Any]
+) -> list[bytes]:
+    """The general path of :func:`encode_request`: ``json.dumps``, then ``decode_request`` of the result."""
     header: dict[str, Any] = {"proto": PROTO, "version": VERSION, "cmd": cmd, "seq": int(seq)}
     if stamp is not None:
         header["stamp"] = stamp
