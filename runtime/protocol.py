@@ -29,12 +29,15 @@ from vtr.runtime.wire_json import (  # noqa: F401  (re-exported)
     MAX_DEPTH,
     MAX_HEADER_BYTES,
     MAX_INT,
+    MAX_SESSION_CHARS,
     BadFrameError,
     ProtocolError,
     integer,
     jsonable,
     number,
     parse_json,
+    pose_field,
+    session_field,
 )
 from vtr.runtime.wire_json import show as _show
 
@@ -54,8 +57,6 @@ MAX_DURATION = 10.0
 MAX_MESSAGE_BYTES = 4 * 1024 * 1024
 #: Largest image side accepted in a reply.
 MAX_IMAGE_SIDE = 4096
-#: Longest session token.
-MAX_SESSION_CHARS = 64
 #: Error codes an error reply may carry in ``code``.
 ERROR_CODES = ("bad_request", "session_mismatch", "robot_error")
 
@@ -133,23 +134,6 @@ def _parse_header(frames: Any, max_message_bytes: int, err: type[ProtocolError])
     return header
 
 
-def _session(obj: dict[str, Any], err: type[ProtocolError], required: bool) -> str | None:
-    value = obj.get("session")
-    if value is None and not required:
-        return None
-    if not isinstance(value, str) or not 0 < len(value) <= MAX_SESSION_CHARS:
-        raise err(
-            f"field 'session' must be a string of 1..{MAX_SESSION_CHARS} characters, got {_show(value)}"
-        )
-    return value
-
-
-def _pose(value: Any, err: type[ProtocolError], key: str = "pose") -> tuple[float, float, float]:
-    if not isinstance(value, dict):
-        raise err(f"field {key!r} must be an object {{'x', 'y', 'yaw'}}, got {_show(value)}")
-    return tuple(number(value, k, err, where=f"{key}.") for k in ("x", "y", "yaw"))  # type: ignore[return-value]
-
-
 def pose_dict(pose: Any) -> dict[str, float] | None:
     """A pose as the wire's ``{"x", "y", "yaw"}``; accepts a tuple or any object with x/y/yaw attributes."""
     if pose is None:
@@ -222,11 +206,11 @@ def decode_request(
     if seq < 0:
         raise ProtocolError(f"field 'seq' must be >= 0, got {seq}")
     stamp = number(header, "stamp") if header.get("stamp") is not None else None
-    session = _session(header, ProtocolError, required=False)
+    session = session_field(header, ProtocolError, required=False)
     fields: dict[str, Any] = {}
     if cmd == "reset":
         if header.get("pose") is not None:
-            fields["pose"] = _pose(header["pose"], ProtocolError)
+            fields["pose"] = pose_field(header["pose"], ProtocolError)
         if header.get("seed") is not None:
             seed = integer(header, "seed")
             if seed < 0:
@@ -364,7 +348,7 @@ def decode_reply(
             ok=False,
             header=header,
             stamp=stamp,
-            session=_session(header, err, required=False),
+            session=session_field(header, err, required=False),
             error=error[:2000],
             code=code if isinstance(code, str) else None,
         )
@@ -374,7 +358,7 @@ def decode_reply(
         raise err(f"reply has seq {_show(seq)}, expected {expect_seq} (stale or out of order)")
     if cmd is None or seq is None:
         raise err("an ok reply must echo the request's 'cmd' and 'seq'")
-    session = _session(header, err, required=True)
+    session = session_field(header, err, required=True)
     stamp = number(header, "stamp", err)
     if cmd not in IMAGE_COMMANDS:
         if len(frames) != 1:
@@ -394,7 +378,7 @@ def decode_reply(
         kind = "truncated" if len(payload) < expected else "oversized"
         raise err(f"{kind} pixel frame: {len(payload)} bytes, expected {height}*{width}*3={expected}")
     image = np.frombuffer(payload, dtype=np.uint8).reshape(height, width, 3)
-    pose = None if header.get("pose") is None else _pose(header["pose"], err)
+    pose = None if header.get("pose") is None else pose_field(header["pose"], err)
     collided = header.get("collided", False)
     if not isinstance(collided, bool):
         raise err(f"reply field 'collided' must be a bool, got {_show(collided)}")

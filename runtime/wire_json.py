@@ -20,6 +20,8 @@ MAX_DEPTH = 16
 MAX_INT = 2**53
 #: Any number on the wire has |x| <= MAX_ABS_NUMBER.
 MAX_ABS_NUMBER = 1e15
+#: Longest session token.
+MAX_SESSION_CHARS = 64
 
 
 class ProtocolError(ValueError):
@@ -115,6 +117,23 @@ def integer(obj: dict[str, Any], key: str, err: type[ProtocolError] = ProtocolEr
     return value
 
 
+def session_field(obj: dict[str, Any], err: type[ProtocolError], required: bool) -> str | None:
+    """``obj["session"]``: a string of 1..MAX_SESSION_CHARS characters (None when absent and not required)."""
+    value = obj.get("session")
+    if value is None and not required:
+        return None
+    if not isinstance(value, str) or not 0 < len(value) <= MAX_SESSION_CHARS:
+        raise err(f"field 'session' must be a string of 1..{MAX_SESSION_CHARS} characters, got {show(value)}")
+    return value
+
+
+def pose_field(value: Any, err: type[ProtocolError], key: str = "pose") -> tuple[float, float, float]:
+    """A pose object ``{"x", "y", "yaw"}`` as a tuple of bounded numbers."""
+    if not isinstance(value, dict):
+        raise err(f"field {key!r} must be an object {{'x', 'y', 'yaw'}}, got {show(value)}")
+    return tuple(number(value, k, err, where=f"{key}.") for k in ("x", "y", "yaw"))  # type: ignore[return-value]
+
+
 def jsonable(value: Any) -> Any:
     """The simulator's info() as plain JSON (dataclasses/tuples/numpy scalars flattened, NaN -> None)."""
 
@@ -142,11 +161,14 @@ __all__ = [
     "MAX_DEPTH",
     "MAX_HEADER_BYTES",
     "MAX_INT",
+    "MAX_SESSION_CHARS",
     "BadFrameError",
     "ProtocolError",
     "integer",
     "jsonable",
     "number",
     "parse_json",
+    "pose_field",
+    "session_field",
     "show",
 ]
