@@ -94,9 +94,10 @@ class Camera:
         #  - surfaces: for each texture and depth bin, the mip level and shading of that distance;
         #  - floor: for each (mip level, shading) pair that some floor row uses;
         #  - ceiling: one colour per row above the horizon; and the far colour.
+        tint = np.asarray(house.lighting.tint, dtype=np.float32)
+        self._tint = None if np.all(tint == 1.0) else tint
         self._atlas_chunks: list[np.ndarray] = []
         self._atlas_size = 0
-        n_tex = len(house.texture_images)
         d_lo, d_hi = 0.1, max(cfg.max_range, 1.0) * 1.01  # a surface is never nearer than ~0.12 m
         ratio = (d_hi / d_lo) ** (1.0 / _DEPTH_BINS)
         self._bin_edges = d_lo * ratio ** np.arange(1, _DEPTH_BINS)  # (K-1,) searchsorted -> bin 0..K-1
@@ -106,12 +107,21 @@ class Camera:
         # Mip level l while one pixel covers [2^l, 2^(l+1)) texels of level 0.
         level = np.clip(np.floor(np.log2(centres[None, :] / (f * texel[:, None]))), 0, _TEX_LEVELS - 1)
         level = level.astype(int)  # (T, K)
-        tex_off = np.zeros((n_tex, _DEPTH_BINS), dtype=np.intp)
-        for t, img in enumerate(house.texture_images):
-            for lvl, m in enumerate(mip_levels(img, _TEX_LEVELS)):
+        # One shaded copy per (texture, light) pair that some face uses (sim2d.lighting: a face takes the
+        # light at its midpoint, rounded, so a uniformly lit house has one copy per texture).
+        face_light = house.lighting.face_levels((self.seg_a + self.seg_b) / 2)
+        pairs, seg_variant = np.unique(
+            np.stack([self.seg_tex.astype(np.float64), face_light], axis=1), axis=0, return_inverse=True
+        )
+        seg_variant = seg_variant.reshape(-1)
+        mips = [mip_levels(img, _TEX_LEVELS) for img in house.texture_images]
+        tex_off = np.zeros((len(pairs), _DEPTH_BINS), dtype=np.intp)
+        for vi, (t_f, gain) in enumerate(pairs):
+            t = int(t_f)
+            for lvl, m in enumerate(mips[t]):
                 bins = np.flatnonzero(level[t] == lvl)
                 if bins.size:
-                    tex_off[t, bins] = self._add(m.astype(np.float32)[None], bin_light[bins])
+                    tex_off[vi, bins] = self._add(m.astype(np.float32)[None], bin_light[bins] * gain)
         # Per (segment, depth bin) tables, row = segment * K + bin, so that a frame needs one gather per
         # table: ints (atlas offset, texel mask, log2 texels) and floats (texels per metre along u and v,
         # v at the camera's height, v at the top of the surface).
@@ -119,7 +129,7 @@ class Camera:
         n_side = (TEX >> level[tex]).astype(np.float64)  # (S, K) texels per side
         nsv = n_side / house.texture_sizes[tex, 1][:, None]
         self._tab_int = (
-            np.stack([tex_off[tex], n_side.astype(np.intp) - 1, _TEX_SHIFT - level[tex]], axis=-1)
+            np.stack([tex_off[seg_variant], n_side.astype(np.intp) - 1, _TEX_SHIFT - level[tex]], axis=-1)
             .reshape(-1, 3)
             .astype(np.int32)
         )
@@ -148,7 +158,7 @@ class Camera:
         foot = np.sqrt((g / f) * (g * g / (f * cfg.camera_height)))
         flevel = np.clip(np.round(np.log2(np.maximum(foot / res0, 1e-9))), 0, len(floor_mips) - 1).astype(int)
         # Shading quantised to 1/64 so that rows share shaded copies of a level (steps < 2% brightness).
-        flight = np.round(self._shade(g) * 64.0) / 64.0
+        flight = np.round(self._shade(g) * house.lighting.level * 64.0) / 64.0
         far = g > cfg.max_range
         self.far_index = self._add(np.array([[[20.0, 20.0, 25.0]]]), 1.0)
         copies: dict[tuple[int, float], int] = {}
@@ -175,7 +185,8 @@ class Camera:
 
         # ---- ceiling: one shaded colour per row above the horizon
         ceiling_depth = (cfg.wall_height - cfg.camera_height) / np.maximum(-yr[:f0], 1e-9)
-        ceiling = house.ceiling_color[None, None, :] * self._shade(ceiling_depth)[None, :, None]  # (1, f0, 3)
+        ceiling_light = self._shade(ceiling_depth) * house.lighting.level
+        ceiling = house.ceiling_color[None, None, :] * ceiling_light[None, :, None]  # (1, f0, 3)
         ceiling = ceiling[None]  # (1, 1, f0, 3): one copy of f0 texels
         first = self._add(ceiling, 1.0) if f0 else 0
         self._ceiling = np.broadcast_to(
@@ -199,6 +210,8 @@ class Camera:
         Returns the offset of each copy (an int for a scalar light)."""
         lights = np.atleast_1d(np.asarray(light, dtype=np.float32)) * np.float32(self.cfg.brightness)
         scaled = texels * lights.reshape((-1,) + (1,) * (texels.ndim - 1))  # (n, ..., 3)
+        if self._tint is not None:  # the house light's colour cast (sim2d.lighting), per channel
+            scaled = scaled * self._tint
         rgb = np.ascontiguousarray(np.clip(np.rint(scaled), 0, 255).astype(np.uint8))
         packed = rgb.view("V3").reshape(len(lights), -1)  # one 3-byte RGB item per texel
         offsets = self._atlas_size + packed.shape[1] * np.arange(len(lights))

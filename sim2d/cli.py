@@ -21,7 +21,7 @@ class SnapshotConfig:
     """What `vtr sim snapshot` draws."""
 
     out: str = opt("house.png", "output picture (PNG)")
-    house: str = opt("house", "map name in sim2d/maps or a path")
+    house: str = opt("house", "map name in sim2d/maps, a path, or random:SEED (a procedural house)")
     x: float | None = opt(None, "robot x in metres (default: the start pose's)")
     y: float | None = opt(None, "robot y in metres (default: the start pose's)")
     yaw: float | None = opt(
@@ -29,6 +29,7 @@ class SnapshotConfig:
     )
     start: str | None = opt(None, "name of a start pose of the map (e.g. kitchen) instead of the first one")
     brightness: float = opt(1.0, "camera brightness multiplier")
+    changes: tuple[str, ...] = ()  # appearance changes (sim2d.appearance); the CLI's repeatable --change
 
     def __post_init__(self) -> None:
         if not self.out:
@@ -46,7 +47,9 @@ def run_snapshot(cfg: SnapshotConfig) -> int:
     from vtr.sim2d.simulator import Simulator
     from vtr.sim2d.snapshot import snapshot
 
-    sim = Simulator(SimConfig(house=cfg.house, camera=CameraConfig(brightness=cfg.brightness)))
+    sim = Simulator(
+        SimConfig(house=cfg.house, changes=cfg.changes, camera=CameraConfig(brightness=cfg.brightness))
+    )
     base = sim.house.start_poses[0]
     if cfg.start is not None:
         if cfg.start not in sim.house.start_names:
@@ -78,6 +81,7 @@ def run_serve(
     brightness: float,
     mode: str = "lockstep",
     cmd_vel_timeout: float = 0.5,
+    changes: tuple[str, ...] = (),
 ) -> int:
     from vtr.sim2d.config import CameraConfig, SimConfig
 
@@ -91,7 +95,7 @@ def run_serve(
     import zmq
 
     check_endpoint(bind, bind=True)
-    sim_cfg = SimConfig(house=house, noise=noise, camera=CameraConfig(brightness=brightness))
+    sim_cfg = SimConfig(house=house, noise=noise, changes=changes, camera=CameraConfig(brightness=brightness))
     try:
         return int(
             serve(ServerConfig(bind=bind, sim=sim_cfg, mode=mode, cmd_vel_timeout=cmd_vel_timeout)) or 0
@@ -101,6 +105,12 @@ def run_serve(
         return 2
 
 
+_CHANGE_HELP = (
+    "appearance change KIND:TARGET=VALUE, repeatable (sim2d/appearance.py), e.g. retexture:wall=3, "
+    "move:sofa=0.3, light:level=0.6, light:dark=w,0.5, obstacle:2.0,3.0=0.4, floor:kitchen=5 (default: none)"
+)
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="sim_command", metavar="{snapshot,serve}")
     sub.required = True
@@ -108,6 +118,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "snapshot", help="write a top-down picture of the house beside the robot's camera image"
     )
     add_config_arguments(snap, SnapshotConfig)
+    snap.add_argument("--change", action="append", default=[], metavar="SPEC", help=_CHANGE_HELP)
     serve = sub.add_parser("serve", help="serve the simulator over ZeroMQ (runtime/protocol.py)")
     serve.add_argument(
         "--bind",
@@ -120,7 +131,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=0.0,
         help="actuation noise level (SimConfig.noise), 0 = off (default: 0)",
     )
-    serve.add_argument("--house", default="house", help="map name in sim2d/maps or a path (default: house)")
+    serve.add_argument(
+        "--house",
+        default="house",
+        help="map name in sim2d/maps, a path, or random:SEED (a procedural house) (default: house)",
+    )
+    serve.add_argument("--change", action="append", default=[], metavar="SPEC", help=_CHANGE_HELP)
     serve.add_argument(
         "--brightness", type=float, default=1.0, help="camera brightness multiplier (default: 1.0)"
     )
@@ -142,8 +158,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run_cli(args: argparse.Namespace) -> int:
     try:
         if args.sim_command == "snapshot":
-            return run_snapshot(config_from_args(SnapshotConfig, args))
-        return run_serve(args.bind, args.noise, args.house, args.brightness, args.mode, args.cmd_vel_timeout)
+            return run_snapshot(config_from_args(SnapshotConfig, args, changes=tuple(args.change)))
+        return run_serve(
+            args.bind,
+            args.noise,
+            args.house,
+            args.brightness,
+            args.mode,
+            args.cmd_vel_timeout,
+            tuple(args.change),
+        )
     except ValueError as err:  # bad configuration values or a bad map file
         print(f"vtr sim {args.sim_command}: {err}", file=sys.stderr)
         return 2

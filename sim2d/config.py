@@ -73,7 +73,11 @@ class SimConfig:
     """The simulator: house, robot, physics and actuation noise."""
 
     house: str = "house"
-    """Map name in sim2d/maps (without .json) or a path to a house JSON file."""
+    """Map name in sim2d/maps (without .json), a path to a house JSON file, or ``random:SEED`` for a
+    procedural house (sim2d.procedural)."""
+    changes: tuple[str, ...] = ()
+    """Appearance changes applied to the house (sim2d.appearance), e.g. ("retexture:wall=3",
+    "light:level=0.6"): the same house looking different between teach and repeat."""
     camera: CameraConfig = field(default_factory=CameraConfig)
     """Camera parameters."""
     robot_radius: float = 0.17
@@ -100,6 +104,10 @@ class SimConfig:
     def __post_init__(self) -> None:
         if not isinstance(self.house, str) or not self.house:
             raise ValueError(f"SimConfig.house must be a non-empty string, got {self.house!r}")
+        if self.changes:
+            from vtr.sim2d.appearance import parse_change  # numpy only; skipped when there is no change
+
+            object.__setattr__(self, "changes", tuple(str(parse_change(c)) for c in self.changes))
         if not isinstance(self.camera, CameraConfig):
             raise ValueError(f"SimConfig.camera must be a CameraConfig, got {type(self.camera).__name__}")
         for name in ("robot_radius", "physics_dt", "v_max", "w_max", "max_step_duration"):

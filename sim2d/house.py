@@ -28,34 +28,22 @@ from typing import Any
 import numpy as np
 
 from vtr.sim2d.config import Pose
-from vtr.sim2d.textures import make_texture, mosaic_floor
+from vtr.sim2d.floors import floor_image
+from vtr.sim2d.house_schema import Furniture, HouseError, _points, _Validator  # noqa: F401 (re-exported)
+from vtr.sim2d.lighting import Lighting
+from vtr.sim2d.textures import make_texture
 
 MAPS_DIR = Path(__file__).resolve().parent / "maps"
 FLOOR_TEX = 512  # texels per side of the floor mosaic (power of two)
-CIRCLE_SIDES = 16  # circles are drawn as polygons with this many faces (physics uses the true circle)
 # Start poses are checked against a robot of this radius, the largest one we expect to simulate.
 START_CLEARANCE = 0.25
-
-
-class HouseError(ValueError):
-    """A house file is missing something or holds a bad value; the message names the file and field."""
+RANDOM_PREFIX = "random:"  # --house random:SEED names a procedural house (sim2d.procedural)
 
 
 @dataclass(frozen=True)
 class Room:
     name: str
     polygon: np.ndarray  # (K, 2) float64, counter-clockwise or clockwise
-
-
-@dataclass(frozen=True)
-class Furniture:
-    name: str
-    shape: str  # "box" | "polygon" | "circle"
-    height: float
-    texture: str
-    vertices: np.ndarray  # (K, 2) convex polygon (box/polygon); the drawn polygon for a circle
-    center: tuple[float, float]
-    radius: float  # circles only, 0.0 otherwise
 
 
 @dataclass(frozen=True)
@@ -126,6 +114,7 @@ class House:
             self.rooms.append(Room(name, poly))
             self._room_textures.append(faces)
 
+        self._room_boxes = [_box_of(r.polygon) for r in self.rooms]
         t = self.wall_thickness
         self.wall_boxes: list[np.ndarray] = []  # (4, 2) counter-clockwise corners of each wall box
         for i, w in enumerate(v.list(data, "walls", min_len=3)):
@@ -174,21 +163,22 @@ class House:
         # Floor mosaic: a square power-of-two texture covering the bounds (with a small margin).
         self.floor_extent = float(max(hi - lo)) + 0.2
         self.floor_origin = (float(lo[0]) - 0.1, float(lo[1]) - 0.1)
-        self.floor_image = mosaic_floor(
-            self.floor_origin[0],
-            self.floor_origin[1],
-            self.floor_extent,
-            FLOOR_TEX,
-            self.floor_tile,
-            self.floor_seed,
-            self.floor_grout,
-        )
+        try:
+            self.lighting = Lighting.from_spec(data.get("lighting"), f"{source}: lighting")
+            floor_img = floor_image(
+                floor, self.floor_origin, self.floor_extent, FLOOR_TEX, f"{source}: floor"
+            )
+        except ValueError as err:
+            raise HouseError(str(err)) from None
+        self.floor_image = self.lighting.light_image(floor_img, self.floor_origin, self.floor_extent)
 
     # ----------------------------------------------------------------------------------------- queries
     def room_at(self, x: float, y: float) -> str | None:
         """Name of the room containing (x, y), or None outside every room."""
-        for room in self.rooms:
-            if _inside(room.polygon, x, y):
+        # Hot path (collection asks several times per frame): a bounding-box test first; for an axis-aligned
+        # rectangle it is the answer (x0 <= x < x1, y0 <= y < y1 is what the even-odd rule gives).
+        for room, (x0, y0, x1, y1, is_rect) in zip(self.rooms, self._room_boxes, strict=True):
+            if x0 <= x < x1 and y0 <= y < y1 and (is_rect or _inside(room.polygon, x, y)):
                 return room.name
         return None
 
@@ -215,6 +205,30 @@ class House:
         if len(radii):
             best = min(best, float(np.max([0.0, np.min(np.hypot(*(centers - (x, y)).T) - radii)])))
         return best
+
+    def clearances(self, xy: np.ndarray) -> np.ndarray:
+        """clearance() of many points (N, 2) at once; 0 outside every room too (so > r means is_free)."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        a, ab, inv_len2, poly_id, n_poly = self._edges
+        ap = xy[:, None, :] - a[None]  # (N, E, 2)
+        t = np.clip(np.einsum("nij,ij->ni", ap, ab) * inv_len2, 0.0, 1.0)
+        d = ap - ab[None] * t[..., None]
+        best = np.sqrt(np.min(d[..., 0] ** 2 + d[..., 1] ** 2, axis=1))
+        b_y = a[:, 1] + ab[:, 1]
+        y = xy[:, 1:2]
+        straddle = (a[None, :, 1] > y) != (b_y[None] > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x_cross = a[None, :, 0] + (y - a[None, :, 1]) * ab[None, :, 0] / ab[None, :, 1]
+        hits = (straddle & (xy[:, :1] < x_cross)).astype(np.int64)
+        inside = np.zeros((len(xy), n_poly), dtype=np.int64)
+        np.add.at(inside.T, poly_id, hits.T)
+        best[np.any(inside % 2 == 1, axis=1)] = 0.0
+        centers, radii = self._circles
+        if len(radii):
+            dc = np.hypot(xy[:, None, 0] - centers[None, :, 0], xy[:, None, 1] - centers[None, :, 1]) - radii
+            best = np.minimum(best, np.maximum(dc.min(axis=1), 0.0))
+        in_room = np.array([self.room_at(float(x), float(y)) is not None for x, y in xy])
+        return np.where(in_room, best, 0.0)
 
     def _build_obstacles(self) -> None:
         """Edges of every obstacle polygon (walls, polygonal furniture) and the circles, as arrays."""
@@ -305,8 +319,7 @@ def resolve_house_path(name_or_path: str | os.PathLike[str]) -> Path:
     return path
 
 
-@functools.lru_cache(maxsize=8)
-def _load_cached(path: str, mtime_ns: int) -> House:
+def _read_json(path: str) -> dict[str, Any]:
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as err:
@@ -317,27 +330,51 @@ def _load_cached(path: str, mtime_ns: int) -> House:
         raise HouseError(f"{path}: invalid JSON at line {err.lineno} column {err.colno}: {err.msg}") from None
     if not isinstance(data, dict):
         raise HouseError(f"{path}: the top level must be a JSON object, got {type(data).__name__}")
-    return House(data, path)
+    return data
 
 
-def load_house(name_or_path: str | os.PathLike[str] = "house") -> House:
-    """Load and validate a house map (cached per file and modification time; Houses are not mutated)."""
-    path = resolve_house_path(name_or_path)
-    return _load_cached(str(path), path.stat().st_mtime_ns)
+def house_data(name_or_path: str | os.PathLike[str] = "house") -> tuple[dict[str, Any], str]:
+    """The map of a house as a fresh JSON-like dict and its source: ``random:SEED`` (sim2d.procedural), a
+    map name in sim2d/maps or a path."""
+    s = os.fspath(name_or_path)
+    if s.startswith(RANDOM_PREFIX):
+        from vtr.sim2d.procedural import generate_house_data, parse_random_seed
+
+        seed = parse_random_seed(s)
+        return generate_house_data(seed), f"{RANDOM_PREFIX}{seed}"
+    path = resolve_house_path(s)
+    return _read_json(str(path)), str(path)
+
+
+@functools.lru_cache(maxsize=8)
+def _load_cached(name: str, mtime_ns: int, changes: tuple[str, ...]) -> House:
+    data, source = house_data(name)
+    if changes:
+        from vtr.sim2d.appearance import apply_changes
+
+        try:
+            data = apply_changes(data, changes)
+        except ValueError as err:
+            raise HouseError(f"{source}: {err}") from None
+        source = f"{source} with {'; '.join(changes)}"
+    return House(data, source)
+
+
+def load_house(name_or_path: str | os.PathLike[str] = "house", changes: tuple[str, ...] = ()) -> House:
+    """Load and validate a house (cached per source, file modification time and appearance changes; Houses
+    are not mutated). ``random:SEED`` generates a procedural house; `changes` are sim2d.appearance specs."""
+    s = os.fspath(name_or_path)
+    mtime = 0 if s.startswith(RANDOM_PREFIX) else resolve_house_path(s).stat().st_mtime_ns
+    return _load_cached(s, mtime, tuple(str(c) for c in changes))
 
 
 # --------------------------------------------------------------------------------------------- helpers
-def _points(value: Any, where: str, n: int | None = None) -> np.ndarray:
-    ok = isinstance(value, list) and all(
-        isinstance(p, list)
-        and len(p) == 2
-        and all(isinstance(c, (int, float)) and math.isfinite(c) for c in p)
-        for p in value
-    )
-    if not ok or (n is not None and len(value) != n):
-        count = f"{n} " if n is not None else ""
-        raise HouseError(f"{where}: expected a list of {count}[x, y] points, got {value!r}")
-    return np.asarray(value, dtype=np.float64)
+def _box_of(poly: np.ndarray) -> tuple[float, float, float, float, bool]:
+    """(x0, y0, x1, y1, is an axis-aligned rectangle) of a room polygon."""
+    (x0, y0), (x1, y1) = poly.min(axis=0), poly.max(axis=0)
+    corners = {(float(x), float(y)) for x, y in poly}
+    is_rect = len(poly) == 4 and corners == {(x0, y0), (x1, y0), (x1, y1), (x0, y1)}
+    return float(x0), float(y0), float(x1), float(y1), bool(is_rect)
 
 
 def _inside(poly: np.ndarray, x: float, y: float) -> bool:
@@ -348,138 +385,3 @@ def _inside(poly: np.ndarray, x: float, y: float) -> bool:
     with np.errstate(divide="ignore", invalid="ignore"):
         xint = px + (y - py) * (qx - px) / (qy - py)
     return bool(np.count_nonzero(crosses & (x < xint)) % 2)
-
-
-def _signed_area(poly: np.ndarray) -> float:
-    x, y = poly[:, 0], poly[:, 1]
-    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
-
-
-def _is_convex(poly: np.ndarray) -> bool:
-    d1 = np.roll(poly, -1, axis=0) - poly
-    d2 = np.roll(d1, -1, axis=0)
-    cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
-    return bool(np.all(cross > 1e-12) or np.all(cross < -1e-12))
-
-
-class _Validator:
-    """Field readers that raise HouseError naming the file and the field."""
-
-    def __init__(self, source: str) -> None:
-        self.source = source
-
-    def _get(self, obj: Any, key: str, where: str | None) -> Any:
-        path = f"{where}.{key}" if where else key
-        if not isinstance(obj, dict):
-            raise HouseError(f"{self.source}: {where or 'top level'}: expected an object, got {obj!r}")
-        if key not in obj:
-            raise HouseError(f"{self.source}: {path}: missing required field")
-        return obj[key]
-
-    def _fail(self, key: str, where: str | None, expected: str, value: Any) -> HouseError:
-        path = f"{where}.{key}" if where else key
-        return HouseError(f"{self.source}: {path}: expected {expected}, got {value!r}")
-
-    def string(self, obj: Any, key: str, where: str | None = None) -> str:
-        value = self._get(obj, key, where)
-        if not isinstance(value, str) or not value:
-            raise self._fail(key, where, "a non-empty string", value)
-        return value
-
-    def number(
-        self, obj: Any, key: str, lo: float = -math.inf, hi: float = math.inf, where: str | None = None
-    ) -> float:
-        value = self._get(obj, key, where)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise self._fail(key, where, "a finite number", value)
-        if not lo <= value <= hi:
-            raise self._fail(key, where, f"a number in [{lo}, {hi}]", value)
-        return float(value)
-
-    def integer(self, obj: Any, key: str, where: str | None = None) -> int:
-        value = self._get(obj, key, where)
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise self._fail(key, where, "an integer", value)
-        return value
-
-    def color(self, obj: Any, key: str, where: str | None = None) -> np.ndarray:
-        value = self._get(obj, key, where)
-        if (
-            not isinstance(value, list)
-            or len(value) != 3
-            or not all(isinstance(c, (int, float)) and 0 <= c <= 255 for c in value)
-        ):
-            raise self._fail(key, where, "an [r, g, b] colour with values in 0..255", value)
-        return np.asarray(value, dtype=np.float64)
-
-    def mapping(self, obj: Any, key: str, where: str | None = None) -> dict[str, Any]:
-        value = self._get(obj, key, where)
-        if not isinstance(value, dict):
-            raise self._fail(key, where, "an object", value)
-        return value
-
-    def list(self, obj: Any, key: str, min_len: int, where: str | None = None) -> list[Any]:
-        value = self._get(obj, key, where)
-        if not isinstance(value, list) or len(value) < min_len:
-            raise self._fail(key, where, f"a list of at least {min_len} entries", value)
-        return value
-
-    def texture_ref(self, obj: Any, key: str, tex_index: dict[str, int], where: str | None = None) -> int:
-        name = self.string(obj, key, where)
-        if name not in tex_index:
-            raise self._fail(
-                key, where, f"a texture name defined in 'textures' ({', '.join(tex_index)})", name
-            )
-        return tex_index[name]
-
-    def polygon(self, obj: Any, key: str, where: str | None = None) -> np.ndarray:
-        path = f"{where}.{key}" if where else key
-        poly = _points(self._get(obj, key, where), f"{self.source}: {path}")
-        if len(poly) < 3 or abs(_signed_area(poly)) < 1e-6:
-            raise HouseError(f"{self.source}: {path}: a polygon needs at least 3 points and a non-zero area")
-        return poly
-
-    def furniture(self, f: Any, where: str, tex_index: dict[str, int]) -> Furniture:
-        name = self.string(f, "name", where)
-        shape = self.string(f, "shape", where)
-        height = self.number(f, "height", lo=0.05, hi=5.0, where=where)
-        texture = self.string(f, "texture", where)
-        self.texture_ref(f, "texture", tex_index, where)
-        radius = 0.0
-        if shape == "box":
-            c = _points([self._get(f, "center", where)], f"{self.source}: {where}.center")[0]
-            size = _points([self._get(f, "size", where)], f"{self.source}: {where}.size")[0]
-            if np.any(size <= 0.01):
-                raise self._fail("size", where, "two sizes > 0.01 m", f["size"])
-            ang = math.radians(self.number(f, "angle_deg", where=where)) if "angle_deg" in f else 0.0
-            hx, hy = size / 2
-            local = np.array([[-hx, -hy], [hx, -hy], [hx, hy], [-hx, hy]])
-            rot = np.array([[math.cos(ang), -math.sin(ang)], [math.sin(ang), math.cos(ang)]])
-            verts = local @ rot.T + c
-        elif shape == "polygon":
-            verts = self.polygon(f, "points", where)
-            if not _is_convex(verts):
-                raise HouseError(
-                    f"{self.source}: {where}.points: the polygon must be convex (split it into pieces)"
-                )
-            if _signed_area(verts) < 0:
-                verts = verts[::-1].copy()
-            c = verts.mean(axis=0)
-        elif shape == "circle":
-            c = _points([self._get(f, "center", where)], f"{self.source}: {where}.center")[0]
-            radius = self.number(f, "radius", lo=0.02, hi=5.0, where=where)
-            ang = np.arange(CIRCLE_SIDES) * (2 * math.pi / CIRCLE_SIDES)
-            # Vertices on a slightly larger circle so the drawn polygon encloses the physical disc.
-            r_draw = radius / math.cos(math.pi / CIRCLE_SIDES)
-            verts = c + r_draw * np.stack([np.cos(ang), np.sin(ang)], axis=1)
-        else:
-            raise self._fail("shape", where, "'box', 'polygon' or 'circle'", shape)
-        return Furniture(
-            name,
-            shape,
-            height,
-            texture,
-            np.asarray(verts, dtype=np.float64),
-            (float(c[0]), float(c[1])),
-            radius,
-        )

@@ -86,7 +86,7 @@ class Simulator:
 
     def __init__(self, cfg: SimConfig | None = None) -> None:
         self.cfg = cfg if cfg is not None else SimConfig()
-        self.house: House = load_house(self.cfg.house)
+        self.house: House = load_house(self.cfg.house, self.cfg.changes)
         self.camera = Camera(self.house, self.cfg.camera)
         self._rng = np.random.default_rng(0)
         self._state: SimState | None = None
@@ -158,6 +158,7 @@ class Simulator:
         return {
             "map": self.house.name,
             "map_source": str(self.house.source),
+            "changes": list(self.cfg.changes),
             "rooms": [r.name for r in self.house.rooms],
             "camera": {
                 "width": c.width,

@@ -15,7 +15,7 @@ import numpy as np
 
 TEX = 64  # texels per side of a surface texture (power of two: the renderer wraps with a bit mask)
 
-KINDS = ("solid", "stripes", "bricks", "checker", "gradient", "wood", "diamonds", "dots")
+KINDS = ("solid", "stripes", "bricks", "checker", "gradient", "wood", "diamonds", "dots", "tiles", "poster")
 
 
 def _rgb(value: Any, where: str) -> np.ndarray:
@@ -72,6 +72,19 @@ def make_texture(spec: Mapping[str, Any], where: str, seed: int) -> np.ndarray:
         t = 0.5 + 0.5 * np.sin(2 * np.pi * (count * x + 0.15 * np.sin(2 * np.pi * 2 * y)))
     elif kind == "diamonds":
         t = ((np.abs((u * count) % 1 - 0.5) + np.abs((v * count) % 1 - 0.5)) < 0.35).astype(np.float32)
+    elif kind == "tiles":  # square tiles (colour a) with thin grout lines (colour b)
+        t = (((u * count) % 1 < 0.06) | ((v * count) % 1 < 0.06)).astype(np.float32)
+    elif kind == "poster":  # a framed picture of count x count coloured blocks on a plain wall (colour a)
+        inside = (u >= 0.3) & (u < 0.7) & (v >= 0.5) & (v < 0.85)
+        frame = (u >= 0.28) & (u < 0.72) & (v >= 0.48) & (v < 0.87) & ~inside
+        rng = np.random.default_rng(seed)
+        palette = np.stack(cols[1:] if len(cols) > 1 else [b, a * 0.3 + 100])
+        blocks = rng.integers(0, len(palette), size=(count, count))
+        bi = np.clip(((u - 0.3) / 0.4 * count).astype(int), 0, count - 1)
+        bj = np.clip(((v - 0.5) / 0.35 * count).astype(int), 0, count - 1)
+        img = np.where(inside[..., None], palette[blocks[bj, bi]], a)
+        img = np.where(frame[..., None], np.float32(40.0), img) * _grain(seed, float(spec.get("grain", 0.01)))
+        return np.clip(img, 0, 255).astype(np.uint8)
     else:  # dots
         t = ((((u * count) % 1 - 0.5) ** 2 + ((v * count) % 1 - 0.5) ** 2) < 0.09).astype(np.float32)
     img = a * (1.0 - t[..., None]) + b * t[..., None]

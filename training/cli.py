@@ -3,6 +3,8 @@ collects and exports, is the application layer's: ``vtr/pipeline.py``).
 
     vtr train viewnet --data data/house.npz --out runs/default/viewnet [--preset default]
     vtr train velocitynet --data data/house.npz --viewnet runs/default/viewnet/model.pt --out runs/default/velocitynet
+    vtr train velocitynet --init runs/default/velocitynet/model.pt --data my_building.npz ...   # fine-tune
+    vtr train evaluate --data data/heldout --viewnet models/viewnet.pt --velocitynet runs/x/velocitynet
 
 Every stage resumes from its checkpoint with --resume. Under torchrun the same stages train with
 DistributedDataParallel (gloo on CPU, nccl on CUDA): ``torchrun --nproc_per_node=K -m vtr.training.app viewnet ...``.
@@ -49,11 +51,18 @@ def add_stage_parsers(sub: Any) -> None:
     """The ``viewnet`` and ``velocitynet`` subcommands on an argparse subparsers object."""
     p = sub.add_parser("viewnet", help="train ViewNet (next-frame prediction, L1, forward + reversed pairs)")
     p.add_argument("--data", required=True, help="dataset from `vtr collect`")
+    p.add_argument("--init", default=None, help="start from this ViewNet checkpoint (e.g. models/viewnet.pt)")
     _add_common(p)
     p = sub.add_parser("velocitynet", help="train VelocityNet with the offline MPC loss (ViewNet frozen)")
     p.add_argument("--data", required=True, help="dataset from `vtr collect`")
     p.add_argument("--viewnet", required=True, help="trained ViewNet (model.pt or its folder)")
+    p.add_argument(
+        "--init", default=None, help="start from this VelocityNet checkpoint (model.pt) to fine-tune"
+    )
     _add_common(p)
+    from vtr.training.transfer import add_evaluate_arguments
+
+    add_evaluate_arguments(sub.add_parser("evaluate", help="offline report of given models on a dataset"))
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -83,10 +92,21 @@ def run_cli(args: argparse.Namespace) -> int:
     from vtr.training.config import get_preset, override
     from vtr.training.train import train_velocitynet, train_viewnet
 
+    if args.stage == "evaluate":
+        from vtr.training.transfer import run_evaluate
+
+        return run_evaluate(args)
     preset = get_preset(args.preset)
     preset.loss = override(preset.loss, w1=args.w1, w2=args.w2)
     if args.stage == "viewnet":
-        train_viewnet(args.data, args.out, preset.viewnet, train_cfg(preset.train_viewnet, args), args.resume)
+        train_viewnet(
+            args.data,
+            args.out,
+            preset.viewnet,
+            train_cfg(preset.train_viewnet, args),
+            args.resume,
+            init=args.init,
+        )
     else:
         train_velocitynet(
             args.data,
@@ -96,5 +116,6 @@ def run_cli(args: argparse.Namespace) -> int:
             preset.loss,
             train_cfg(preset.train_velocitynet, args),
             args.resume,
+            init=args.init,
         )
     return 0

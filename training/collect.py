@@ -1,6 +1,7 @@
 """`vtr collect`: drive the simulated robot through the house and record a training dataset.
 
     vtr collect --out data/house.npz --frames 7024 --seed 0 [--noise 0.05]
+    vtr collect --houses 40 --frames-per-house 2000 --out data/houses [--workers 2]   (training.collect_houses)
 
 Every dt (0.1 s) it records the camera image, the command applied next (which moves this frame to the
 next one), and the ground-truth pose. Episodes start at a random free pose in each room in turn and
@@ -15,14 +16,21 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from vtr.training.config import CollectConfig
 
-_KINDS = ("translate", "rotate", "combined", "stop")
-_KIND_P = (0.3, 0.3, 0.35, 0.05)
+_KINDS = ("translate", "rotate", "combined", "stop", "creep", "fast_arc")
+# Command mixes (probabilities over _KINDS). "paper": the recipe of the shipped model. "repeat": what the
+# controller meets when repeating a route: turns in place, creeping near goals, fast arcs, reversing.
+MIXES = {
+    "paper": (0.3, 0.3, 0.35, 0.05, 0.0, 0.0),
+    "repeat": (0.2, 0.2, 0.25, 0.05, 0.15, 0.15),
+}
 
 
 def arc_points(x: float, y: float, yaw: float, v: float, w: float, horizon: float, samples: int = 4) -> list:
@@ -44,11 +52,19 @@ def arc_points(x: float, y: float, yaw: float, v: float, w: float, horizon: floa
 
 
 def sample_command(rng: np.random.Generator, cfg: CollectConfig) -> tuple[str, float, float]:
-    kind = str(rng.choice(_KINDS, p=_KIND_P))
+    kind = str(rng.choice(_KINDS, p=MIXES[cfg.mix]))
     sign_v = -1.0 if rng.random() < cfg.reverse_fraction else 1.0
     sign_w = -1.0 if rng.random() < 0.5 else 1.0
     v = sign_v * float(rng.uniform(0.05, 1.0)) * cfg.v_max
     w = sign_w * float(rng.uniform(0.05, 1.0)) * cfg.w_max
+    if kind == "creep":  # a few cm/s with a slight turn: the last centimetres before a subgoal
+        return kind, sign_v * float(rng.uniform(0.04, 0.16)) * cfg.v_max, sign_w * float(rng.uniform(0, 0.15))
+    if kind == "fast_arc":
+        return (
+            kind,
+            sign_v * float(rng.uniform(0.7, 1.0)) * cfg.v_max,
+            sign_w * float(rng.uniform(0.5, 1.0)) * cfg.w_max,
+        )
     if kind == "translate":
         return kind, v, 0.0
     if kind == "rotate":
@@ -67,44 +83,52 @@ def sample_pose(house: Any, room: Any, rng: np.random.Generator, radius: float, 
     raise RuntimeError(f"could not find a free pose in room {room.name!r} for a robot of radius {radius} m")
 
 
-def run(cfg: CollectConfig) -> dict[str, Any]:
-    """Drive, record and write the dataset atomically; returns a summary."""
-    from tqdm import tqdm
+@dataclass
+class Recording:
+    """Where drive() writes frames (arrays of the same length, possibly memory-mapped) and its tallies."""
 
-    from vtr.sim2d import CameraConfig, Pose, SimConfig, Simulator
-    from vtr.training.dataset import FORMAT_VERSION, FrameData, save_dataset
+    images: np.ndarray
+    commands: np.ndarray
+    poses: np.ndarray
+    episodes: np.ndarray
+    kinds: dict[str, int] = field(default_factory=lambda: dict.fromkeys((*_KINDS, "escape"), 0))
+    rooms: dict[str, int] = field(default_factory=dict)
+    collisions: int = 0
+    n_episodes: int = 0
 
-    sim_cfg = SimConfig(camera=CameraConfig(width=cfg.image_size, height=cfg.image_size), noise=cfg.noise)
-    sim = Simulator(sim_cfg)
+
+def drive(
+    sim: Any, cfg: CollectConfig, rng: np.random.Generator, rec: Recording, on_frame: Any = None
+) -> None:
+    """Drive `sim` through its house's rooms in episodes, filling every frame of `rec`.
+
+    Episodes start at a random free pose in each room in turn; `on_frame()` is called after each frame."""
+    from vtr.sim2d import Pose
+
     house = sim.house
-    min_radius = max(cfg.robot_radius, sim_cfg.robot_radius)
+    min_radius = max(cfg.robot_radius, sim.cfg.robot_radius)
     radius = min_radius
-    rng = np.random.default_rng(cfg.seed)
-    n = cfg.frames
-    images = np.zeros((n, cfg.image_size, cfg.image_size, 3), np.uint8)
-    commands = np.zeros((n, 2), np.float32)
-    poses = np.zeros((n, 3), np.float32)
-    episodes = np.zeros(n, np.int32)
-    kinds = dict.fromkeys(_KINDS, 0)
-    kinds["escape"] = 0
-    rooms: dict[str, int] = {}
-    collisions = 0
-    t, ep = 0, 0
-    bar = tqdm(total=n, desc="collect", disable=not cfg.progress, dynamic_ncols=True)
+    n = len(rec.images)
+    commands = rec.commands
+    commands[:] = 0.0
 
     def safe(p: Any, v: float, w: float) -> bool:
         pts = arc_points(p.x, p.y, p.yaw, v, w, cfg.dt + cfg.lookahead)
-        return all(house.is_free(px, py, radius) for px, py in pts)
+        return bool(np.all(house.clearances(np.asarray(pts)) >= radius))
 
     image = None
     fresh_start = True
+    t, ep = 0, 0
     while t < n:
         if fresh_start:
             radius = float(rng.uniform(min_radius, max(min_radius, cfg.far_clearance)))
             room = house.rooms[ep % len(house.rooms)]
-            image = sim.reset(
-                pose=Pose(*sample_pose(house, room, rng, radius)), seed=cfg.seed * 1_000_003 + ep
-            )
+            try:
+                start = sample_pose(house, room, rng, radius)
+            except RuntimeError:  # a small furnished room: fall back to the least clearance
+                radius = min_radius
+                start = sample_pose(house, room, rng, radius)
+            image = sim.reset(pose=Pose(*start), seed=cfg.seed * 1_000_003 + ep)
         length = int(rng.integers(cfg.episode_min, cfg.episode_max + 1))
         remaining = 0
         kind, v, w = "stop", 0.0, 0.0
@@ -122,24 +146,45 @@ def run(cfg: CollectConfig) -> dict[str, Any]:
                 else:  # turning in place is always free for a round robot
                     kind, v, w = "escape", 0.0, (1.0 if rng.random() < 0.5 else -1.0) * cfg.w_max * 0.8
             remaining -= 1
-            images[t], poses[t], episodes[t] = image, pose, ep
-            rooms[house.room_at(pose.x, pose.y) or "?"] = (
-                rooms.get(house.room_at(pose.x, pose.y) or "?", 0) + 1
-            )
+            rec.images[t], rec.poses[t], rec.episodes[t] = image, pose, ep
+            room_name = house.room_at(pose.x, pose.y) or "?"
+            rec.rooms[room_name] = rec.rooms.get(room_name, 0) + 1
             t += 1
-            bar.update(1)
+            if on_frame is not None:
+                on_frame()
             if k == length - 1 or t == n:
                 break  # last frame of the episode: its command stays zero
             commands[t - 1] = (v, w)
-            kinds[kind] += 1
+            rec.kinds[kind] += 1
             image = sim.step(v, w, cfg.dt)
             if sim.collided:
                 # The step did not follow the command: cut the pair, start a new episode from here.
                 commands[t - 1] = 0.0
-                collisions += 1
+                rec.collisions += 1
                 fresh_start = False
                 break
         ep += 1
+    rec.n_episodes = ep
+
+
+def run(cfg: CollectConfig) -> dict[str, Any]:
+    """Drive, record and write the dataset atomically; returns a summary."""
+    from tqdm import tqdm
+
+    from vtr.sim2d import CameraConfig, SimConfig, Simulator
+    from vtr.training.dataset import FORMAT_VERSION, FrameData, save_dataset
+
+    sim_cfg = SimConfig(camera=CameraConfig(width=cfg.image_size, height=cfg.image_size), noise=cfg.noise)
+    sim = Simulator(sim_cfg)
+    n = cfg.frames
+    rec = Recording(
+        np.zeros((n, cfg.image_size, cfg.image_size, 3), np.uint8),
+        np.zeros((n, 2), np.float32),
+        np.zeros((n, 3), np.float32),
+        np.zeros(n, np.int32),
+    )
+    bar = tqdm(total=n, desc="collect", disable=not cfg.progress, dynamic_ncols=True)
+    drive(sim, cfg, np.random.default_rng(cfg.seed), rec, on_frame=lambda: bar.update(1))
     bar.close()
     meta = {
         "source": "vtr collect",
@@ -147,21 +192,20 @@ def run(cfg: CollectConfig) -> dict[str, Any]:
         "dt": cfg.dt,
         "seed": cfg.seed,
         "noise": cfg.noise,
-        "map": house.name,
+        "map": sim.house.name,
         "camera": sim.info().get("camera", {}),
         "robot_radius": sim_cfg.robot_radius,
         "collect_config": {k: v for k, v in vars(cfg).items() if k != "progress"},
     }
-    save_dataset(cfg.out, FrameData(images, commands, poses, episodes, meta))
-    summary = {
+    save_dataset(cfg.out, FrameData(rec.images, rec.commands, rec.poses, rec.episodes, meta))
+    return {
         "out": cfg.out,
         "frames": n,
-        "episodes": ep,
-        "collisions": collisions,
-        "commands": kinds,
-        "rooms": rooms,
+        "episodes": rec.n_episodes,
+        "collisions": rec.collisions,
+        "commands": rec.kinds,
+        "rooms": rec.rooms,
     }
-    return summary
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -180,6 +224,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--image-size", type=int, default=128, help="camera width = height (default 128)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    houses = parser.add_argument_group("across procedural houses (a sharded dataset folder as --out)")
+    houses.add_argument(
+        "--houses", type=int, default=0, help="record houses random:0 .. random:N-1 (default: off)"
+    )
+    houses.add_argument(
+        "--house-seeds", default=None, metavar="A:B", help="record houses random:A .. random:B-1"
+    )
+    houses.add_argument(
+        "--frames-per-house",
+        type=int,
+        default=0,
+        help="frames per house (default: --frames / number of houses)",
+    )
+    houses.add_argument(
+        "--workers", type=int, default=0, help="worker processes (default 0: one per CPU core)"
+    )
     from vtr.training import collect_robot
 
     collect_robot.add_arguments(parser)
@@ -191,6 +251,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run_cli(args: argparse.Namespace) -> int:
     import json
 
+    if args.houses or args.house_seeds:
+        from vtr.training.collect_houses import main_houses
+
+        try:
+            return main_houses(args)
+        except ValueError as err:
+            print(f"vtr collect: {err}", file=sys.stderr)
+            return 2
     if args.sim is not None:  # a protocol robot instead of the in-process simulator
         from vtr.training import collect_robot
 

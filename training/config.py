@@ -52,6 +52,7 @@ class CollectConfig:
     w_max: float = W_MAX  # rad/s
     reverse_fraction: float = 0.1  # share of translation segments driven backwards
     progress: bool = True  # show a tqdm progress bar
+    mix: str = "paper"  # command mix, a key of training.collect.MIXES ("paper" or "repeat")
 
     def __post_init__(self) -> None:
         _check_positive(self, "frames", "dt", "image_size", "episode_min", "episode_max", "segment_min")
@@ -66,6 +67,8 @@ class CollectConfig:
             raise ValueError(f"CollectConfig.noise must be >= 0, got {self.noise!r}")
         if self.lookahead < 0:
             raise ValueError(f"CollectConfig.lookahead must be >= 0, got {self.lookahead!r}")
+        if self.mix not in ("paper", "repeat"):
+            raise ValueError(f"CollectConfig.mix must be 'paper' or 'repeat', got {self.mix!r}")
         if not 0 <= self.reverse_fraction <= 1:
             raise ValueError(
                 f"CollectConfig.reverse_fraction must be in [0, 1], got {self.reverse_fraction!r}"

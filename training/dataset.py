@@ -65,8 +65,15 @@ def save_dataset(path: str | os.PathLike, data: FrameData) -> None:
 
 
 def load_dataset(path: str | os.PathLike, image_size: int | None = None) -> FrameData:
-    """Load and validate; raises DatasetError with a readable message on any problem."""
+    """Load and validate; raises DatasetError with a readable message on any problem.
+
+    A folder with an index.json is a sharded dataset (training.shards, from `vtr collect --houses`): it
+    opens memory-mapped, its images a lazy array, with per-frame ``houses`` ids."""
     path = Path(path)
+    if path.is_dir() and (path / "index.json").is_file():
+        from vtr.training.shards import load_sharded  # imports this module: import here, not at the top
+
+        return load_sharded(path, image_size=image_size)
     if not path.is_file():
         raise DatasetError(f"dataset {path} does not exist; record one with `vtr collect --out {path}`")
     try:

@@ -40,6 +40,7 @@ from vtr.training.dataset import FrameData, load_dataset
 from vtr.training.distributed import Dist, barrier, setup_dist
 from vtr.training.losses import mpc_loss, viewnet_loss
 from vtr.training.models import VelocityNet, ViewNet
+from vtr.training.transfer import init_weights
 from vtr.training.windows import Windows
 
 __all__ = ["CHECKPOINT", "METRICS", "MODEL", "REPORT", "train_velocitynet", "train_viewnet"]
@@ -209,10 +210,12 @@ def train_viewnet(
     cfg: TrainConfig,
     resume: bool = False,
     data: FrameData | None = None,
+    init: str | os.PathLike | None = None,
 ) -> dict[str, Any]:
     """Train ViewNet on forward and reversed pairs; returns the offline quality report.
 
-    ``data``: the dataset at ``data_path`` already loaded (``vtr train all`` loads it once)."""
+    ``data``: the dataset at ``data_path`` already loaded (``vtr train all`` loads it once).
+    ``init``: start from the weights of this ViewNet checkpoint (fine-tuning, training.transfer)."""
     from vtr.training.report import viewnet_report
 
     out = Path(out)
@@ -222,6 +225,8 @@ def train_viewnet(
     windows = Windows(data, 2, cfg, dist)
     extra = {"data": str(data_path), "data_meta": data.meta, "val_episodes": windows.val_ids.tolist()}
     model = ViewNet(model_cfg)
+    if init is not None:
+        extra.update(init_weights(model, "viewnet", model_cfg, init))
 
     def loss_fn(net: nn.Module, frames: torch.Tensor, commands: torch.Tensor):
         loss = viewnet_loss(net, frames, commands[:, 0])
@@ -247,10 +252,12 @@ def train_velocitynet(
     cfg: TrainConfig,
     resume: bool = False,
     data: FrameData | None = None,
+    init: str | os.PathLike | None = None,
 ) -> dict[str, Any]:
     """Train VelocityNet with the offline MPC loss through a frozen ViewNet; returns the quality report.
 
-    ``data``: the dataset at ``data_path`` already loaded (``vtr train all`` loads it once)."""
+    ``data``: the dataset at ``data_path`` already loaded (``vtr train all`` loads it once).
+    ``init``: start from the weights of this VelocityNet checkpoint (fine-tuning, training.transfer)."""
     from vtr.training.report import velocitynet_report
 
     out = Path(out)
@@ -279,6 +286,8 @@ def train_velocitynet(
         "preprocessing": PREPROCESSING,
     }
     model = VelocityNet(model_cfg)
+    if init is not None:
+        extra.update(init_weights(model, "velocitynet", model_cfg, init))
 
     def loss_fn(net: nn.Module, frames: torch.Tensor, commands: torch.Tensor):
         loss, parts = mpc_loss(net, viewnet, frames, commands, loss_cfg)

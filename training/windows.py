@@ -11,8 +11,9 @@ import torch
 
 from vtr.runtime.preprocess import PREPROCESSING
 from vtr.training.config import TrainConfig
-from vtr.training.dataset import DatasetError, FrameData, split_episodes, window_starts
+from vtr.training.dataset import DatasetError, FrameData, window_starts
 from vtr.training.distributed import Dist
+from vtr.training.transfer import split_for
 
 _SCALE = np.float32(1.0 / 255.0)
 
@@ -31,7 +32,7 @@ class Windows:
 
     def __init__(self, data: FrameData, length: int, cfg: TrainConfig, dist: Dist) -> None:
         self.length = length
-        train_ids, self.val_ids = split_episodes(data.episodes, cfg.val_fraction, cfg.seed)
+        train_ids, self.val_ids = split_for(data, cfg)  # whole houses held out when there are several
         self.train_starts = window_starts(data.episodes, length, train_ids)
         self.val_starts = window_starts(data.episodes, length, self.val_ids)
         if len(self.train_starts) == 0 or len(self.val_starts) == 0:
@@ -49,7 +50,10 @@ class Windows:
         self.device = dist.device
         self.on_device = on_device
         target = dist.device if on_device else torch.device("cpu")
-        self.images = torch.from_numpy(data.images).to(target)  # (T, H, W, 3) uint8
+        if isinstance(data.images, np.ndarray):
+            self.images = torch.from_numpy(data.images).to(target)  # (T, H, W, 3) uint8
+        else:  # a sharded dataset (training.shards): frames are gathered per batch from memory maps
+            self.images = data.images
         self.commands = torch.from_numpy(data.commands.astype(np.float32)).to(target)  # (T, 2)
         self.pin = not on_device and dist.device.type == "cuda"
         self.mean_command = data.commands[self.train_starts].mean(axis=0).astype(np.float32)
@@ -57,6 +61,9 @@ class Windows:
     def gather_raw(self, starts: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
         """Window starts (B,) -> uint8 frames (B, L, H, W, 3) and commands (B, L-1, 2), where the data lives."""
         idx = torch.as_tensor(starts, dtype=torch.long)[:, None] + torch.arange(self.length)  # (B, L)
+        if not isinstance(self.images, torch.Tensor):
+            frames = torch.from_numpy(self.images[idx.numpy()])
+            return frames, self.commands[idx[:, :-1].to(self.commands.device)]
         idx = idx.to(self.images.device)
         return self.images[idx], self.commands[idx[:, :-1]]
 

@@ -1,0 +1,197 @@
+"""`vtr collect --houses N`: record across procedural houses, in parallel worker processes, into shards.
+
+    vtr collect --houses 40 --frames-per-house 2000 --out data/houses --workers 2
+    vtr collect --house-seeds 100:110 --out data/heldout
+
+Each house (``random:SEED``, sim2d.procedural) is one task: a worker builds the simulator, drives the
+"repeat" command mix (training.collect.MIXES) through every room and writes the frames straight into
+memory-mapped shard files (training.shards), so neither a worker nor the parent holds the dataset.
+The parent shows progress over all workers and rewrites the index after each finished house.
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing as mp
+import os
+import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from vtr.training.config import CollectConfig
+
+_progress: Any = None  # a shared frame counter, set in each worker by _init_worker
+
+
+def parse_seed_range(text: str) -> list[int]:
+    """``A:B`` -> seeds A..B-1 (``A`` alone: one seed); ValueError with a one-line message otherwise."""
+    a, sep, b = text.partition(":")
+    try:
+        lo, hi = int(a), (int(b) if sep else int(a) + 1)
+    except ValueError:
+        raise ValueError(f"--house-seeds: expected A:B (integers, A < B), got {text!r}") from None
+    if lo < 0 or hi <= lo:
+        raise ValueError(f"--house-seeds: expected 0 <= A < B, got {text!r}")
+    return list(range(lo, hi))
+
+
+@dataclass(frozen=True)
+class HousesConfig:
+    """What `vtr collect --houses` records."""
+
+    out: str = "data/houses"  # dataset folder (index.json + .npy shards)
+    seeds: tuple[int, ...] = tuple(range(20))  # procedural house seeds
+    frames_per_house: int = 2000
+    workers: int = 0  # worker processes; 0 = the number of CPU cores
+    collect: CollectConfig = field(default_factory=lambda: CollectConfig(mix="repeat", reverse_fraction=0.2))
+
+    def __post_init__(self) -> None:
+        if not self.seeds:
+            raise ValueError("HousesConfig.seeds: at least one house is needed")
+        if self.frames_per_house < 2:
+            raise ValueError(f"HousesConfig.frames_per_house must be >= 2, got {self.frames_per_house}")
+        if self.workers < 0:
+            raise ValueError(f"HousesConfig.workers must be >= 0, got {self.workers}")
+
+
+def _init_worker(counter: Any) -> None:
+    global _progress
+    _progress = counter
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
+
+
+def _tick() -> None:
+    if _progress is not None:
+        with _progress.get_lock():
+            _progress.value += 1
+
+
+def record_house(out: str, seed: int, frames: int, cfg: CollectConfig) -> dict[str, Any]:
+    """Record one house into shard files named after it; returns its index entries and tallies."""
+    from vtr.runtime.atomic import atomic_path
+    from vtr.sim2d import CameraConfig, SimConfig, Simulator
+    from vtr.training.collect import Recording, drive
+    from vtr.training.shards import MAX_SHARD_FRAMES, shard_paths
+
+    house = f"random:{seed}"
+    sim = Simulator(
+        SimConfig(
+            house=house, camera=CameraConfig(width=cfg.image_size, height=cfg.image_size), noise=cfg.noise
+        )
+    )
+    entries, tallies = [], {"collisions": 0, "commands": {}}
+    done, part = 0, 0
+    while done < frames:
+        n = min(MAX_SHARD_FRAMES, frames - done)
+        name = f"house_{seed:07d}_{part}"
+        paths = shard_paths(Path(out), name)
+        shapes = {
+            "images": ((n, cfg.image_size, cfg.image_size, 3), np.uint8),
+            "commands": ((n, 2), np.float32),
+            "poses": ((n, 3), np.float32),
+            "episodes": ((n,), np.int32),
+        }
+        # Frames go straight to disk through memory maps at temporary paths, renamed when complete.
+        with (
+            atomic_path(paths["images"]) as ti,
+            atomic_path(paths["commands"]) as tc,
+            atomic_path(paths["poses"]) as tp,
+            atomic_path(paths["episodes"]) as te,
+        ):
+            tmp = {"images": ti, "commands": tc, "poses": tp, "episodes": te}
+            arrays = {
+                k: np.lib.format.open_memmap(tmp[k], mode="w+", dtype=d, shape=s)
+                for k, (s, d) in shapes.items()
+            }
+            rec = Recording(arrays["images"], arrays["commands"], arrays["poses"], arrays["episodes"])
+            part_cfg = replace(cfg, seed=cfg.seed * 7919 + seed * 31 + part)
+            drive(sim, part_cfg, np.random.default_rng([cfg.seed, seed, part]), rec, on_frame=_tick)
+            for a in arrays.values():
+                a.flush()
+            n_episodes, collisions, kinds = rec.n_episodes, rec.collisions, rec.kinds
+            del arrays, rec  # close the memory maps before the files are renamed
+        entries.append({"name": name, "frames": n, "episodes": int(n_episodes), "house": house})
+        tallies["collisions"] += collisions
+        for k, v in kinds.items():
+            tallies["commands"][k] = tallies["commands"].get(k, 0) + v
+        done += n
+        part += 1
+    return {"seed": seed, "entries": entries, **tallies}
+
+
+def run_houses(cfg: HousesConfig, progress: bool = True) -> dict[str, Any]:
+    """Record every house of `cfg` with a pool of workers; returns a summary (frames/s included)."""
+    from tqdm import tqdm
+
+    from vtr.training.shards import write_index
+
+    out = Path(cfg.out)
+    out.mkdir(parents=True, exist_ok=True)
+    workers = cfg.workers or os.cpu_count() or 1
+    ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+    counter = ctx.Value("q", 0)
+    total = cfg.frames_per_house * len(cfg.seeds)
+    meta = {
+        "source": "vtr collect --houses",
+        "house_seeds": list(cfg.seeds),
+        "frames_per_house": cfg.frames_per_house,
+        "noise": cfg.collect.noise,
+        "seed": cfg.collect.seed,
+        "collect_config": {k: v for k, v in asdict(cfg.collect).items() if k not in ("progress", "out")},
+    }
+    entries: dict[int, list] = {}
+    summary: dict[str, Any] = {"out": str(out), "houses": len(cfg.seeds), "frames": total, "workers": workers}
+    collisions, commands = 0, {}
+    bar = tqdm(total=total, desc=f"collect {len(cfg.seeds)} houses", disable=not progress, dynamic_ncols=True)
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(
+        max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=(counter,)
+    ) as pool:
+        pending = {
+            pool.submit(record_house, str(out), s, cfg.frames_per_house, cfg.collect) for s in cfg.seeds
+        }
+        while pending:
+            finished, pending = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
+            bar.update(counter.value - bar.n)
+            for fut in finished:
+                res = fut.result()  # a worker's exception surfaces here
+                entries[res["seed"]] = res["entries"]
+                collisions += res["collisions"]
+                for k, v in res["commands"].items():
+                    commands[k] = commands.get(k, 0) + v
+                shards = [e for s in cfg.seeds if s in entries for e in entries[s]]
+                write_index(out, cfg.collect.image_size, cfg.collect.dt, meta, shards)
+    bar.update(counter.value - bar.n)
+    bar.close()
+    elapsed = time.perf_counter() - t0
+    summary.update(
+        seconds=round(elapsed, 2),
+        frames_per_s=round(total / elapsed, 1),
+        collisions=collisions,
+        commands=commands,
+        episodes=sum(e["episodes"] for es in entries.values() for e in es),
+    )
+    return summary
+
+
+def main_houses(args: Any) -> int:
+    seeds = parse_seed_range(args.house_seeds) if args.house_seeds else list(range(args.houses))
+    collect = CollectConfig(
+        out=args.out,
+        seed=args.seed,
+        noise=args.noise,
+        image_size=args.image_size,
+        mix="repeat",
+        reverse_fraction=0.2,
+    )
+    per_house = args.frames_per_house or max(2, args.frames // len(seeds))
+    cfg = HousesConfig(
+        out=args.out, seeds=tuple(seeds), frames_per_house=per_house, workers=args.workers, collect=collect
+    )
+    print(json.dumps(run_houses(cfg, progress=not args.no_progress), indent=2))
+    return 0
