@@ -22,6 +22,9 @@ from vtr.runtime import protocol
 from vtr.runtime.contracts import CONTROL_DT, Observation
 
 SESSION = "bench"
+#: Subgoals on the benchmark's route. One would do for a controller that looks at one subgoal per step; a
+#: route of this length makes one that also scans the subgoals ahead (a lost or stall check) pay for it.
+ROUTE_LENGTH = 30
 
 
 class LoopbackRobot:
@@ -79,7 +82,8 @@ class BenchStep:
     """``Repeater.step`` on a ``LoopbackRobot`` showing ``current`` while steering to ``subgoal``.
 
     The controller never switches (fixed e_m below any error, no stall guard, no settling): every step
-    commands, the worst case. The zero command after each step is sent, as the daemon does by default
+    commands, the worst case. The route is ``ROUTE_LENGTH`` copies of ``subgoal``; the robot stays at
+    its first. The zero command after each step is sent, as the daemon does by default
     (stop-and-go); ``continuous=True`` leaves it out (`vtr repeat --continuous`).
     """
 
@@ -101,9 +105,9 @@ class BenchStep:
         self.policy = OnnxPolicy(model, threads=threads)
         self.robot = LoopbackRobot(current)
         route = Route(
-            images=np.ascontiguousarray(subgoal[None]),
-            poses=np.zeros((1, 3)),
-            commands=np.zeros((1, 2)),
+            images=np.ascontiguousarray(np.broadcast_to(subgoal, (ROUTE_LENGTH, *subgoal.shape))),
+            poses=np.zeros((ROUTE_LENGTH, 3)),
+            commands=np.zeros((ROUTE_LENGTH, 2)),
             name="bench",
             dt=self.policy.meta.dt,
         )

@@ -24,16 +24,20 @@ from typing import Any
 import numpy as np
 
 from vtr.runtime import contracts as _contracts
+from vtr.runtime.request_fast import RequestTemplates
 from vtr.runtime.wire_json import (  # noqa: F401  (re-exported)
     MAX_DEPTH,
     MAX_HEADER_BYTES,
     MAX_INT,
+    MAX_SESSION_CHARS,
     BadFrameError,
     ProtocolError,
     integer,
     jsonable,
     number,
     parse_json,
+    pose_field,
+    session_field,
 )
 from vtr.runtime.wire_json import show as _show
 
@@ -53,8 +57,6 @@ MAX_DURATION = 10.0
 MAX_MESSAGE_BYTES = 4 * 1024 * 1024
 #: Largest image side accepted in a reply.
 MAX_IMAGE_SIDE = 4096
-#: Longest session token.
-MAX_SESSION_CHARS = 64
 #: Error codes an error reply may carry in ``code``.
 ERROR_CODES = ("bad_request", "session_mismatch", "robot_error")
 
@@ -111,12 +113,15 @@ class Reply:
 def _parse_header(frames: Any, max_message_bytes: int, err: type[ProtocolError]) -> dict[str, Any]:
     if not isinstance(frames, list | tuple) or not frames:
         raise err("empty message: expected a JSON header frame")
-    if not all(isinstance(f, bytes | bytearray | memoryview) for f in frames):
-        raise err("every frame must be bytes")
-    total = sum(len(f) for f in frames)
+    total = 0
+    for frame in frames:  # a plain loop: this runs twice per control step
+        if not isinstance(frame, bytes | bytearray | memoryview):
+            raise err("every frame must be bytes")
+        total += len(frame)
     if total > max_message_bytes:
         raise err(f"message of {total} bytes exceeds the limit of {max_message_bytes} bytes")
-    header = parse_json(bytes(frames[0]), err)
+    first = frames[0]
+    header = parse_json(first if type(first) is bytes else bytes(first), err)
     if not isinstance(header, dict):
         raise err(f"header must be a JSON object, got {type(header).__name__}")
     if header.get("proto") != PROTO:
@@ -127,23 +132,6 @@ def _parse_header(frames: Any, max_message_bytes: int, err: type[ProtocolError])
             f"unsupported protocol version {_show(version)}, this side speaks version {VERSION} (an integer)"
         )
     return header
-
-
-def _session(obj: dict[str, Any], err: type[ProtocolError], required: bool) -> str | None:
-    value = obj.get("session")
-    if value is None and not required:
-        return None
-    if not isinstance(value, str) or not 0 < len(value) <= MAX_SESSION_CHARS:
-        raise err(
-            f"field 'session' must be a string of 1..{MAX_SESSION_CHARS} characters, got {_show(value)}"
-        )
-    return value
-
-
-def _pose(value: Any, err: type[ProtocolError], key: str = "pose") -> tuple[float, float, float]:
-    if not isinstance(value, dict):
-        raise err(f"field {key!r} must be an object {{'x', 'y', 'yaw'}}, got {_show(value)}")
-    return tuple(number(value, k, err, where=f"{key}.") for k in ("x", "y", "yaw"))  # type: ignore[return-value]
 
 
 def pose_dict(pose: Any) -> dict[str, float] | None:
@@ -164,6 +152,8 @@ def _header_bytes(header: dict[str, Any]) -> bytes:
 
 # --------------------------------------------------------------------------------------------- requests
 
+_TEMPLATES = RequestTemplates(PROTO, VERSION, MAX_SESSION_CHARS)
+
 
 def encode_request(
     cmd: str, seq: int, stamp: float | None = None, limits: Limits | None = None, **fields: Any
@@ -175,6 +165,16 @@ def encode_request(
     """
     if cmd not in COMMANDS:
         raise ProtocolError(f"unknown command {cmd!r}; known: {', '.join(COMMANDS)}")
+    fast = _TEMPLATES.header(cmd, seq, stamp, limits, fields)
+    if fast is not None:  # what decode_request accepts, checked on the values (no JSON round trip)
+        return [fast]
+    return encode_request_checked(cmd, seq, stamp, limits, fields)
+
+
+def encode_request_checked(
+    cmd: str, seq: int, stamp: float | None, limits: Limits | None, fields: dict[str, Any]
+) -> list[bytes]:
+    """The general path of :func:`encode_request`: ``json.dumps``, then ``decode_request`` of the result."""
     header: dict[str, Any] = {"proto": PROTO, "version": VERSION, "cmd": cmd, "seq": int(seq)}
     if stamp is not None:
         header["stamp"] = stamp
@@ -206,11 +206,11 @@ def decode_request(
     if seq < 0:
         raise ProtocolError(f"field 'seq' must be >= 0, got {seq}")
     stamp = number(header, "stamp") if header.get("stamp") is not None else None
-    session = _session(header, ProtocolError, required=False)
+    session = session_field(header, ProtocolError, required=False)
     fields: dict[str, Any] = {}
     if cmd == "reset":
         if header.get("pose") is not None:
-            fields["pose"] = _pose(header["pose"], ProtocolError)
+            fields["pose"] = pose_field(header["pose"], ProtocolError)
         if header.get("seed") is not None:
             seed = integer(header, "seed")
             if seed < 0:
@@ -348,7 +348,7 @@ def decode_reply(
             ok=False,
             header=header,
             stamp=stamp,
-            session=_session(header, err, required=False),
+            session=session_field(header, err, required=False),
             error=error[:2000],
             code=code if isinstance(code, str) else None,
         )
@@ -358,7 +358,7 @@ def decode_reply(
         raise err(f"reply has seq {_show(seq)}, expected {expect_seq} (stale or out of order)")
     if cmd is None or seq is None:
         raise err("an ok reply must echo the request's 'cmd' and 'seq'")
-    session = _session(header, err, required=True)
+    session = session_field(header, err, required=True)
     stamp = number(header, "stamp", err)
     if cmd not in IMAGE_COMMANDS:
         if len(frames) != 1:
@@ -378,7 +378,7 @@ def decode_reply(
         kind = "truncated" if len(payload) < expected else "oversized"
         raise err(f"{kind} pixel frame: {len(payload)} bytes, expected {height}*{width}*3={expected}")
     image = np.frombuffer(payload, dtype=np.uint8).reshape(height, width, 3)
-    pose = None if header.get("pose") is None else _pose(header["pose"], err)
+    pose = None if header.get("pose") is None else pose_field(header["pose"], err)
     collided = header.get("collided", False)
     if not isinstance(collided, bool):
         raise err(f"reply field 'collided' must be a bool, got {_show(collided)}")

@@ -20,6 +20,8 @@ MAX_DEPTH = 16
 MAX_INT = 2**53
 #: Any number on the wire has |x| <= MAX_ABS_NUMBER.
 MAX_ABS_NUMBER = 1e15
+#: Longest session token.
+MAX_SESSION_CHARS = 64
 
 
 class ProtocolError(ValueError):
@@ -34,51 +36,53 @@ _STRING = re.compile(rb'"(?:[^"\\]|\\.)*"')
 _NOT_BRACKET = re.compile(rb"[^\[\]{}]")
 
 
-def _depth(raw: bytes) -> int:
-    """Deepest nesting of objects/arrays in a JSON text, brackets inside strings ignored."""
-    depth = deepest = 0
+def _too_deep(raw: bytes) -> bool:
+    """Whether a JSON text nests objects/arrays deeper than MAX_DEPTH, brackets inside strings ignored."""
+    if raw.count(b"{") + raw.count(b"[") <= MAX_DEPTH:  # no deeper than its opening brackets: done
+        return False  # (every header of this protocol: the scan below is for hostile ones)
+    depth = 0
     for ch in _NOT_BRACKET.sub(b"", _STRING.sub(b"", raw)):
         depth += 1 if ch in b"[{" else -1
-        if depth > deepest:
-            deepest = depth
-            if deepest > MAX_DEPTH:
-                break
-    return deepest
+        if depth > MAX_DEPTH:
+            return True
+    return False
 
 
 def _parse_int(text: str) -> int:
-    # Checked on the digits before int(): a 400-digit integer never becomes a Python int.
-    if len(text.lstrip("-")) > 16 or abs(int(text)) > MAX_INT:
-        raise ValueError(
-            f"integer {text[:24]}{'...' if len(text) > 24 else ''} is out of range (|n| <= 2**53)"
-        )
-    return int(text)
+    # The length is checked before int(): a 400-digit integer never becomes a Python int.
+    if len(text) <= 17:  # "-" and 16 digits; 2**53 has 16
+        value = int(text)
+        if -MAX_INT <= value <= MAX_INT:
+            return value
+    raise ValueError(f"integer {text[:24]}{'...' if len(text) > 24 else ''} is out of range (|n| <= 2**53)")
 
 
 def _parse_float(text: str) -> float:
     value = float(text)
-    if not math.isfinite(value) or abs(value) > MAX_ABS_NUMBER:
-        raise ValueError(f"number {text[:24]} is out of range (|x| <= {MAX_ABS_NUMBER:g})")
-    return value
+    if -MAX_ABS_NUMBER <= value <= MAX_ABS_NUMBER:  # NaN and +-inf fail the comparison
+        return value
+    raise ValueError(f"number {text[:24]} is out of range (|x| <= {MAX_ABS_NUMBER:g})")
 
 
 def _reject_constant(token: str) -> float:
     raise ValueError(f"non-finite number {token} in JSON")
 
 
+#: One decoder for every header (json.loads with hooks would build a new one per call).
+_DECODER = json.JSONDecoder(parse_int=_parse_int, parse_float=_parse_float, parse_constant=_reject_constant)
+
+
 def parse_json(raw: bytes, err: type[ProtocolError] = ProtocolError) -> Any:
     """Bytes -> a JSON value with bounded depth and numbers; anything else raises ``err``."""
     if len(raw) > MAX_HEADER_BYTES:
         raise err(f"header frame of {len(raw)} bytes exceeds the limit of {MAX_HEADER_BYTES} bytes")
-    if _depth(raw) > MAX_DEPTH:
+    if _too_deep(raw):
         raise err(f"JSON header nested deeper than {MAX_DEPTH} levels")
     try:
-        return json.loads(
-            raw.decode("utf-8"),
-            parse_int=_parse_int,
-            parse_float=_parse_float,
-            parse_constant=_reject_constant,
-        )
+        text = raw.decode("utf-8")
+        if text.startswith("\ufeff"):  # as json.loads: a byte-order mark is not JSON
+            raise ValueError("Unexpected UTF-8 BOM (decode using utf-8-sig)")
+        return _DECODER.decode(text)
     except (UnicodeDecodeError, ValueError, RecursionError) as exc:  # JSONDecodeError is a ValueError
         raise err(f"malformed JSON header: {exc}") from None
 
@@ -113,6 +117,23 @@ def integer(obj: dict[str, Any], key: str, err: type[ProtocolError] = ProtocolEr
     return value
 
 
+def session_field(obj: dict[str, Any], err: type[ProtocolError], required: bool) -> str | None:
+    """``obj["session"]``: a string of 1..MAX_SESSION_CHARS characters (None when absent and not required)."""
+    value = obj.get("session")
+    if value is None and not required:
+        return None
+    if not isinstance(value, str) or not 0 < len(value) <= MAX_SESSION_CHARS:
+        raise err(f"field 'session' must be a string of 1..{MAX_SESSION_CHARS} characters, got {show(value)}")
+    return value
+
+
+def pose_field(value: Any, err: type[ProtocolError], key: str = "pose") -> tuple[float, float, float]:
+    """A pose object ``{"x", "y", "yaw"}`` as a tuple of bounded numbers."""
+    if not isinstance(value, dict):
+        raise err(f"field {key!r} must be an object {{'x', 'y', 'yaw'}}, got {show(value)}")
+    return tuple(number(value, k, err, where=f"{key}.") for k in ("x", "y", "yaw"))  # type: ignore[return-value]
+
+
 def jsonable(value: Any) -> Any:
     """The simulator's info() as plain JSON (dataclasses/tuples/numpy scalars flattened, NaN -> None)."""
 
@@ -140,11 +161,14 @@ __all__ = [
     "MAX_DEPTH",
     "MAX_HEADER_BYTES",
     "MAX_INT",
+    "MAX_SESSION_CHARS",
     "BadFrameError",
     "ProtocolError",
     "integer",
     "jsonable",
     "number",
     "parse_json",
+    "pose_field",
+    "session_field",
     "show",
 ]

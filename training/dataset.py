@@ -24,6 +24,7 @@ import numpy as np
 
 from vtr.runtime.atomic import atomic_path
 from vtr.runtime.contracts import CONTROL_DT
+from vtr.runtime.npz_guard import NpzTooLargeError, np_load_checked
 
 FORMAT_VERSION = 1
 _KEYS = ("images", "commands", "poses", "episodes", "meta")
@@ -50,11 +51,13 @@ class FrameData:
 
 
 def save_dataset(path: str | os.PathLike, data: FrameData) -> None:
-    """Write atomically: a temporary file in the same folder, then os.replace."""
+    """Write atomically: a temporary file in the same folder, then os.replace. Uncompressed, as routes are:
+    loading refuses an archive whose arrays exceed 4x its size (runtime.npz_guard), and compressed frames
+    would pass that bound only by luck."""
     validate(data, source=str(path))
     meta = dict(data.meta, format_version=FORMAT_VERSION)
     with atomic_path(path) as tmp, open(tmp, "wb") as f:
-        np.savez_compressed(
+        np.savez(
             f,
             images=data.images,
             commands=data.commands.astype(np.float32),
@@ -77,13 +80,20 @@ def load_dataset(path: str | os.PathLike, image_size: int | None = None) -> Fram
     if not path.is_file():
         raise DatasetError(f"dataset {path} does not exist; record one with `vtr collect --out {path}`")
     try:
-        with np.load(path, allow_pickle=False) as z:
+        with np_load_checked(path) as z:  # no pickles, and at most 4x the file's size in memory
             missing = [k for k in _KEYS if k not in z.files]
             if missing:
                 raise DatasetError(f"dataset {path} lacks arrays {missing}; is it a `vtr collect` file?")
             arrays = {k: z[k] for k in _KEYS}
     except DatasetError:
         raise
+    except NpzTooLargeError as err:
+        why = str(err).removeprefix(f"{path}: ")
+        if "not an .npz archive" in why:
+            raise DatasetError(
+                f"dataset {path} is corrupt or not a .npz file ({why}); record one with `vtr collect`"
+            ) from None
+        raise DatasetError(f"dataset {path} refused: {why}") from None
     except (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError) as err:
         why = "not a NumPy .npz archive" if "pickle" in str(err) else f"{type(err).__name__}: {err}"
         raise DatasetError(

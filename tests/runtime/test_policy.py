@@ -89,3 +89,17 @@ def test_a_model_file_past_the_size_cap_is_refused_before_onnxruntime_reads_it(t
     big.write_bytes(bytes(4096))
     with pytest.raises(ModelMismatchError, match="larger than"):
         OnnxPolicy(big, max_bytes=1024)
+
+
+def test_postprocess_zeroes_exactly_the_outputs_with_a_non_finite_value(tmp_path):
+    policy = OnnxPolicy(build_velocitynet_onnx(str(tmp_path / "m.onnx")))
+    big = np.float32(3e38)  # finite, but a float32 sum of two would overflow
+    for bad in (np.nan, np.inf, -np.inf):
+        raw = np.zeros((2, policy.meta.horizon), dtype=np.float32)
+        raw[1, -1] = bad
+        assert not policy.postprocess(raw).any()
+    raw = np.full((2, policy.meta.horizon), big, dtype=np.float32)
+    raw[0, 0] = -big
+    out = policy.postprocess(raw)
+    assert out[0, 0] == -policy.meta.v_max and out[1, 0] == policy.meta.w_max
+    assert policy.nonfinite_count == 3

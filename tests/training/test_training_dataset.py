@@ -98,3 +98,24 @@ def test_validation_split_holds_out_whole_episodes() -> None:
     np.testing.assert_array_equal(again[1], val)
     with pytest.raises(DatasetError, match="at least 2 episodes"):
         split_episodes(np.zeros(5, int), 0.2, 0)
+
+
+def test_a_dataset_that_expands_far_beyond_its_size_is_refused_unread(tmp_path: Path) -> None:
+    """A compressed archive of zeros (a zip bomb) is refused from its headers, before np.load allocates."""
+    import resource
+
+    bomb = tmp_path / "bomb.npz"
+    np.savez_compressed(bomb, images=np.zeros((2000, 128, 128, 3), np.uint8))  # ~98 MB of zeros in ~0.1 MB
+    assert bomb.stat().st_size < 2_000_000
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    with pytest.raises(DatasetError, match="refused"):
+        load_dataset(bomb)
+    grown_kb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before
+    assert grown_kb < 50_000  # far less than the 98 MB the arrays would take
+
+
+def test_saved_datasets_load_within_the_expansion_cap(saved: tuple[Path, FrameData]) -> None:
+    from vtr.runtime.npz_guard import MAX_EXPANSION, check_npz
+
+    path, _ = saved
+    assert check_npz(path) <= MAX_EXPANSION * path.stat().st_size
