@@ -64,7 +64,7 @@ class Method:
     side_ramp: bool = True  # with match_light: also even out a left-to-right gain
 
 
-AFTER = ControllerConfig()  # patch matching, per-subgoal thresholds + relative switch, lost, contact stop
+AFTER = ControllerConfig()  # patch matching, one threshold per route, lost and contact stops, turns held
 CONTROLLERS: dict[str, Method] = {
     "paper": Method(ControllerConfig.paper()),  # Algorithm 1: raw error, e_m = 17
     "before": Method(ControllerConfig.before()),  # the previous default: raw error, one e_m per route
@@ -74,6 +74,7 @@ CONTROLLERS: dict[str, Method] = {
     "after_no_side_ramp": Method(AFTER, match_light=True, side_ramp=False),
     "after_raw_matching": Method(replace(AFTER, match=MatchConfig.paper()), match_light=True),
     "after_route_threshold": Method(replace(AFTER, e_m_mode="calibrated", pass_ratio=0.0), match_light=True),
+    "after_per_subgoal": Method(replace(AFTER, e_m_mode="per_subgoal", pass_ratio=1.0), match_light=True),
     "after_no_hold_turns": Method(replace(AFTER, hold_turns=False), match_light=True),
 }
 

@@ -36,6 +36,8 @@ default of the release before the robust rules, kept for comparison):
   times the route's median gap (and LOST_FLOOR) for ``lost_steps`` commands, stop with LOST ("lost at
   subgoal i, best match error X"): the view cannot be matched and driving on is a guess.
 - **Turns in place** (``hold_turns``): where the taught robot turned on the spot, |v| is limited to 0.
+- **Plain routes**: when consecutive taught views differ by under ``PLAIN_ROUTE_GAP`` in patch distance
+  (plain walls and floor: no texture to normalise), the controller uses the raw error (``fallback`` says so).
 - **Contact** (``stop_on_contact``): an image reported with ``collided=True`` ends the repeat (COLLIDED).
 - **Start-anywhere localisation** (``localise``) and **continuous mode** (``continuous``): as before.
 
@@ -47,16 +49,17 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from vtr.runtime.controller_config import ControllerConfig
-from vtr.runtime.matching import Matcher
+from vtr.runtime.matching import MatchConfig, Matcher
 from vtr.runtime.thresholds import (  # noqa: F401 - calibrate_e_m, consecutive_errors: part of this API
     DEFAULT_BOUNDS,
     LOST_FLOOR,
     LOST_WINDOW,
+    PLAIN_ROUTE_GAP,
     calibrate_e_m,
     consecutive_errors,
     gaps_between,
@@ -132,6 +135,18 @@ class Controller:
         self._feats = self.matcher.features(subgoals)
         n = len(subgoals)
         self.gaps = gaps_between(self.matcher, self._feats)
+        #: Set when the route is too plain for patch matching and the raw error is used instead.
+        self.fallback = ""
+        if self.cfg.match.method == "patch" and n > 1 and np.median(self.gaps) < PLAIN_ROUTE_GAP:
+            # Patch normalisation sees texture only: in a room of plain walls and floor consecutive taught
+            # views differ by ~0 and every subgoal would "match". The raw error still sees the motion.
+            self.fallback = (
+                f"patch matching sees no motion along this route (median gap {np.median(self.gaps):.3f})"
+            )
+            self.cfg = replace(self.cfg, match=MatchConfig.paper())
+            self.matcher = Matcher(self.cfg.match)
+            self._feats = self.matcher.features(subgoals)
+            self.gaps = gaps_between(self.matcher, self._feats)
         self.thresholds = thresholds(self.gaps, n, self.cfg)
         self.median_gap = float(np.median(self.gaps)) if n > 1 else float(self.thresholds[0])
         #: A view farther than this from every nearby subgoal is not on the route (see LOST_FLOOR).

@@ -21,6 +21,9 @@ DEFAULT_BOUNDS = {"raw": (1.0, 64.0), "patch": (0.15, 0.8)}
 LOST_FLOOR = {"raw": 0.0, "patch": 0.6}
 #: The lost test searches this many subgoals ahead at least (creeping subgoals are 1 cm apart).
 LOST_WINDOW = 20
+#: Below this median patch distance between consecutive subgoals the route is too plain for patch matching
+#: (our house's routes: 0.37-0.46; a room of plain walls: 0.00-0.004) and the raw error is used.
+PLAIN_ROUTE_GAP = 0.05
 
 
 def gaps_between(matcher: Matcher, feats: np.ndarray) -> np.ndarray:

@@ -183,7 +183,6 @@ def test_the_evaluation_loop_holds_taught_turns_in_place(tmp_path):
     path.write_text(json.dumps(script))
     route, _ = teach(path, (32, 32), 0.1)
     cfg = EvalConfig(model=None, quick=True, workers=1)
-    log = repeat_closed_loop(
-        make_robot(0.0, (32, 32)), Forward(), route, (2.8, 3.0, 0.0), cfg, 0, ControllerConfig()
-    )
+    ccfg = ControllerConfig(e_m_mode="per_subgoal", pass_ratio=1.0)  # switches on while the robot turns
+    log = repeat_closed_loop(make_robot(0.0, (32, 32)), Forward(), route, (2.8, 3.0, 0.0), cfg, 0, ccfg)
     assert log.commands and all(v == 0.0 for v, _ in log.commands[1:])  # subgoal 0 has no taught turn into it

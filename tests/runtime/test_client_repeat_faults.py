@@ -14,7 +14,10 @@ from vtr.runtime.policy import OnnxPolicy
 from vtr.runtime.repeater import RepeatConfig
 from vtr.sim2d.server import ServerThread
 
-NO_STALL = RepeatConfig(controller=ControllerConfig(stall_steps=0), max_steps=12, frame_timeout_s=1.0)
+# no stall guard and no lost test: these runs are about the link, on a route the robot cannot reach
+NO_STALL = RepeatConfig(
+    controller=ControllerConfig(stall_steps=0, lost_steps=0), max_steps=12, frame_timeout_s=1.0
+)
 
 
 def test_a_bad_reply_to_the_zero_command_is_counted_and_the_run_goes_on():
