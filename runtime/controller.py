@@ -15,9 +15,9 @@ default of the release before the robust rules, kept for comparison):
 - **Matching** (``match``): how the image is compared with a subgoal (runtime.matching). The default is
   patch-normalised and median over tiles, so light and a changed region do not move the error; ``raw``
   is the paper's mean absolute pixel error.
-- **Switch threshold** (``e_m_mode``). ``fixed``: ``e_m``. ``calibrated``: one e_m for the route, ``clip(
+- **Switch threshold** (``e_m_mode``). ``fixed``: ``e_m``. ``calibrated`` (default): one e_m for the route, ``clip(
   calib_fraction * quantile(d, calib_quantile), e_m_min, e_m_max)`` with d_k the distance between taught
-  subgoals k and k+1. ``per_subgoal`` (default): subgoal i gets ``calib_fraction * d_{i-1}``, the change
+  subgoals k and k+1. ``per_subgoal``: subgoal i gets ``calib_fraction * d_{i-1}``, the change
   the robot sees when it drives the gap into i, so creeping and fast segments of one route each get their
   own (a route-wide threshold set by many creeping gaps stalled the robot on the fast ones).
 - **Relative switch** (``pass_ratio`` > 0): ADVANCE when subgoal i+1 matches at least as well as i
@@ -41,8 +41,9 @@ default of the release before the robust rules, kept for comparison):
 - **Contact** (``stop_on_contact``): an image reported with ``collided=True`` ends the repeat (COLLIDED).
 - **Start-anywhere localisation** (``localise``) and **continuous mode** (``continuous``): as before.
 
-Chosen on the tuning routes (sim2d/routes): median tiles (evaluation.matching_study), 3/4 of the incoming
-gap, 1 settling command (0, 1, 2: 1.06, 1.41, 1.82 control steps per taught step at 11.5, 8.9, 6.6 mm).
+Chosen on the tuning routes (sim2d/routes): median tiles (evaluation.matching_study), 3/4 of the gap, 1
+settling command (0, 1, 2: 1.06, 1.41, 1.82 control steps per taught step at 11.5, 8.9, 6.6 mm). The
+default threshold is the route's: per subgoal was faster but completed fewer held-out runs (evaluation/README).
 """
 
 from __future__ import annotations

@@ -149,7 +149,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--e-m",
         type=float,
         default=None,
-        help="fixed switch threshold (paper: 17 with --match raw); default: one per subgoal from the route",
+        help="fixed switch threshold (paper: 17 with --match raw); default: calibrated from the route",
     )
     parser.add_argument(
         "--match", choices=("patch", "raw"), default=None,
