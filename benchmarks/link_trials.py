@@ -18,7 +18,10 @@ def run_repeat(client: SimClient, stop_event: threading.Event | None = None, max
     from vtr.runtime.controller import ControllerConfig
     from vtr.runtime.repeater import RepeatConfig, Repeater
 
-    cfg = RepeatConfig(controller=ControllerConfig(stall_steps=0), max_steps=max_steps, frame_timeout_s=2.0)
+    # no stall guard and no lost test: the route is unreachable on purpose, the trial is about the link
+    cfg = RepeatConfig(
+        controller=ControllerConfig(stall_steps=0, lost_steps=0), max_steps=max_steps, frame_timeout_s=2.0
+    )
     return Repeater(client, DrivingPolicy(), unreachable_route(), config=cfg, stop_event=stop_event).run()
 
 
