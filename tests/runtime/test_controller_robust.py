@@ -196,3 +196,29 @@ def test_a_route_too_plain_for_patch_matching_falls_back_to_the_raw_error():
     c = Controller(plain, robust())
     assert c.fallback.startswith("patch matching sees no motion") and c.cfg.match.method == "raw"
     assert c.decide(plain[3]).error == pytest.approx(15.0)
+
+
+def test_paper_is_still_algorithm_1_and_turns_every_extension_off():
+    from vtr.runtime.daemon import controller_from_args
+
+    cfg = ControllerConfig.paper()
+    assert (cfg.match.method, cfg.e_m_mode, cfg.e_m, cfg.pass_ratio, cfg.stall_steps, cfg.settle_steps) == (
+        "raw",
+        "fixed",
+        17.0,
+        0.0,
+        0,
+        0,
+    )
+    assert cfg.lost_steps == 0 and not cfg.stop_on_contact and not cfg.hold_turns and not cfg.localise
+    c = Controller(ROUTE, cfg, np.zeros((len(ROUTE), 2)))
+    d = c.decide(lit(ROUTE[0], 0.6), collided=True)  # darker light, a contact, a taught turn: none matter
+    assert d.action is Action.COMMAND and d.v_limit == np.inf and d.error > 17
+    import argparse
+
+    from vtr.runtime.daemon import add_arguments
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    args = parser.parse_args(["--sim", "tcp://127.0.0.1:1", "--model", "m", "--route", "r", "--paper"])
+    assert controller_from_args(args) == ControllerConfig.paper()
