@@ -265,14 +265,22 @@ def run(cfg: EvalConfig) -> dict[str, Any]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from vtr.evaluation import condition_suite
+
     add_config_arguments(parser, EvalConfig)
     parser.add_argument("--run", type=Path, default=None, help="score a run recorded by `vtr repeat --mcap`")
     parser.add_argument(
         "--taught", type=Path, default=None, help="--run: the taught route (.npz) it repeated"
     )
 
+    condition_suite.add_arguments(parser)
+
 
 def run_cli(args: argparse.Namespace) -> int:
+    if getattr(args, "suite", None) == "conditions":
+        from vtr.evaluation import condition_suite
+
+        return condition_suite.run_cli(args)
     if args.run is not None:  # a run recorded on any robot instead of simulated runs
         from vtr.evaluation.recorded_runs import run_cli as score_recorded_cli
 

@@ -15,7 +15,7 @@ from vtr.runtime.controller import Action
 
 if TYPE_CHECKING:
     from vtr.evaluation.harness import EvalConfig
-    from vtr.runtime.controller import Controller
+    from vtr.runtime.controller import Controller, ControllerConfig
     from vtr.runtime.route import Route
     from vtr.runtime.route_script import RouteScript
     from vtr.sim2d.local_robot import LocalRobot
@@ -35,6 +35,7 @@ class RunLog:
     sim_time: float = 0.0
     collisions: int = 0
     outcome: str = ""
+    detail: str = ""  # how the repeat ended, in words (Summary.detail)
     policy_ms: list[float] = field(default_factory=list)
     e_m: float | None = None
 
@@ -90,8 +91,11 @@ def repeat_closed_loop(
     start: tuple[float, float, float],
     cfg: EvalConfig,
     seed: int,
+    controller_cfg: ControllerConfig | None = None,
 ) -> RunLog:
-    """The runtime's Repeater (Algorithm 1 + controller) on images; poses are kept for scoring only."""
+    """The runtime's Repeater (Algorithm 1 + controller) on images; poses are kept for scoring only.
+
+    ``controller_cfg`` (a ControllerConfig) overrides the one ``cfg`` implies (the condition suite's)."""
     from vtr.runtime.controller import Controller, ControllerConfig
     from vtr.runtime.repeater import RepeatConfig, Repeater, StepRecord
 
@@ -99,8 +103,9 @@ def repeat_closed_loop(
     first = robot.reset(pose=start, seed=seed)
     log.poses.append(first.pose)
     ccfg = ControllerConfig() if cfg.e_m is None else ControllerConfig(e_m_mode="fixed", e_m=cfg.e_m)
+    ccfg = controller_cfg if controller_cfg is not None else ccfg
     rcfg = RepeatConfig(controller=ccfg, dt=cfg.dt, max_steps=int(cfg.max_steps_factor * len(route) + 50))
-    controller = Controller(route.images, ccfg)
+    controller = Controller(route.images, ccfg, route.commands)
     if isinstance(policy, PoseOracle):
         policy.bind(robot, controller, route)
 
@@ -122,6 +127,7 @@ def repeat_closed_loop(
     log.subgoals_reached = summary.subgoals_reached
     log.steps = summary.steps
     log.outcome = summary.status.value
+    log.detail = summary.detail
     log.e_m = summary.e_m
     log.sim_time = float(summary.sim_time_s)
     return log

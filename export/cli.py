@@ -64,7 +64,9 @@ def run(cfg: ExportConfig, data: Any = None) -> dict[str, Any]:
     if cfg.data and data is None:
         data = load_dataset(cfg.data, image_size=model.cfg.image_size)
     if data is not None:
-        real = calibration_pairs(data.images, data.episodes, count=cfg.calibration_pairs, seed=1)
+        real = calibration_pairs(
+            data.images, data.episodes, count=cfg.calibration_pairs, seed=1, preprocessing=meta.preprocessing
+        )
     parity_inputs = [real[0][:16], real[1][:16]] if real is not None else None
     result: dict[str, Any] = {
         "fp32": export_onnx(model, cfg.out, meta, opset=cfg.opset, real_inputs=parity_inputs)
@@ -73,7 +75,9 @@ def run(cfg: ExportConfig, data: Any = None) -> dict[str, Any]:
     if cfg.int8 and data is not None and real is not None:
         q_path = int8_path(cfg.out)
         quantize_int8(cfg.out, q_path, *real)
-        held = calibration_pairs(data.images, data.episodes, count=64, seed=2)  # not the calibration pairs
+        held = calibration_pairs(  # not the calibration pairs
+            data.images, data.episodes, count=64, seed=2, preprocessing=meta.preprocessing
+        )
         result["int8"] = {"path": str(q_path), **compare(cfg.out, q_path, *held)}
     if cfg.viewnet:
         vkind, viewnet, _ = load_model(cfg.viewnet)

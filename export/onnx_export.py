@@ -183,4 +183,5 @@ def velocitynet_meta(cfg: Any, dt: float = CONTROL_DT) -> ModelMeta:
         v_max=cfg.v_max,
         w_max=cfg.w_max,
         dt=dt,
+        preprocessing=getattr(cfg, "preprocessing", PREPROCESSING),
     )

@@ -16,11 +16,16 @@ import numpy as np
 
 from vtr.runtime.atomic import temp_dir
 from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
-from vtr.runtime.preprocess import to_nchw
+from vtr.runtime.preprocess import PREPROCESSING, to_nchw
 
 
 def calibration_pairs(
-    images: np.ndarray, episodes: np.ndarray, count: int = 128, max_gap: int = 4, seed: int = 0
+    images: np.ndarray,
+    episodes: np.ndarray,
+    count: int = 128,
+    max_gap: int = 4,
+    seed: int = 0,
+    preprocessing: str = PREPROCESSING,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(current, subgoal) float32 (count, 3, H, W) each: frame t and frame t+g, 1 <= g <= max_gap, same episode."""
     rng = np.random.default_rng(seed)
@@ -36,7 +41,7 @@ def calibration_pairs(
             sub.append(j)
     if not cur:
         raise ValueError("no calibration pairs: the dataset has no two frames in one episode")
-    return to_nchw(images[cur]), to_nchw(images[sub])
+    return to_nchw(images[cur], preprocessing), to_nchw(images[sub], preprocessing)
 
 
 class FrameReader:

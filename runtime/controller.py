@@ -1,7 +1,6 @@
 """Subgoal switching as a pure state machine: an image in, a decision out. No I/O and no model inside.
 
-The paper's Algorithm 1, exactly, when ``ControllerConfig(e_m_mode="fixed", e_m=17, stall_steps=0,
-settle_steps=0, localise=False, continuous=False)`` (``ControllerConfig.paper()``)::
+The paper's Algorithm 1, exactly, with ``ControllerConfig.paper()``::
 
     while i < l:
         error = mean |I_t - I_i|                  (0..255, at the model's resolution)
@@ -10,36 +9,38 @@ settle_steps=0, localise=False, continuous=False)`` (``ControllerConfig.paper()`
         else:            ADVANCE                  i += 1, and the same image is judged against I_{i+1}
     FINISHED
 
-Beyond the paper, each switchable in :class:`ControllerConfig`:
+Beyond the paper, each switchable in :class:`ControllerConfig` (``ControllerConfig.before()`` is the
+default of the release before the robust rules, kept for comparison):
 
-- **e_m calibrated from the route** (``e_m_mode="calibrated"``, the default). With d_k = mean |I_k -
-  I_{k+1}| the image change between consecutive taught subgoals, ``e_m = clip(calib_fraction *
-  quantile(d, calib_quantile), e_m_min, e_m_max)``. Rationale: a robot standing on subgoal k sees an error
-  of about d_k to subgoal k+1; e_m must sit below it or subgoals are skipped without moving, and well
-  above zero or the robot can never get close enough. Three quarters of the median spacing (the
-  default) asks the robot to close at least a quarter of each gap. Measured with the shipped model on 5
-  routes at noise 0.05: half the spacing stalled on 2 of them (1 degree of yaw already costs an error of
-  about 10 on our textured walls), three quarters completed all 5 with position errors within 2 mm of it. ``e_m_mode="fixed"`` uses ``e_m`` (the paper's 17).
-- **Stall guard** (``stall_steps`` > 0): if the error to the current subgoal has not dropped by
-  ``stall_min_improvement`` below its best value for ``stall_steps`` consecutive commands, look at the
-  next ``lookahead`` subgoals; JUMP to the best-matching one if its error is at most ``jump_factor * e_m``
-  and lower than the current error; else, if the current error itself is at most ``jump_factor * e_m``,
-  ADVANCE (the robot sits on a plateau next to the subgoal: a trained policy has a small dead zone near
-  its goal, and the error is steep in yaw, so 1 degree short can sit just above e_m); else STALLED
-  (terminal: the daemon stops the robot and says why).
-- **Settling** (``settle_steps`` > 0, default 2): once the error is under e_m, keep steering to the same
-  subgoal while the error still falls (by more than ``stall_min_improvement``), for at most
-  ``settle_steps`` extra commands, then ADVANCE. The paper switches the moment the error crosses e_m, so
-  the robot passes every subgoal on the near side of the threshold; settling lets it close the rest of the
-  gap. Measured with the shipped model at noise 0.05: 0, 2 and 4 settle steps give translation mean errors
-  of 12.0, 6.3 and 3.7 mm and translation + rotation 12.2, 4.7 and 3.1 mm, for 1, 1.8 and 2.5 times the
-  control steps.
-- **Start-anywhere localisation** (``localise=True``): on the first image, JUMP to the best-matching
-  subgoal over the whole route if its error is at most ``localise_max_error`` (default ``3 * e_m``), else
-  start at subgoal 0 as the paper does.
-- **Continuous mode** (``continuous=True``): COMMAND decisions carry ``then_stop=False``, so the daemon
-  does not send the zero command between steps and the robot keeps moving while the next command is
-  computed (on a lockstep simulator no time passes between steps, so this changes only what is sent).
+- **Matching** (``match``): how the image is compared with a subgoal (runtime.matching). The default is
+  patch-normalised and median over tiles, so light and a changed region do not move the error; ``raw``
+  is the paper's mean absolute pixel error.
+- **Switch threshold** (``e_m_mode``). ``fixed``: ``e_m``. ``calibrated``: one e_m for the route, ``clip(
+  calib_fraction * quantile(d, calib_quantile), e_m_min, e_m_max)`` with d_k the distance between taught
+  subgoals k and k+1. ``per_subgoal`` (default): subgoal i gets ``calib_fraction * d_{i-1}``, the change
+  the robot sees when it drives the gap into i, so creeping and fast segments of one route each get their
+  own (a route-wide threshold set by many creeping gaps stalled the robot on the fast ones).
+- **Relative switch** (``pass_ratio`` > 0): ADVANCE when subgoal i+1 matches at least as well as i
+  (``d(I, i+1) <= pass_ratio * d(I, i)``, and i+1 under the lost bound, so that two unrelated views
+  cannot pass for a match): the robot is past i, whatever the light does to both errors.
+  It switches early; a robot standing on a taught pose can always switch (threshold, or the plateau).
+- **Settling** (``settle_steps``): once under the threshold, keep steering to the same subgoal while the
+  error still falls, for at most ``settle_steps`` extra commands.
+- **Stall guard** (``stall_steps`` > 0): after ``stall_steps`` commands without progress, JUMP to the best
+  of the next ``lookahead`` subgoals if it is within ``jump_factor`` thresholds and better than the
+  current one; else ADVANCE if the current error is within ``jump_factor`` thresholds (a plateau next to
+  the subgoal) -- but with ``plateau_needs_motion`` only if the view changed since the last plateau
+  acceptance by at least ``motion_fraction`` of a gap, so a robot that does not move never accepts more
+  than one subgoal; else STALLED.
+- **Lost** (``lost_steps`` > 0): when the best match among subgoals i-2 .. i+20 stays above ``lost_factor``
+  times the route's median gap (and LOST_FLOOR) for ``lost_steps`` commands, stop with LOST ("lost at
+  subgoal i, best match error X"): the view cannot be matched and driving on is a guess.
+- **Turns in place** (``hold_turns``): where the taught robot turned on the spot, |v| is limited to 0.
+- **Contact** (``stop_on_contact``): an image reported with ``collided=True`` ends the repeat (COLLIDED).
+- **Start-anywhere localisation** (``localise``) and **continuous mode** (``continuous``): as before.
+
+Chosen on the tuning routes (sim2d/routes): median tiles (evaluation.matching_study), 3/4 of the incoming
+gap, 1 settling command (0, 1, 2: 1.06, 1.41, 1.82 control steps per taught step at 11.5, 8.9, 6.6 mm).
 """
 
 from __future__ import annotations
@@ -50,7 +51,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtr.runtime.preprocess import image_error
+from vtr.runtime.controller_config import ControllerConfig
+from vtr.runtime.matching import Matcher
+from vtr.runtime.thresholds import (  # noqa: F401 - calibrate_e_m, consecutive_errors: part of this API
+    DEFAULT_BOUNDS,
+    LOST_FLOOR,
+    LOST_WINDOW,
+    calibrate_e_m,
+    consecutive_errors,
+    gaps_between,
+    thresholds,
+)
 
 
 class Action(str, enum.Enum):
@@ -59,6 +70,11 @@ class Action(str, enum.Enum):
     JUMP = "jump"  # stall guard or localisation moved the subgoal index (decide again)
     FINISHED = "finished"  # past the last subgoal
     STALLED = "stalled"  # stall guard found nothing close: stop
+    LOST = "lost"  # no subgoal near the current one matches the view: stop
+    COLLIDED = "collided"  # the robot reported a contact: stop
+
+
+TERMINAL = (Action.FINISHED, Action.STALLED, Action.LOST, Action.COLLIDED)
 
 
 @dataclass(frozen=True)
@@ -66,11 +82,13 @@ class Decision:
     action: Action
     #: Subgoal index the decision is about (for COMMAND: the one to steer to; for ADVANCE/JUMP: the new one).
     index: int
-    #: Mean abs pixel error (0..255) of the image to the subgoal it was judged against; NaN when finished.
+    #: Distance (matcher units; 0..255 for raw) of the image to the subgoal it was judged against.
     error: float
     #: COMMAND only: send a zero command after the control step (False in continuous mode).
     then_stop: bool = True
     note: str = ""
+    #: COMMAND only: |v| the robot may drive at (0 during a taught turn in place, see ``hold_turns``).
+    v_limit: float = math.inf
 
 
 #: Decisions the controller takes without moving the robot: it acts on them itself and judges again.
@@ -91,90 +109,13 @@ class Verdict:
     from_index: int
 
 
-@dataclass
-class ControllerConfig:
-    """Subgoal-switching settings (see the module docstring for each rule)."""
-
-    #: "fixed" uses ``e_m``; "calibrated" derives e_m from the route's consecutive-subgoal errors.
-    e_m_mode: str = "calibrated"
-    #: Fixed switch threshold, mean abs pixel difference on 0..255 (the paper's 17).
-    e_m: float = 17.0
-    #: Quantile of the consecutive-subgoal errors used by calibration (0.5 = median).
-    calib_quantile: float = 0.5
-    #: Fraction of that quantile taken as e_m.
-    calib_fraction: float = 0.75
-    #: Lower bound on a calibrated e_m (below it sensor noise alone would stall the robot).
-    e_m_min: float = 1.0
-    #: Upper bound on a calibrated e_m.
-    e_m_max: float = 64.0
-    #: Commands without progress before the stall guard acts; 0 disables it (the paper has none).
-    stall_steps: int = 10
-    #: Progress means the error fell this much (0..255 scale) below its best at the current subgoal.
-    stall_min_improvement: float = 0.25
-    #: How many subgoals ahead the stall guard looks.
-    lookahead: int = 5
-    #: The stall guard jumps only to a subgoal whose error is at most jump_factor * e_m.
-    jump_factor: float = 2.0
-    #: Pick the starting subgoal by best match over the whole route (the paper starts at 0).
-    localise: bool = False
-    #: Localisation confidence floor: best-match error must be at most this; None means 3 * e_m.
-    localise_max_error: float | None = None
-    #: Keep moving between control steps instead of the paper's stop-and-go.
-    continuous: bool = False
-    #: Settling: once under e_m, keep steering to the same subgoal while the error still falls, for at
-    #: most this many extra commands, then advance. 0 switches at once, as the paper does.
-    settle_steps: int = 2
-
-    @classmethod
-    def paper(cls) -> ControllerConfig:
-        """Algorithm 1 exactly: fixed e_m = 17, switch at once, no stall guard."""
-        return cls(e_m_mode="fixed", e_m=17.0, stall_steps=0, settle_steps=0)
-
-    def __post_init__(self) -> None:
-        if self.e_m_mode not in ("fixed", "calibrated"):
-            raise ValueError(f"e_m_mode must be 'fixed' or 'calibrated', got {self.e_m_mode!r}")
-        positive = {
-            "e_m": self.e_m,
-            "calib_fraction": self.calib_fraction,
-            "e_m_min": self.e_m_min,
-            "jump_factor": self.jump_factor,
-        }
-        for name, value in positive.items():
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-        if not 0.0 <= self.calib_quantile <= 1.0:
-            raise ValueError(f"calib_quantile must be in [0, 1], got {self.calib_quantile}")
-        if not self.e_m_max >= self.e_m_min:
-            raise ValueError(f"e_m_max={self.e_m_max} must be >= e_m_min={self.e_m_min}")
-        if self.stall_steps < 0:
-            raise ValueError(f"stall_steps must be >= 0, got {self.stall_steps}")
-        if self.settle_steps < 0:
-            raise ValueError(f"settle_steps must be >= 0, got {self.settle_steps}")
-        if self.stall_min_improvement < 0:
-            raise ValueError(f"stall_min_improvement must be >= 0, got {self.stall_min_improvement}")
-        if self.lookahead < 1:
-            raise ValueError(f"lookahead must be >= 1, got {self.lookahead}")
-        if self.localise_max_error is not None and not self.localise_max_error > 0:
-            raise ValueError(f"localise_max_error must be > 0, got {self.localise_max_error}")
-
-
-def consecutive_errors(images: np.ndarray) -> np.ndarray:
-    """(L-1,) mean abs pixel errors between consecutive subgoals of (L, H, W, 3) uint8 images."""
-    return np.array([image_error(images[k], images[k + 1]) for k in range(len(images) - 1)], dtype=np.float64)
-
-
-def calibrate_e_m(images: np.ndarray, cfg: ControllerConfig) -> float:
-    """e_m from the route itself (rule in the module docstring); the fixed e_m if the route has one image."""
-    d = consecutive_errors(images)
-    if d.size == 0:
-        return cfg.e_m
-    return float(np.clip(cfg.calib_fraction * np.quantile(d, cfg.calib_quantile), cfg.e_m_min, cfg.e_m_max))
-
-
 class Controller:
-    """Decide, image by image, whether to command, advance, jump, finish or give up."""
+    """Decide, image by image, whether to command, advance, jump, finish or stop (stalled, lost, collided)."""
 
-    def __init__(self, subgoals: np.ndarray, cfg: ControllerConfig | None = None) -> None:
+    def __init__(
+        self, subgoals: np.ndarray, cfg: ControllerConfig | None = None, commands: np.ndarray | None = None
+    ) -> None:
+        """``commands``: the taught (v, w) after each subgoal (``Route.commands``), for ``hold_turns``."""
         if (
             subgoals.dtype != np.uint8
             or subgoals.ndim != 4
@@ -185,18 +126,31 @@ class Controller:
                 f"subgoals must be (L, H, W, 3) uint8 with L >= 1, got {subgoals.shape} {subgoals.dtype}"
             )
         self.cfg = cfg or ControllerConfig()
+        self.commands = None if commands is None else np.asarray(commands, dtype=np.float64).reshape(-1, 2)
         self.subgoals = subgoals
-        self.e_m = self.cfg.e_m if self.cfg.e_m_mode == "fixed" else calibrate_e_m(subgoals, self.cfg)
+        self.matcher = Matcher(self.cfg.match)
+        self._feats = self.matcher.features(subgoals)
+        n = len(subgoals)
+        self.gaps = gaps_between(self.matcher, self._feats)
+        self.thresholds = thresholds(self.gaps, n, self.cfg)
+        self.median_gap = float(np.median(self.gaps)) if n > 1 else float(self.thresholds[0])
+        #: A view farther than this from every nearby subgoal is not on the route (see LOST_FLOOR).
+        self.lost_bound = max(self.cfg.lost_factor * self.median_gap, LOST_FLOOR[self.cfg.match.method])
+        if n < 2 or self.gaps.max() < DEFAULT_BOUNDS[self.cfg.match.method][0] / 10:
+            self.lost_bound = math.inf  # a route whose views barely change cannot tell being lost
         self.index = 0
         self.stalled = False
+        self.status: Action | None = None  # the terminal action once the run stopped
         self.jumps = 0
-        self.plateaus = 0  # subgoals accepted by the stall guard at error <= jump_factor * e_m
+        self.plateaus = 0  # subgoals the stall guard accepted next to, at error <= jump_factor * threshold
+        self.early_switches = 0  # subgoals passed by the relative rule while above their threshold
         self.localised_to: int | None = None
         self._localise_pending = self.cfg.localise
-        self._best = math.inf
-        self._no_progress = 0
-        self._last_error = math.inf
-        self._settled = 0
+        self._plateau_view: np.ndarray | None = None  # features of the view at the last plateau acceptance
+        self._lost_count = 0
+        self._view_of: np.ndarray | None = None
+        self._view = np.empty(0)
+        self._set_index(0)
 
     def __len__(self) -> int:
         return int(self.subgoals.shape[0])
@@ -204,6 +158,11 @@ class Controller:
     @property
     def finished(self) -> bool:
         return self.index >= len(self)
+
+    @property
+    def e_m(self) -> float:
+        """The threshold in force (of the current subgoal)."""
+        return float(self.thresholds[min(self.index, len(self) - 1)])
 
     @property
     def subgoal(self) -> np.ndarray:
@@ -217,7 +176,12 @@ class Controller:
         self._last_error = math.inf
         self._settled = 0
 
-    def decide(self, image: np.ndarray) -> Decision:
+    def _stop(self, action: Action, error: float, note: str) -> Decision:
+        self.status = action
+        self.stalled = action is Action.STALLED
+        return Decision(action, self.index, error, note=note)
+
+    def decide(self, image: np.ndarray, collided: bool = False) -> Decision:
         """One step of the state machine for ``image`` ((H, W, 3) uint8 at the subgoals' resolution)."""
         if image.shape != self.subgoals.shape[1:]:
             raise ValueError(
@@ -225,51 +189,95 @@ class Controller:
             )
         if self.finished:
             return Decision(Action.FINISHED, self.index, math.nan)
-        if self.stalled:
-            return Decision(Action.STALLED, self.index, math.nan, note="stalled earlier")
+        if self.status is not None:
+            return Decision(self.status, self.index, math.nan, note=f"{self.status.value} earlier")
+        if collided and self.cfg.stop_on_contact:
+            return self._stop(Action.COLLIDED, math.nan, f"contact reported at subgoal {self.index}")
+        if image is not self._view_of:  # judge() decides on one image several times: its features once
+            self._view, self._view_of = self.matcher.features(image), image
+        view = self._view
         if self._localise_pending:
             self._localise_pending = False
-            decision = self._localise(image)
+            decision = self._localise(view)
             if decision is not None:
                 return decision
-        error = image_error(image, self.subgoals[self.index])
-        improving = error < self._last_error - self.cfg.stall_min_improvement
+        i = self.index
+        error = self.matcher.distance(view, self._feats[i])
+        threshold = self.thresholds[i]
+        if self.cfg.pass_ratio > 0 and i + 1 < len(self) and error > threshold:
+            nxt = self.matcher.distance(view, self._feats[i + 1])
+            # only a real match counts (under the lost bound): two unrelated views score alike, and a
+            # lost robot must not "pass" subgoals on noise
+            if nxt <= self.cfg.pass_ratio * error and nxt < self.lost_bound:
+                self.early_switches += 1
+                self._set_index(i + 1)
+                return Decision(Action.ADVANCE, self.index, error, note="next subgoal matches as well")
+        min_step = self.cfg.stall_min_improvement
+        min_step = 0.02 * threshold if min_step is None else min_step
+        improving = error < self._last_error - min_step
         self._last_error = error
-        if error <= self.e_m:
+        if error <= threshold:
             if improving and self._settled < self.cfg.settle_steps:
                 self._settled += 1
-                return Decision(
-                    Action.COMMAND, self.index, error, then_stop=not self.cfg.continuous, note="settling"
-                )
-            self._set_index(self.index + 1)
+                return self._command(i, error, note="settling")
+            self._set_index(i + 1)
             return Decision(Action.ADVANCE, self.index, error)
+        if self.cfg.lost_steps > 0:
+            lost = self._lost(view, error)
+            if lost is not None:
+                return lost
         if self.cfg.stall_steps > 0:
-            if error < self._best - self.cfg.stall_min_improvement:
+            if error < self._best - min_step:
                 self._best = error
                 self._no_progress = 0
             else:
                 self._best = min(self._best, error)
                 self._no_progress += 1
             if self._no_progress >= self.cfg.stall_steps:
-                return self._unstall(image, error)
-        return Decision(Action.COMMAND, self.index, error, then_stop=not self.cfg.continuous)
+                return self._unstall(view, error)
+        return self._command(i, error)
 
-    def judge(self, image: np.ndarray) -> Verdict:
+    def _command(self, i: int, error: float, note: str = "") -> Decision:
+        turning = (
+            self.cfg.hold_turns and self.commands is not None and i > 0 and self.commands[i - 1, 0] == 0.0
+        )
+        return Decision(Action.COMMAND, i, error, then_stop=not self.cfg.continuous, note=note,
+                        v_limit=0.0 if turning else math.inf)  # fmt: skip
+
+    def judge(self, image: np.ndarray, collided: bool = False) -> Verdict:
         """Decide on ``image`` until a decision needs the robot: subgoal switches (ADVANCE, JUMP) are
-        applied here and reported as events, so the caller handles only COMMAND, FINISHED and STALLED."""
+        applied here and reported as events, so the caller handles only COMMAND and the terminal ones."""
         from_index, events = self.index, []
-        decision = self.decide(image)
+        decision = self.decide(image, collided)
         while decision.action in SWITCHES:
             events.append(decision)
-            decision = self.decide(image)
+            decision = self.decide(image, collided)
         return Verdict(decision, tuple(events), from_index)
 
     def relocalise(self) -> None:
         """Search the whole route for the best-matching subgoal on the next image (after a robot restart)."""
         self._localise_pending = True
 
-    def _localise(self, image: np.ndarray) -> Decision | None:
-        errors = np.array([image_error(image, s) for s in self.subgoals])
+    def _lost(self, view: np.ndarray, error: float) -> Decision | None:
+        ahead = max(self.cfg.lookahead, LOST_WINDOW)
+        window = range(max(0, self.index - 2), min(len(self), self.index + 1 + ahead))
+        errors = self.matcher.distances(view, self._feats[window.start : window.stop])
+        best = int(np.argmin(errors))
+        bound = self.lost_bound
+        if errors[best] <= bound:
+            self._lost_count = 0
+            return None
+        self._lost_count += 1
+        if self._lost_count < self.cfg.lost_steps:
+            return None
+        return self._stop(
+            Action.LOST, error,
+            f"lost at subgoal {self.index}, best match error {errors[best]:.3f} (subgoal {window.start + best}) "
+            f"above {bound:.3f} for {self.cfg.lost_steps} steps",
+        )  # fmt: skip
+
+    def _localise(self, view: np.ndarray) -> Decision | None:
+        errors = self.matcher.distances(view, self._feats)
         best = int(np.argmin(errors))
         floor = self.cfg.localise_max_error if self.cfg.localise_max_error is not None else 3.0 * self.e_m
         if errors[best] > floor:
@@ -280,27 +288,35 @@ class Controller:
         self._set_index(best)
         return Decision(Action.JUMP, best, float(errors[best]), note=f"localised to subgoal {best}")
 
-    def _unstall(self, image: np.ndarray, error: float) -> Decision:
-        ahead = range(self.index + 1, min(self.index + 1 + self.cfg.lookahead, len(self)))
-        candidates = [(image_error(image, self.subgoals[j]), j) for j in ahead]
-        bound = self.cfg.jump_factor * self.e_m
-        if candidates:
-            best_error, best = min(candidates)
-            if best_error <= bound and best_error < error:
+    def _unstall(self, view: np.ndarray, error: float) -> Decision:
+        i = self.index
+        bound = self.cfg.jump_factor * self.thresholds[i]
+        ahead = range(i + 1, min(i + 1 + self.cfg.lookahead, len(self)))
+        if len(ahead):
+            errors = self.matcher.distances(view, self._feats[ahead.start : ahead.stop])
+            best = int(np.argmin(errors))
+            if (
+                errors[best] <= self.cfg.jump_factor * self.thresholds[ahead.start + best]
+                and errors[best] < error
+            ):
                 self.jumps += 1
-                self._set_index(best)
-                return Decision(Action.JUMP, best, best_error, note="stall guard")
-        if error <= bound:
+                self._set_index(ahead.start + best)
+                return Decision(Action.JUMP, self.index, float(errors[best]), note="stall guard")
+        moved = True
+        if self.cfg.plateau_needs_motion and self._plateau_view is not None:
+            gap = self.gaps[i - 1] if i > 0 else (self.gaps[0] if len(self.gaps) else 0.0)
+            moved = self.matcher.distance(view, self._plateau_view) >= self.cfg.motion_fraction * gap
+        if error <= bound and moved:
             # The policy has brought the robot as close as it can (its output has a small dead zone near
             # the goal): accept the subgoal rather than give up a route the robot is still on.
             self.plateaus += 1
-            self._set_index(self.index + 1)
+            self._plateau_view = view
+            self._set_index(i + 1)
             return Decision(Action.ADVANCE, self.index, error, note="accepted on plateau")
-        self.stalled = True
-        return Decision(
+        why = "the robot has not moved since the last plateau acceptance" if error <= bound else (
+            f"none of the next {self.cfg.lookahead} subgoals is within {self.cfg.jump_factor} thresholds = {bound:.3f}")  # fmt: skip
+        return self._stop(
             Action.STALLED,
-            self.index,
             error,
-            note=f"error {error:.1f} stopped falling for {self.cfg.stall_steps} steps and none of the next "
-            f"{self.cfg.lookahead} subgoals is within {self.cfg.jump_factor} * e_m = {self.cfg.jump_factor * self.e_m:.1f}",
+            f"error {error:.3f} stopped falling for {self.cfg.stall_steps} steps and {why}",
         )

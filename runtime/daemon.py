@@ -74,6 +74,10 @@ class RepeatRunConfig:
         choices=("route", "here"),
     )
     seed: int | None = opt(1, "actuation-noise seed for the reset (--start route)")
+    match_light: bool = opt(
+        True,
+        "recolour the current image to the subgoal's light before the policy (runtime/light.py; off with --paper)",
+    )
     mcap: str | None = opt(
         None,
         "also write the run as a ROS 2 MCAP bag for Foxglove and ros2 bag play (PATH.mcap: one file, else a "
@@ -106,6 +110,10 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
     policy = OnnxPolicy(cfg.model, threads=cfg.threads)
     route = Route.load(cfg.route)
     policy.check_route(route)
+    if cfg.match_light:
+        from vtr.runtime.light import LightMatchedPolicy
+
+        policy = LightMatchedPolicy(policy)
     with SimClient(
         cfg.sim, cfg.timeout_s, cfg.retries, expect_shape=policy.image_shape, cancel=stop_event
     ) as client:
@@ -141,8 +149,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--e-m",
         type=float,
         default=None,
-        help="fixed switch threshold (paper: 17); default: calibrated from the route",
+        help="fixed switch threshold (paper: 17 with --match raw); default: one per subgoal from the route",
     )
+    parser.add_argument(
+        "--match", choices=("patch", "raw"), default=None,
+        help=f"image comparison: patch-normalised median or the paper's raw mean abs error (default: {default.match.method})",
+    )  # fmt: skip
+    parser.add_argument(
+        "--lost-steps", type=int, default=None,
+        help=f"stop as lost after this many steps with no nearby subgoal matching; 0 disables (default: {default.lost_steps})",
+    )  # fmt: skip
     parser.add_argument(
         "--stall-steps", type=int, default=None,
         help=f"stall guard patience; 0 disables it (default: {default.stall_steps})",
@@ -154,7 +170,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--paper",
         action="store_true",
-        help="the paper's Algorithm 1 exactly: e_m 17, no settling, no stall guard",
+        help="the paper's Algorithm 1 exactly: raw error, e_m 17, no settling, stall guard, lost or contact stop",
     )
     parser.add_argument("--localise", action="store_true", help="start at the best-matching subgoal")
     parser.add_argument("--continuous", action="store_true", help="no zero command between control steps")
@@ -168,6 +184,8 @@ def controller_from_args(args: argparse.Namespace) -> ControllerConfig:
         e_m=args.e_m if args.e_m is not None else base.e_m,
         stall_steps=args.stall_steps if args.stall_steps is not None else base.stall_steps,
         settle_steps=args.settle if args.settle is not None else base.settle_steps,
+        match=replace(base.match, method=args.match) if args.match is not None else base.match,
+        lost_steps=args.lost_steps if args.lost_steps is not None else base.lost_steps,
         localise=args.localise,
         continuous=args.continuous,
     )
@@ -178,6 +196,8 @@ def run_cli(args: argparse.Namespace) -> int:
     try:
         repeat_cfg = config_from_args(RepeatConfig, args, controller=controller_from_args(args))
         cfg = config_from_args(RepeatRunConfig, args, repeat=repeat_cfg)
+        if args.paper:  # Algorithm 1 exactly: the network sees the camera image as it is
+            cfg = replace(cfg, match_light=False)
     except ValueError as exc:
         print(f"vtr repeat: {exc}", file=sys.stderr)
         return 2

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 from vtr.runtime.contracts import CAMERA, CONTROL_DT, V_MAX, W_MAX, CameraSpec
-from vtr.runtime.preprocess import PREPROCESSING
+from vtr.runtime.preprocess import PREPROCESSING, check_preprocessing
 
 #: Metadata key prefix in the ONNX file's metadata_props.
 PREFIX = "vtr."
@@ -45,6 +45,7 @@ class ModelMeta:
             raise ValueError(f"image size must be positive, got {self.image_height}x{self.image_width}")
         if self.horizon < 1:
             raise ValueError(f"horizon must be >= 1, got {self.horizon}")
+        check_preprocessing(self.preprocessing)
         if not (self.v_max > 0 and self.w_max > 0 and self.dt > 0 and self.e_m_default > 0):
             raise ValueError(f"v_max, w_max, dt and e_m_default must be positive: {self}")
 

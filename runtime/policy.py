@@ -14,7 +14,7 @@ import numpy as np
 import onnxruntime as ort
 
 from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
-from vtr.runtime.preprocess import PREPROCESSING, to_nchw
+from vtr.runtime.preprocess import PREPROCESSINGS, to_nchw
 
 if TYPE_CHECKING:
     from vtr.runtime.route import Route
@@ -78,9 +78,10 @@ class OnnxPolicy:
 
     def _check_signature(self) -> None:
         meta = self.meta
-        if meta.preprocessing != PREPROCESSING:
+        if meta.preprocessing not in PREPROCESSINGS:
             raise ModelMismatchError(
-                f"{self.path}: model expects preprocessing {meta.preprocessing!r}, this runtime does {PREPROCESSING!r}"
+                f"{self.path}: model expects preprocessing {meta.preprocessing!r}, this runtime does "
+                f"{', '.join(PREPROCESSINGS)}"
             )
         inputs = {i.name: i for i in self.session.get_inputs()}
         if set(inputs) != {INPUT_CURRENT, INPUT_SUBGOAL}:
@@ -137,8 +138,8 @@ class OnnxPolicy:
             )
             raise ValueError(f"{which} image has shape {image.shape}, the model takes {self._expect}")
         if subgoal is not self._subgoal_src or self._subgoal_feed is None:
-            self._subgoal_feed, self._subgoal_src = to_nchw(subgoal), subgoal
-        return {INPUT_CURRENT: to_nchw(current), INPUT_SUBGOAL: self._subgoal_feed}
+            self._subgoal_feed, self._subgoal_src = to_nchw(subgoal, self.meta.preprocessing), subgoal
+        return {INPUT_CURRENT: to_nchw(current, self.meta.preprocessing), INPUT_SUBGOAL: self._subgoal_feed}
 
     def infer(self, feeds: dict[str, np.ndarray]) -> np.ndarray:
         """Run the network; returns the raw (2, N) output of the first batch item."""

@@ -20,8 +20,8 @@ class RepeatStatus(str, enum.Enum):
 
     FINISHED = "finished"  # past the last subgoal
     STALLED = "stalled"  # the stall guard found no subgoal close enough
-    LOST = "lost"  # reserved: matching says the robot is off the route
-    COLLIDED = "collided"  # reserved: the robot reports a collision
+    LOST = "lost"  # no subgoal near the current one matches the view (the controller)
+    COLLIDED = "collided"  # an observation reported a contact (the controller)
     ROBOT_RESTARTED = "robot_restarted"  # the robot's session changed under us (it rebooted)
     LINK_LOST = "link_lost"  # no valid frame within frame_timeout_s
     INTERRUPTED = "interrupted"  # stop_event or KeyboardInterrupt
@@ -38,7 +38,9 @@ class RepeatConfig:
     #: Seconds each command is applied for; None takes the model's metadata dt (the paper's 0.1 s).
     dt: float | None = None
     #: Control steps (commands sent) before giving up: a lost robot must stop.
-    max_steps: int = opt(2000, "stop after this many control steps (a lost robot must stop)")
+    max_steps: int | None = opt(
+        None, "stop after this many control steps (default: 8 per subgoal + 50, so it scales with the route)"
+    )
     #: Seconds without a valid frame before the run ends.
     frame_timeout_s: float = opt(5.0, "seconds without a valid frame before stopping", flag="--frame-timeout")
     #: Pause between re-polls after a bad frame, in seconds.
@@ -47,7 +49,7 @@ class RepeatConfig:
     def __post_init__(self) -> None:
         if self.dt is not None and not (math.isfinite(self.dt) and self.dt > 0):
             raise ValueError(f"dt must be a positive number of seconds, got {self.dt!r}")
-        if self.max_steps < 1:
+        if self.max_steps is not None and self.max_steps < 1:
             raise ValueError(f"--max-steps must be >= 1, got {self.max_steps}")
         if not self.frame_timeout_s > 0:
             raise ValueError(f"--frame-timeout must be > 0 seconds, got {self.frame_timeout_s}")

@@ -18,16 +18,16 @@ Safety rules, in order of precedence:
 - the step limit ends a run whose robot is lost.
 
 How a run ends is a :class:`RepeatStatus`. Produced today: ``finished``, ``stalled`` (the controller's
-stall guard), ``step_limit``, ``interrupted``, ``link_lost`` (no valid frame for ``frame_timeout_s``, or
-the link's ``LinkLost``: no reply even to the stop sent after a missed one), ``robot_error`` (a
-``RobotError``) and ``robot_restarted``. Reserved for the detectors that land next, and produced through
-the two hooks below without touching this loop: ``lost`` (robust matching says the robot is off the
-route) and ``collided``. ``robot_restarted`` (the link saw a new server session: the robot rebooted and is somewhere
-else) ends the run, or with the controller's ``localise`` the robot is stopped and the route searched
-again on its next frame (at most ``MAX_RELOCALISATIONS`` times; the record's detail says so).
+stall guard), ``lost`` (no subgoal near the current one matches the view), ``collided`` (an observation
+reported a contact; the controller decides on ``Observation.collided``), ``step_limit``, ``interrupted``,
+``link_lost`` (no valid frame for ``frame_timeout_s``, or the link's ``LinkLost``: no reply even to the stop
+sent after a missed one), ``robot_error`` (a ``RobotError``) and ``robot_restarted``. ``robot_restarted``
+(the link saw a new server session: the robot rebooted and is somewhere else) ends the run, or with the
+controller's ``localise`` the robot is stopped and the route searched again on its next frame (at most
+``MAX_RELOCALISATIONS`` times; the record's detail says so).
 
-- a terminal controller action whose value names a status (``Action.STALLED`` -> ``stalled``; a future
-  ``Action("lost")`` -> ``lost``) ends the run with that status;
+- a terminal controller action whose value names a status (``Action.STALLED`` -> ``stalled``,
+  ``Action.LOST`` -> ``lost``, ``Action.COLLIDED`` -> ``collided``) ends the run with that status;
 - a ``RobotError`` whose class attribute ``status`` names one (default ``robot_error``) ends it with
   that status, so a link can raise ``link_lost`` or ``robot_restarted``.
 """
@@ -75,6 +75,10 @@ def _status_of(value: str, default: RepeatStatus) -> RepeatStatus:
         return default
 
 
+#: Default step limit per subgoal (plus 50): 4x the taught control steps, as subgoals are 2 steps apart.
+STEPS_PER_SUBGOAL = 8
+
+
 class Repeater:
     """Follow ``route`` with ``policy`` on ``robot`` (see the module docstring).
 
@@ -111,14 +115,17 @@ class Repeater:
             )
         self.dt = float(self.config.dt if self.config.dt is not None else (model_dt or CONTROL_DT))
         self.controller = (
-            controller if controller is not None else Controller(route.images, self.config.controller)
+            controller
+            if controller is not None
+            else Controller(route.images, self.config.controller, route.commands)
         )
         # one view object per subgoal, passed again while it is steered to (OnnxPolicy keeps its tensor)
         self._views = list(self.controller.subgoals)
         self._last = len(self._views) - 1
         self.on_step = on_step
         self.stop_event = stop_event or threading.Event()
-        self.max_steps = self.config.max_steps
+        # a lost robot must stop; a long route must not be cut short
+        self.max_steps = self.config.max_steps or STEPS_PER_SUBGOAL * len(route) + 50
         self.steps = 0
         self.bad_frames = 0
         self.status: RepeatStatus | None = None
@@ -241,7 +248,7 @@ class Repeater:
         if self.stop_event.is_set():
             return self._end(RepeatStatus.INTERRUPTED)
         t0 = time.perf_counter()
-        verdict = self.controller.judge(obs.image)
+        verdict = self.controller.judge(obs.image, obs.collided)
         t_error = time.perf_counter()
         decision = verdict.decision
         if decision.action is not Action.COMMAND:
@@ -251,6 +258,7 @@ class Repeater:
             return self._end(RepeatStatus.STEP_LIMIT, "", verdict)
         velocities = self.policy.predict(obs.image, self._views[min(self.controller.index, self._last)])
         v, w = float(velocities[0, 0]), float(velocities[1, 0])
+        v = max(-decision.v_limit, min(decision.v_limit, v))  # no translation in a taught turn in place
         t_policy = time.perf_counter()
         stage = dict(getattr(self.policy, "last_timing_ms", None) or {})
         stage["error"] = (t_error - t0) * 1e3

@@ -15,6 +15,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from vtr.runtime.preprocess import PREPROCESSINGS
+
 
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--preset", default="default", help="tiny | default | paper (default: default)")
@@ -35,6 +37,14 @@ def _add_common(p: argparse.ArgumentParser) -> None:
         "--amp", action=argparse.BooleanOptionalAction, default=None, help="bfloat16 autocast on CUDA"
     )
     p.add_argument("--val-every", type=int, help="steps between validation passes and checkpoints")
+    p.add_argument(
+        "--augment", action=argparse.BooleanOptionalAction, default=None,
+        help="photometric augmentation of VelocityNet's inputs (training/augment.py; default: off)",
+    )  # fmt: skip
+    p.add_argument(
+        "--preprocessing", choices=PREPROCESSINGS, default=None,
+        help=f"VelocityNet's input normalisation, stored in the exported model (default: {PREPROCESSINGS[0]})",
+    )  # fmt: skip
     p.add_argument(
         "--data-on-device",
         choices=("auto", "yes", "no"),
@@ -84,6 +94,7 @@ def train_cfg(base: Any, args: argparse.Namespace, steps: int | None = None) -> 
         amp=args.amp,
         val_every=args.val_every,
         data_on_device=args.data_on_device,
+        augment=getattr(args, "augment", None),
     )
 
 
@@ -98,6 +109,7 @@ def run_cli(args: argparse.Namespace) -> int:
         return run_evaluate(args)
     preset = get_preset(args.preset)
     preset.loss = override(preset.loss, w1=args.w1, w2=args.w2)
+    preset.velocitynet = override(preset.velocitynet, preprocessing=args.preprocessing)
     if args.stage == "viewnet":
         train_viewnet(
             args.data,

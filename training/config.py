@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
 from vtr.runtime.contracts import CAMERA, CONTROL_DT, V_MAX, W_MAX
+from vtr.runtime.preprocess import PREPROCESSING, check_preprocessing
 
 
 def _check_positive(obj: object, *names: str) -> None:
@@ -116,8 +117,12 @@ class VelocityNetConfig:
     v_max: float = V_MAX  # m/s, v = v_max * tanh(.)
     w_max: float = W_MAX  # rad/s, w = w_max * tanh(.)
     leaky_slope: float = 0.2  # LeakyReLU negative slope
+    # Input normalisation (runtime.preprocess), applied in training and, through the model's metadata, by
+    # the runtime: PREPROCESSING (unit scaling) or STANDARDISED (per-image, per-channel).
+    preprocessing: str = PREPROCESSING
 
     def __post_init__(self) -> None:
+        check_preprocessing(self.preprocessing)
         _check_channels(self, "channels", 7)
         _check_positive(self, "image_size", "horizon", "v_max", "w_max")
         if not 0 <= self.leaky_slope < 1:
@@ -155,6 +160,7 @@ class TrainConfig:
     num_workers: int = 0  # DataLoader workers when the data is not held on the device
     amp: bool = False  # bfloat16 autocast on CUDA
     data_on_device: str = "auto"  # auto | yes | no: keep the whole uint8 dataset on the training device
+    augment: bool = False  # photometric augmentation of VelocityNet's inputs (training/augment.py)
 
     def __post_init__(self) -> None:
         _check_positive(self, "lr", "batch_size", "steps", "val_every", "val_batches", "log_every")

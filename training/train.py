@@ -25,7 +25,7 @@ import torch
 from torch import nn
 
 from vtr.runtime.atomic import write_text_atomic
-from vtr.runtime.preprocess import PREPROCESSING
+from vtr.training.augment import AugmentConfig, InputPipeline
 from vtr.training.checkpoint import (
     CHECKPOINT,
     METRICS,
@@ -283,21 +283,26 @@ def train_velocitynet(
         "viewnet": str(viewnet_path),
         "loss_config": to_dict(loss_cfg),
         "mean_command": windows.mean_command.tolist(),
-        "preprocessing": PREPROCESSING,
+        "preprocessing": model_cfg.preprocessing,
+        "augment": cfg.augment,
     }
     model = VelocityNet(model_cfg)
     if init is not None:
         extra.update(init_weights(model, "velocitynet", model_cfg, init))
+    augment = AugmentConfig() if cfg.augment else None
+    gen = torch.Generator().manual_seed(cfg.seed + 1)  # augmentation draws, apart from the batch order
 
     def loss_fn(net: nn.Module, frames: torch.Tensor, commands: torch.Tensor):
-        loss, parts = mpc_loss(net, viewnet, frames, commands, loss_cfg)
+        policy = InputPipeline(net, model_cfg.preprocessing, augment, gen)  # identity by default
+        loss, parts = mpc_loss(policy, viewnet, frames, commands, loss_cfg)
         parts.pop("u1")
         return loss, parts
 
     model = _fit("velocitynet", model, model_cfg, loss_fn, windows, cfg, dist, out, resume, extra)
     report: dict[str, Any] = {}
     if dist.main:
-        report = velocitynet_report(model, viewnet, windows, loss_cfg, cfg.batch_size, amp=cfg.amp)
+        policy = InputPipeline(model, model_cfg.preprocessing)
+        report = velocitynet_report(policy, viewnet, windows, loss_cfg, cfg.batch_size, amp=cfg.amp)
         extra["report"] = report
         _finish("velocitynet", model, model_cfg, out, dist, extra)
         _write_report(out, report)

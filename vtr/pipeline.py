@@ -136,6 +136,7 @@ def run_cli(args: argparse.Namespace) -> int:
 
     preset = get_preset(args.preset)
     preset.loss = override(preset.loss, w1=args.w1, w2=args.w2)
+    preset.velocitynet = override(preset.velocitynet, preprocessing=args.preprocessing)
     preset.train_viewnet = stages.train_cfg(preset.train_viewnet, args, args.viewnet_steps)
     preset.train_velocitynet = stages.train_cfg(preset.train_velocitynet, args, args.velocitynet_steps)
     if args.frames is not None:

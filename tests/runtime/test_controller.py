@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -14,6 +15,11 @@ from vtr.runtime.robot import Observation
 from vtr.runtime.route import Route
 
 PAPER = ControllerConfig.paper()
+
+
+def old(**changes) -> ControllerConfig:
+    """The pre-matching defaults (raw error, route-wide e_m) with ``changes``: these tests use 4x4 flat images."""
+    return replace(ControllerConfig.before(), **changes)
 
 
 def flat(value: int, h: int = 4, w: int = 4) -> np.ndarray:
@@ -44,18 +50,16 @@ def test_algorithm_1_decisions():
 def test_calibrated_e_m_is_three_quarters_of_the_median_consecutive_error():
     images = subgoals(0, 10, 30, 60)  # consecutive errors 10, 20, 30
     np.testing.assert_allclose(consecutive_errors(images), [10, 20, 30])
-    cfg = ControllerConfig()
+    cfg = old()
     assert calibrate_e_m(images, cfg) == pytest.approx(15.0)
     assert Controller(images, cfg).e_m == pytest.approx(15.0)
-    assert calibrate_e_m(images, ControllerConfig(calib_quantile=1.0, calib_fraction=1.0)) == pytest.approx(
-        30
-    )
-    assert calibrate_e_m(images, ControllerConfig(e_m_max=4.0)) == 4.0
-    assert calibrate_e_m(subgoals(5), ControllerConfig(e_m=12.0)) == 12.0  # one subgoal: the fixed value
+    assert calibrate_e_m(images, old(calib_quantile=1.0, calib_fraction=1.0)) == pytest.approx(30)
+    assert calibrate_e_m(images, old(e_m_max=4.0)) == 4.0
+    assert calibrate_e_m(subgoals(5), old(e_m=12.0)) == 12.0  # one subgoal: the fixed value
 
 
 def test_stall_guard_jumps_to_a_close_subgoal_ahead():
-    cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, stall_steps=3, lookahead=3, jump_factor=2.0)
+    cfg = old(e_m_mode="fixed", e_m=5.0, stall_steps=3, lookahead=3, jump_factor=2.0)
     c = Controller(subgoals(0, 20, 40, 60, 80), cfg)
     # stuck at 48: no progress towards subgoal 0, but subgoal 2 (error 8 <= 2 * e_m) is close
     assert [c.decide(flat(48)).action for _ in range(3)] == [Action.COMMAND] * 3
@@ -65,7 +69,7 @@ def test_stall_guard_jumps_to_a_close_subgoal_ahead():
 
 
 def test_stall_guard_stops_when_nothing_is_close():
-    cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, stall_steps=2, lookahead=2)
+    cfg = old(e_m_mode="fixed", e_m=5.0, stall_steps=2, lookahead=2)
     c = Controller(subgoals(0, 20, 40, 60), cfg)
     c.decide(flat(200))
     c.decide(flat(200))
@@ -75,7 +79,7 @@ def test_stall_guard_stops_when_nothing_is_close():
 
 
 def test_stall_guard_accepts_a_plateau_next_to_the_subgoal():
-    cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, stall_steps=2, lookahead=2, jump_factor=2.0)
+    cfg = old(e_m_mode="fixed", e_m=5.0, stall_steps=2, lookahead=2, jump_factor=2.0)
     c = Controller(subgoals(0, 60, 120), cfg)
     # stuck at error 8: above e_m, within 2 * e_m, and nothing ahead is closer
     assert [c.decide(flat(8)).action for _ in range(2)] == [Action.COMMAND] * 2
@@ -90,7 +94,7 @@ def test_stall_guard_accepts_a_plateau_next_to_the_subgoal():
 
 
 def test_settling_keeps_steering_while_the_error_falls_under_e_m():
-    cfg = ControllerConfig(e_m_mode="fixed", e_m=10.0, stall_steps=0, settle_steps=2)
+    cfg = old(e_m_mode="fixed", e_m=10.0, stall_steps=0, settle_steps=2)
     c = Controller(subgoals(0, 100), cfg)
     assert c.decide(flat(30)).action is Action.COMMAND
     d = c.decide(flat(8))  # under e_m and falling: one more command
@@ -111,14 +115,14 @@ def test_paper_config_is_algorithm_1():
 
 
 def test_progress_resets_the_stall_counter():
-    cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, stall_steps=2)
+    cfg = old(e_m_mode="fixed", e_m=5.0, stall_steps=2)
     c = Controller(subgoals(0, 100), cfg)
     for value in (90, 80, 70, 60, 50, 40):  # slowly but steadily closer
         assert c.decide(flat(value)).action is Action.COMMAND
 
 
 def test_localisation_starts_at_the_best_match_above_the_confidence_floor():
-    cfg = ControllerConfig(e_m_mode="fixed", e_m=5.0, localise=True, stall_steps=0, settle_steps=0)
+    cfg = old(e_m_mode="fixed", e_m=5.0, localise=True, stall_steps=0, settle_steps=0)
     c = Controller(subgoals(0, 50, 100, 150), cfg)
     d = c.decide(flat(98))
     assert d.action is Action.JUMP and d.index == 2 and c.localised_to == 2
@@ -128,7 +132,7 @@ def test_localisation_starts_at_the_best_match_above_the_confidence_floor():
 
 
 def test_continuous_mode_does_not_stop_between_steps():
-    c = Controller(subgoals(0, 100), ControllerConfig(e_m_mode="fixed", e_m=5.0, continuous=True))
+    c = Controller(subgoals(0, 100), old(e_m_mode="fixed", e_m=5.0, continuous=True))
     assert c.decide(flat(60)).then_stop is False
 
 
@@ -152,9 +156,9 @@ def test_controller_config_validation(kwargs, fragment):
 
 def test_controller_refuses_wrong_images():
     with pytest.raises(ValueError, match="uint8"):
-        Controller(np.zeros((2, 4, 4, 3), dtype=np.float32))
+        Controller(np.zeros((2, 4, 4, 3), dtype=np.float32), old())
     with pytest.raises(ValueError, match="differs"):
-        Controller(subgoals(0, 1)).decide(flat(0, 8, 8))
+        Controller(subgoals(0, 1), old()).decide(flat(0, 8, 8))
 
 
 # ---------------------------------------------------------------------------------------- loop contract
@@ -232,9 +236,7 @@ def test_continuous_loop_sends_no_zero_between_steps():
     route = flat_route(0, 100)
     robot = ScriptedRobot([flat(60), flat(30), flat(0), flat(100)])
     cfg = RepeatConfig(
-        controller=ControllerConfig(
-            e_m_mode="fixed", e_m=17.0, stall_steps=0, settle_steps=0, continuous=True
-        )
+        controller=old(e_m_mode="fixed", e_m=17.0, stall_steps=0, settle_steps=0, continuous=True)
     )
     summary = run_repeat(robot, SpyPolicy(), route, cfg)
     names = [c[0] for c in robot.calls]
@@ -252,7 +254,7 @@ def test_step_limit_stops_a_lost_robot():
 def test_stall_in_the_loop_stops_with_a_reason():
     route = flat_route(0, 100)
     robot = ScriptedRobot([flat(250)] * 10)
-    cfg = RepeatConfig(controller=ControllerConfig(e_m_mode="fixed", e_m=5.0, stall_steps=3))
+    cfg = RepeatConfig(controller=old(e_m_mode="fixed", e_m=5.0, stall_steps=3))
     summary = run_repeat(robot, SpyPolicy(), route, cfg)
     assert (
         summary.status == "stalled" and "stopped falling" in summary.detail and robot.calls[-1] == ("stop",)

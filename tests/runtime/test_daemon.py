@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import threading
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -43,7 +44,9 @@ def policy_path(tmp_path_factory):
 def test_repeat_in_process_completes_the_route_and_logs_every_step(policy_path):
     sim = FakeSim()
     records: list[dict] = []
-    summary = run_repeat(LocalRobot(sim), OnnxPolicy(policy_path), corridor_route(), log=records.append)
+    # the fake camera encodes position in brightness, which patch matching ignores by design: raw error
+    cfg = RepeatConfig(controller=ControllerConfig.before())
+    summary = run_repeat(LocalRobot(sim), OnnxPolicy(policy_path), corridor_route(), cfg, log=records.append)
     assert summary.completed and summary.subgoals_reached == 9 == summary.subgoals_total
     assert summary.e_m == pytest.approx(7.5)  # calibrated: 3/4 of the 10-level step between subgoals
     assert sim.pose.x == pytest.approx(0.4, abs=0.04)  # |error| <= e_m = 7.5 levels = 0.0375 m
@@ -297,7 +300,7 @@ def test_repeat_config_validation():
 
 def test_localise_option_starts_mid_route(policy_path):
     sim = FakeSim(x=0.2)
-    cfg = RepeatConfig(controller=ControllerConfig(localise=True))
+    cfg = RepeatConfig(controller=replace(ControllerConfig.before(), localise=True))
     records: list[dict] = []
     summary = run_repeat(LocalRobot(sim), OnnxPolicy(policy_path), corridor_route(), cfg, log=records.append)
     assert summary.completed and summary.localised_to == 4

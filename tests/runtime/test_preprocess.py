@@ -42,3 +42,40 @@ def test_to_nchw_scales_and_transposes():
         to_nchw(img.astype(np.float32))
     with pytest.raises(ValueError, match="RGB"):
         to_nchw(np.zeros((2, 3, 4), np.uint8))
+
+
+def test_standardised_preprocessing_cancels_gain_offset_and_colour_cast():
+    from vtr.runtime.preprocess import PREPROCESSING, STANDARDISED, normalise
+
+    rng = np.random.default_rng(1)
+    img = rng.integers(40, 180, (16, 16, 3), dtype=np.uint8)
+    cast = np.clip(img * np.array([1.3, 1.0, 0.8]) + 10, 0, 255).astype(np.uint8)
+    a, b = to_nchw(img, STANDARDISED), to_nchw(cast, STANDARDISED)
+    np.testing.assert_allclose(a.mean(axis=(2, 3)), 0.0, atol=1e-5)
+    np.testing.assert_allclose(a.std(axis=(2, 3)), 1.0, atol=0.01)  # eps in the variance
+    assert np.abs(a - b).max() < 0.05  # only rounding to uint8 differs
+    # the default is today's unit scaling, bit for bit
+    assert to_nchw(img, PREPROCESSING).tobytes() == to_nchw(img).tobytes()
+    assert normalise(a, PREPROCESSING) is a
+    with pytest.raises(ValueError, match="unknown preprocessing"):
+        to_nchw(img, "bgr_minus_mean")
+
+
+def test_training_applies_the_very_same_normalisation():
+    torch = pytest.importorskip("torch")  # third-party: the runtime test run may lack torch
+    from vtr.runtime.preprocess import STANDARDISED, normalise
+
+    rng = np.random.default_rng(2)
+    x = to_nchw(rng.integers(0, 256, (3, 8, 8, 3), dtype=np.uint8))
+    np.testing.assert_allclose(
+        normalise(torch.from_numpy(x), STANDARDISED).numpy(), normalise(x, STANDARDISED), atol=1e-6
+    )
+
+
+def test_model_meta_names_a_known_preprocessing():
+    from vtr.runtime.model_meta import ModelMeta
+    from vtr.runtime.preprocess import STANDARDISED
+
+    assert ModelMeta(preprocessing=STANDARDISED).preprocessing == STANDARDISED
+    with pytest.raises(ValueError, match="unknown preprocessing"):
+        ModelMeta(preprocessing="bgr_minus_mean")

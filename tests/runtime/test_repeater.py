@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -103,12 +105,12 @@ def test_run_takes_a_step_limit():
     summary = rep.run(max_steps=3)
     assert summary.status is RepeatStatus.STEP_LIMIT and summary.steps == 3
     with pytest.raises(ValueError, match="max_steps"):
-        Repeater(Frames([0]), Constant(), flat_route(0)).run(max_steps=-1)
+        Repeater(Frames([0]), Constant(), flat_route(0), config=RepeatConfig(PAPER)).run(max_steps=-1)
 
 
 def test_a_controller_can_be_handed_in_and_is_the_one_used():
     route = flat_route(0, 100)
-    controller = Controller(route.images, ControllerConfig(e_m_mode="fixed", e_m=60.0, settle_steps=0))
+    controller = Controller(route.images, replace(PAPER, e_m=60.0))
     rep = Repeater(Frames([80, 30, 100]), Constant(), route, controller)
     summary = rep.run()
     assert rep.controller is controller and summary.completed and controller.finished and summary.steps == 2
@@ -121,7 +123,7 @@ def test_route_and_model_must_agree_on_dt_and_image_size():
 
     with pytest.raises(ValueError, match="dt = 0.1 s but the model was trained for dt = 0.2 s"):
         Repeater(Frames([0]), WithMeta(), flat_route(0, 100))
-    assert Repeater(Frames([0]), WithMeta(), flat_route(0, 100, dt=0.2)).dt == 0.2
+    assert Repeater(Frames([0]), WithMeta(), flat_route(0, 100, dt=0.2), config=RepeatConfig(PAPER)).dt == 0.2
 
     class Larger(Constant):
         image_shape = (8, 8)

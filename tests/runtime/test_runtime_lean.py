@@ -37,12 +37,12 @@ sys.exit(code)
 
 
 class FrozenSim(FakeSim):
-    """The robot is stuck against a wall: time passes, the view never changes."""
+    """The robot is stuck (wheels slipping, no bumper): time passes, the view never changes. It reports no
+    contact, which would end the repeat at once (``stop_on_contact``)."""
 
     def step(self, v: float, w: float, duration: float):
         self.calls.append(("step", v, w, duration))
         self.time += duration
-        self.collided = True
         return self.observe()
 
 
@@ -103,6 +103,11 @@ def test_signal_commands_zero_velocity_and_exits_with_a_summary(files, sig):
             "0",
             "--settle",
             "0",
+            "--lost-steps",
+            "0",
+            "--match",  # the fake camera encodes position in brightness, which patch matching ignores
+            "raw",
+            "--no-match-light",  # ... and which light matching would even out before the fake policy
             "--max-steps",
             "1000000",
         ]

@@ -67,6 +67,26 @@ def test_velocitynet_stage_and_report(data: Path, viewnet: Path, tmp_path: Path)
     assert {"J1", "J2", "img1", "vel1"} <= set(val[-1])
 
 
+def test_velocitynet_with_augmentation_and_standardised_inputs_exports_its_preprocessing(
+    data: Path, viewnet: Path, tmp_path: Path
+) -> None:
+    from vtr.runtime.policy import OnnxPolicy
+    from vtr.runtime.preprocess import STANDARDISED
+
+    out = tmp_path / "vel_aug"
+    args = ["train", "velocitynet", "--preset", "tiny", "--data", str(data), "--viewnet", str(viewnet),
+            "--out", str(out), "--augment", "--preprocessing", STANDARDISED]  # fmt: skip
+    assert cli.main(args) == 0
+    ckpt = torch.load(out / "model.pt", weights_only=True)
+    assert ckpt["model_config"]["preprocessing"] == STANDARDISED and ckpt["augment"] is True
+    onnx = tmp_path / "vel_aug.onnx"
+    assert (
+        cli.main(["export", "--checkpoint", str(out), "--out", str(onnx), "--data", str(data), "--int8"]) == 0
+    )
+    assert OnnxPolicy(onnx.with_name("vel_aug-int8.onnx")).meta.preprocessing == STANDARDISED
+    assert OnnxPolicy(onnx).meta.preprocessing == STANDARDISED
+
+
 def test_resume_continues_where_it_stopped(
     data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -1,0 +1,104 @@
+"""The controller's settings (runtime.controller's docstring explains each rule)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from vtr.runtime.matching import MatchConfig
+from vtr.runtime.thresholds import DEFAULT_BOUNDS, THRESHOLD_MODES
+
+
+@dataclass
+class ControllerConfig:
+    """Subgoal-switching settings (see the module docstring for each rule)."""
+
+    #: Image comparison (runtime.matching): patch-normalised by default, raw for the paper.
+    match: MatchConfig = field(default_factory=MatchConfig)
+    #: "fixed" uses ``e_m``; "calibrated": one threshold from the route; "per_subgoal": one per subgoal.
+    e_m_mode: str = "per_subgoal"
+    #: Fixed switch threshold in the matcher's units (the paper's 17 on 0..255 for raw).
+    e_m: float = 17.0
+    #: Quantile of the consecutive-subgoal distances used by "calibrated" (0.5 = median).
+    calib_quantile: float = 0.5
+    #: Fraction of that distance (of the incoming gap, for "per_subgoal") taken as the threshold.
+    calib_fraction: float = 0.75
+    #: Bounds on a derived threshold; None takes DEFAULT_BOUNDS for the matching method.
+    e_m_min: float | None = None
+    e_m_max: float | None = None
+    #: Relative switch: ADVANCE when d(next) <= pass_ratio * d(current); 0 disables (the paper has none).
+    pass_ratio: float = 1.0
+    #: Commands without progress before the stall guard acts; 0 disables it (the paper has none).
+    stall_steps: int = 10
+    #: Progress means the error fell this much below its best at this subgoal (matcher units); None:
+    #: 2% of the subgoal's threshold.
+    stall_min_improvement: float | None = None
+    #: How many subgoals ahead the stall guard, the lost test and localisation look.
+    lookahead: int = 5
+    #: The stall guard jumps to / accepts a subgoal only within jump_factor thresholds.
+    jump_factor: float = 2.0
+    #: A plateau acceptance needs the view to have changed since the previous one (the robot moved).
+    plateau_needs_motion: bool = True
+    #: "Changed" means a distance of at least this fraction of the current subgoal's incoming gap.
+    motion_fraction: float = 0.25
+    #: Lost when the best nearby match exceeds lost_factor * the route's median gap ...
+    lost_factor: float = 2.0
+    #: ... for this many consecutive commands; 0 disables the test.
+    lost_steps: int = 5
+    #: Stop the repeat when an observation reports a contact.
+    stop_on_contact: bool = True
+    #: Pick the starting subgoal by best match over the whole route (the paper starts at 0).
+    localise: bool = False
+    #: Localisation confidence floor: best-match error must be at most this; None means 3 * e_m.
+    localise_max_error: float | None = None
+    #: Where the taught robot turned in place (v = 0 into the subgoal), the repeat does not translate
+    #: either: the policy's forward output there pushed the robot into the furniture it turned beside.
+    hold_turns: bool = True
+    #: Keep moving between control steps instead of the paper's stop-and-go.
+    continuous: bool = False
+    #: Extra commands at a subgoal while the error still falls under the threshold (0: switch at once).
+    settle_steps: int = 1
+
+    @classmethod
+    def paper(cls) -> ControllerConfig:
+        """Algorithm 1 exactly: raw error, fixed e_m = 17, switch at once, nothing else."""
+        return cls(match=MatchConfig.paper(), e_m_mode="fixed", e_m=17.0, pass_ratio=0.0, stall_steps=0,
+                   settle_steps=0, lost_steps=0, stop_on_contact=False, hold_turns=False)  # fmt: skip
+
+    @classmethod
+    def before(cls) -> ControllerConfig:
+        """The previous default: raw error, one calibrated e_m per route, settle 2, old plateau rule."""
+        return cls(match=MatchConfig.paper(), e_m_mode="calibrated", pass_ratio=0.0, settle_steps=2,
+                   plateau_needs_motion=False, lost_steps=0, stop_on_contact=False, hold_turns=False,
+                   stall_min_improvement=0.25)  # fmt: skip
+
+    def __post_init__(self) -> None:
+        if self.e_m_mode not in THRESHOLD_MODES:
+            raise ValueError(f"e_m_mode must be one of {THRESHOLD_MODES}, got {self.e_m_mode!r}")
+        positive = {"e_m": self.e_m, "calib_fraction": self.calib_fraction, "jump_factor": self.jump_factor,
+                    "lost_factor": self.lost_factor}  # fmt: skip
+        for name, value in positive.items():
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+        if not 0.0 <= self.calib_quantile <= 1.0:
+            raise ValueError(f"calib_quantile must be in [0, 1], got {self.calib_quantile}")
+        lo, hi = self.bounds
+        if not 0 < lo <= hi:
+            raise ValueError(f"e_m_max={hi} must be >= e_m_min={lo} > 0")
+        for name in ("stall_steps", "settle_steps", "lost_steps"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if self.stall_min_improvement is not None and not self.stall_min_improvement >= 0:
+            raise ValueError(f"stall_min_improvement must be >= 0, got {self.stall_min_improvement}")
+        for name in ("pass_ratio", "motion_fraction"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if self.lookahead < 1:
+            raise ValueError(f"lookahead must be >= 1, got {self.lookahead}")
+        if self.localise_max_error is not None and not self.localise_max_error > 0:
+            raise ValueError(f"localise_max_error must be > 0, got {self.localise_max_error}")
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        lo, hi = DEFAULT_BOUNDS[self.match.method]
+        return (lo if self.e_m_min is None else self.e_m_min, hi if self.e_m_max is None else self.e_m_max)

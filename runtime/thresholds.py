@@ -1,0 +1,56 @@
+"""Switch thresholds from a taught route (the rules are in runtime.controller's docstring)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from vtr.runtime.matching import MatchConfig, Matcher
+
+if TYPE_CHECKING:
+    from vtr.runtime.controller import ControllerConfig
+
+THRESHOLD_MODES = ("fixed", "calibrated", "per_subgoal")
+#: Default bounds of a derived threshold, per matching method, in that method's units. The patch floor is
+#: what 1-2 cm or 1 degree away from a subgoal scores: finer than the policy steers, and it keeps creeping
+#: segments (subgoals 1 cm apart) switchable.
+DEFAULT_BOUNDS = {"raw": (1.0, 64.0), "patch": (0.15, 0.8)}
+#: "Lost" needs the best nearby match above this too (patch: about 4 gaps of 5 cm away; unrelated views
+#: score 0.8-0.9), so routes whose median gap is tiny (creeping) do not stop on noise.
+LOST_FLOOR = {"raw": 0.0, "patch": 0.6}
+#: The lost test searches this many subgoals ahead at least (creeping subgoals are 1 cm apart).
+LOST_WINDOW = 20
+
+
+def gaps_between(matcher: Matcher, feats: np.ndarray) -> np.ndarray:
+    """(L-1,) distances between consecutive features of one route."""
+    return np.array(
+        [matcher.distance(feats[k], feats[k + 1]) for k in range(len(feats) - 1)], dtype=np.float64
+    )
+
+
+def consecutive_errors(images: np.ndarray, match: MatchConfig | None = None) -> np.ndarray:
+    """(L-1,) distances between consecutive subgoals of (L, H, W, 3) uint8 images (raw by default)."""
+    matcher = Matcher(match or MatchConfig.paper())
+    return gaps_between(matcher, matcher.features(images))
+
+
+def _route_threshold(gaps: np.ndarray, cfg: ControllerConfig) -> float:
+    return float(np.clip(cfg.calib_fraction * np.quantile(gaps, cfg.calib_quantile), *cfg.bounds))
+
+
+def calibrate_e_m(images: np.ndarray, cfg: ControllerConfig) -> float:
+    """One threshold from the route (rule in the module docstring); the fixed e_m if the route has one image."""
+    d = consecutive_errors(images, cfg.match)
+    return cfg.e_m if d.size == 0 else _route_threshold(d, cfg)
+
+
+def thresholds(gaps: np.ndarray, n: int, cfg: ControllerConfig) -> np.ndarray:
+    """(n,) switch threshold of every subgoal from the (n-1,) consecutive distances ``gaps``."""
+    if cfg.e_m_mode == "fixed" or n < 2:
+        return np.full(n, cfg.e_m)
+    if cfg.e_m_mode == "calibrated":
+        return np.full(n, _route_threshold(gaps, cfg))
+    incoming = np.concatenate([gaps[:1], gaps])  # subgoal 0 has no incoming gap: use its outgoing one
+    return np.clip(cfg.calib_fraction * incoming, *cfg.bounds)

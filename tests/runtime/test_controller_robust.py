@@ -1,0 +1,190 @@
+"""The default (robust) switching rules on textured views: per-subgoal thresholds, the relative switch,
+changed light, the plateau rule that needs motion, lost, and contact."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from texture_views import lit, view
+
+from vtr.runtime.controller import Action, Controller, ControllerConfig, thresholds
+from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
+from vtr.runtime.robot import Observation
+from vtr.runtime.route import Route
+
+STEP = 2  # pixels of texture between subgoals: one gap
+ROUTE = np.stack([view(100 + STEP * k) for k in range(8)])
+
+
+def robust(**changes) -> ControllerConfig:
+    return replace(ControllerConfig(), **changes)
+
+
+def test_per_subgoal_thresholds_follow_the_incoming_gap():
+    cfg = robust(e_m_min=1e-3, e_m_max=10.0)
+    gaps = np.array([1.0, 1.0, 4.0, 4.0])
+    np.testing.assert_allclose(thresholds(gaps, 5, cfg), 0.75 * np.array([1, 1, 1, 4, 4]))
+    np.testing.assert_allclose(thresholds(gaps, 5, replace(cfg, e_m_mode="calibrated")), [0.75 * 2.5] * 5)
+    np.testing.assert_allclose(thresholds(gaps, 5, replace(cfg, e_m_mode="fixed", e_m=3.0)), [3.0] * 5)
+    c = Controller(ROUTE, cfg)
+    np.testing.assert_allclose(c.thresholds[1:], 0.75 * c.gaps)
+
+
+@pytest.mark.parametrize("light", [1.0, 0.6, 1.4, (1.2, 1.0, 0.75)])
+def test_a_robot_standing_on_each_taught_pose_switches_under_changed_light(light):
+    c = Controller(ROUTE, robust(settle_steps=0))
+    for k in range(len(ROUTE)):
+        image = lit(lit(ROUTE[k], 0.7, 30), light)  # mid-range first, so the light does not clip
+        d = c.decide(image)
+        assert d.action is Action.ADVANCE and c.index == k + 1, (k, d)
+    assert c.finished
+
+
+def test_the_papers_rule_cannot_switch_under_a_darker_light():
+    c = Controller(ROUTE, ControllerConfig.paper())
+    assert c.decide(lit(ROUTE[0], 0.6)).action is Action.COMMAND and c.index == 0
+
+
+def test_relative_rule_switches_as_soon_as_the_next_subgoal_matches_as_well():
+    c = Controller(ROUTE, robust(e_m_mode="fixed", e_m=1e-3, stall_steps=0))  # threshold never met
+    assert c.decide(view(100 + STEP // 2 - 1)).action is Action.COMMAND  # nearer subgoal 0
+    d = c.decide(view(100 + STEP // 2 + 1))  # past halfway: subgoal 1 matches better
+    assert d.action is Action.ADVANCE and d.note == "next subgoal matches as well" and c.early_switches == 1
+    off = Controller(ROUTE, robust(e_m_mode="fixed", e_m=1e-3, stall_steps=0, pass_ratio=0.0))
+    assert off.decide(view(100 + STEP // 2 + 1)).action is Action.COMMAND and off.index == 0
+
+
+def test_plateau_is_accepted_once_while_the_robot_does_not_move():
+    cfg = robust(e_m_mode="fixed", e_m=0.2, jump_factor=10.0, stall_steps=2, pass_ratio=0.0, lost_steps=0)
+    c = Controller(np.stack([view(0), view(200), view(400)]), cfg)
+    still = view(3)  # near subgoal 0 but above e_m, and the robot never moves
+    actions = [c.decide(still).action for _ in range(3)]
+    assert actions == [Action.COMMAND, Action.COMMAND, Action.ADVANCE] and c.plateaus == 1
+    for _ in range(2):
+        c.decide(still)
+    d = c.decide(still)
+    assert d.action is Action.STALLED and "has not moved" in d.note and c.index == 1
+    # the old rule kept accepting subgoals with the robot standing still
+    old = Controller(np.stack([view(0), view(200), view(400)]), replace(cfg, plateau_needs_motion=False))
+    assert [old.decide(still).action for _ in range(6)].count(Action.ADVANCE) == 2
+
+
+def test_a_view_that_matches_no_nearby_subgoal_stops_as_lost():
+    route = np.stack([view(100 + k) for k in range(8)])  # gaps well under the unrelated-view distance
+    c = Controller(route, robust(lost_steps=3, stall_steps=0))
+    elsewhere = view(450)
+    actions = [c.decide(elsewhere).action for _ in range(3)]
+    assert actions == [Action.COMMAND, Action.COMMAND, Action.LOST]
+    assert c.status is Action.LOST and c.decide(route[0]).action is Action.LOST  # terminal
+    c = Controller(route, robust(lost_steps=3, stall_steps=0))
+    c.decide(elsewhere)
+    d = [c.decide(elsewhere) for _ in range(2)][-1]
+    assert d.note.startswith("lost at subgoal 0, best match error")
+    # a view on the route, however lit, is never lost
+    c = Controller(route, robust(lost_steps=1, stall_steps=0, settle_steps=0))
+    assert all(c.decide(lit(route[k], 0.6)).action is Action.ADVANCE for k in range(len(route)))
+
+
+def test_contact_stops_the_repeat_unless_the_paper_is_asked_for():
+    c = Controller(ROUTE)
+    d = c.decide(ROUTE[0], collided=True)
+    assert d.action is Action.COLLIDED and math.isnan(d.error) and "contact" in d.note
+    assert (
+        Controller(ROUTE, ControllerConfig.paper()).decide(view(300), collided=True).action is Action.COMMAND
+    )
+
+
+class ContactRobot:
+    """Reports a contact on the second step."""
+
+    def __init__(self) -> None:
+        self.n = 0
+        self.calls: list[str] = []
+
+    def observe(self) -> Observation:
+        return Observation(view(300), 0.0)
+
+    def step(self, v: float, w: float, duration: float) -> Observation:
+        self.n += 1
+        self.calls.append("step")
+        return Observation(view(300), 0.1 * self.n, collided=self.n == 2)
+
+    def stop(self) -> None:
+        self.calls.append("stop")
+
+
+class StillPolicy:
+    image_shape = (64, 64)
+    nonfinite_count = 0
+
+    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+        return np.array([[0.1, 0.1], [0.0, 0.0]], dtype=np.float32)
+
+
+def test_the_loop_ends_with_status_collided_and_stops_the_robot():
+    route = Route(images=ROUTE, poses=np.full((len(ROUTE), 3), np.nan), commands=np.zeros((len(ROUTE), 2)))
+    robot = ContactRobot()
+    summary = Repeater(
+        robot, StillPolicy(), route, config=RepeatConfig(controller=robust(lost_steps=0))
+    ).run()
+    assert summary.status is RepeatStatus.COLLIDED and not summary.completed and summary.steps == 2
+    assert robot.calls[-1] == "stop"
+
+
+def test_the_default_step_limit_scales_with_the_route():
+    short = Route(images=ROUTE[:2], poses=np.full((2, 3), np.nan), commands=np.zeros((2, 2)))
+    long = Route(
+        images=np.concatenate([ROUTE] * 40), poses=np.full((320, 3), np.nan), commands=np.zeros((320, 2))
+    )
+    assert Repeater(ContactRobot(), StillPolicy(), short).max_steps == 8 * 2 + 50
+    assert Repeater(ContactRobot(), StillPolicy(), long).max_steps == 8 * 320 + 50 > 2000
+    assert Repeater(ContactRobot(), StillPolicy(), long, config=RepeatConfig(max_steps=7)).max_steps == 7
+
+
+def test_no_translation_where_the_taught_robot_turned_in_place():
+    commands = np.array([[0.2, 0.0], [0.0, 0.5], [0.0, 0.5], [0.2, 0.0]] + [[0.2, 0.0]] * 4)
+    c = Controller(ROUTE, robust(e_m_mode="fixed", e_m=1e-3, stall_steps=0, pass_ratio=0.0), commands)
+    assert c.decide(view(300)).v_limit == np.inf  # subgoal 0: nothing taught before it
+    c._set_index(2)  # steering into subgoal 2: the taught robot turned in place (v = 0) from subgoal 1
+    assert c.decide(view(300)).v_limit == 0.0
+    c._set_index(4)
+    assert c.decide(view(300)).v_limit == np.inf
+    paper = Controller(ROUTE, ControllerConfig.paper(), commands)
+    paper._set_index(2)
+    assert paper.decide(view(300)).v_limit == np.inf  # Algorithm 1 leaves the policy alone
+
+
+class Recording(ContactRobot):
+    def __init__(self) -> None:
+        super().__init__()
+        self.sent: list[tuple[float, float]] = []
+
+    def step(self, v: float, w: float, duration: float) -> Observation:
+        self.sent.append((v, w))
+        return Observation(view(300), 0.1, collided=False)
+
+
+def test_the_repeater_applies_the_limit_to_the_policys_command():
+    commands = np.array([[0.0, 0.5]] * len(ROUTE))  # a route taught as one turn in place
+    route = Route(images=ROUTE, poses=np.full((len(ROUTE), 3), np.nan), commands=commands)
+    robot = Recording()
+    cfg = RepeatConfig(
+        controller=robust(lost_steps=0, stall_steps=0, e_m_mode="fixed", e_m=1e-3), max_steps=3
+    )
+    rep = Repeater(robot, StillPolicy(), route, config=cfg)
+    rep.controller._set_index(1)
+    rep.run()
+    assert robot.sent and all(v == 0.0 for v, _ in robot.sent)  # StillPolicy says v = 0.1
+
+
+def test_creeping_subgoals_still_switch_and_are_not_taken_for_lost():
+    creep = np.stack([view(100 + k // 4) for k in range(40)])  # 4 subgoals per pixel of motion: creeping
+    c = Controller(creep, robust())
+    assert c.thresholds.min() >= 0.15  # the floor: nearly identical subgoals are not unreachable
+    for k in range(0, 40, 4):  # the robot moves faster than taught: it skips creeping subgoals
+        verdict = c.judge(creep[k])
+        assert verdict.decision.action is Action.COMMAND and c.index >= k
+    assert c.index >= 36 and c.lost_bound == pytest.approx(0.6)

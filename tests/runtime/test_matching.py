@@ -1,0 +1,73 @@
+"""Patch-normalised matching: blind to light, robust to a changed region, still sensitive to motion."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from texture_views import lit, view
+
+from vtr.runtime.matching import MatchConfig, Matcher
+from vtr.runtime.preprocess import image_error
+
+
+def test_raw_is_the_papers_image_error():
+    m = Matcher(MatchConfig.paper())
+    a, b = view(0), view(5)
+    assert m.image_distance(a, b) == image_error(a, b)
+    np.testing.assert_allclose(m.distances(a, np.stack([a, b])), [0.0, image_error(a, b)])
+
+
+@pytest.mark.parametrize("gain, offset", [(0.6, 0.0), (1.3, 0.0), ((1.2, 1.0, 0.75), 0.0), (1.5, -50.0)])
+def test_patch_distance_ignores_brightness_contrast_and_colour_cast(gain, offset):
+    m, raw = Matcher(), Matcher(MatchConfig.paper())
+    a = lit(view(100), 0.7, 30)  # mid-range, so the changed light does not clip
+    changed = lit(a, gain, offset)
+    moved = view(104)
+    assert raw.image_distance(a, changed) > 10  # the paper's error moves a lot
+    assert m.image_distance(a, changed) < 0.1 * m.image_distance(a, moved)
+
+
+def test_patch_distance_grows_with_motion():
+    m = Matcher()
+    d = [m.image_distance(view(100), view(100 + s)) for s in (0, 1, 2, 4, 8)]
+    assert d[0] == 0.0 and all(np.diff(d) > 0)
+
+
+def test_one_side_darker_is_almost_invisible():
+    m = Matcher()
+    ramp = np.linspace(0.45, 1.0, 64, dtype=np.float32)[None, :, None]
+    a = view(50)
+    assert m.image_distance(a, lit(a, ramp)) < 0.3 * m.image_distance(a, view(52))
+
+
+def test_median_over_tiles_ignores_a_changed_quarter():
+    a = view(200)
+    changed = a.copy()
+    changed[:32, :32] = view(0)[:32, :32]  # a quarter of the view re-textured
+    median, mean = Matcher(MatchConfig(trim=0.5)), Matcher(MatchConfig(trim=0.0))
+    assert median.image_distance(a, changed) == pytest.approx(0.0, abs=1e-6)
+    assert mean.image_distance(a, changed) > 0.1
+
+
+def test_features_batch_matches_single_and_validates():
+    m = Matcher()
+    batch = np.stack([view(0), view(9)])
+    np.testing.assert_allclose(m.features(batch)[1], m.features(view(9)), rtol=1e-6)
+    with pytest.raises(ValueError, match="multiple"):
+        m.features(np.zeros((20, 20, 3), np.uint8))
+    with pytest.raises(ValueError, match="uint8"):
+        m.features(np.zeros((64, 64, 3), np.float32))
+
+
+@pytest.mark.parametrize(
+    "kwargs, fragment",
+    [
+        ({"method": "sift"}, "method"),
+        ({"trim": 1.0}, "trim"),
+        ({"patch": 1}, "patch"),
+        ({"std_floor": 0}, "std_floor"),
+    ],
+)
+def test_match_config_validation(kwargs, fragment):
+    with pytest.raises(ValueError, match=fragment):
+        MatchConfig(**kwargs)

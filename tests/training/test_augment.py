@@ -1,0 +1,84 @@
+"""Photometric augmentation and the input pipeline VelocityNet is trained through."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from vtr.runtime.preprocess import STANDARDISED, normalise
+from vtr.training.augment import AugmentConfig, InputPipeline, photometric
+
+OFF = AugmentConfig(brightness=(1, 1), contrast=(1, 1), gamma=(1, 1), colour=(1, 1), side_probability=0,
+                    blur_probability=0, noise_std=(0, 0), occluder_probability=0)  # fmt: skip
+
+
+def images(b: int = 6, seed: int = 0) -> torch.Tensor:
+    return torch.rand(b, 3, 16, 16, generator=torch.Generator().manual_seed(seed)) * 0.6 + 0.2
+
+
+def test_augmentation_keeps_shape_and_range_and_is_reproducible():
+    x = images()
+    a = photometric(x, AugmentConfig(), torch.Generator().manual_seed(1))
+    b = photometric(x, AugmentConfig(), torch.Generator().manual_seed(1))
+    c = photometric(x, AugmentConfig(), torch.Generator().manual_seed(2))
+    assert a.shape == x.shape and a.dtype == x.dtype and 0 <= a.min() and a.max() <= 1
+    assert torch.equal(a, b) and not torch.equal(a, c)
+    assert torch.allclose(photometric(x, OFF, torch.Generator()), x, atol=1e-6)  # every op off: identity
+
+
+def test_each_image_gets_its_own_light():
+    x = images(1).expand(8, -1, -1, -1)
+    cfg = AugmentConfig(side_probability=0, blur_probability=0, noise_std=(0, 0), occluder_probability=0)
+    means = photometric(x, cfg, torch.Generator().manual_seed(0)).mean(dim=(1, 2, 3))
+    assert means.std() > 0.02  # brightness, contrast, gamma and colour differ per image
+
+
+def test_occluder_paints_one_rectangle_of_one_colour():
+    cfg = AugmentConfig(brightness=(1, 1), contrast=(1, 1), gamma=(1, 1), colour=(1, 1), side_probability=0,
+                        blur_probability=0, noise_std=(0, 0), occluder_probability=1.0, occluder_size=(0.5, 0.5))  # fmt: skip
+    x = images(4)
+    out = photometric(x, cfg, torch.Generator().manual_seed(3))
+    changed = ((out - x).abs() > 1e-5).any(dim=1)  # (B, H, W); elsewhere only float rounding
+    assert (changed.sum(dim=(1, 2)) <= 64).all() and (changed.sum(dim=(1, 2)) > 40).all()  # ~8x8 of 16x16
+
+
+def test_side_darker_darkens_one_edge():
+    cfg = AugmentConfig(brightness=(1, 1), contrast=(1, 1), gamma=(1, 1), colour=(1, 1), side_probability=1.0,
+                        side_low=(0.5, 0.5), blur_probability=0, noise_std=(0, 0), occluder_probability=0)  # fmt: skip
+    x = torch.full((4, 3, 8, 8), 0.8)
+    out = photometric(x, cfg, torch.Generator().manual_seed(0))
+    edges = torch.stack([out[..., 0].mean(dim=(1, 2)), out[..., -1].mean(dim=(1, 2))], 1)  # (B, 2)
+    assert torch.allclose(edges.min(dim=1).values, torch.tensor(0.4)) and torch.allclose(
+        edges.max(dim=1).values, torch.tensor(0.8)
+    )
+
+
+class Echo(torch.nn.Module):
+    def forward(self, current: torch.Tensor, subgoal: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        return current, subgoal
+
+
+def test_input_pipeline_is_the_network_by_default_and_normalises_like_the_runtime():
+    net, x, y = Echo(), images(2, 1), images(2, 2)
+    cur, sub = InputPipeline(net)(x, y)
+    assert cur is x and sub is y
+    cur, sub = InputPipeline(net, STANDARDISED)(x, y)
+    assert torch.allclose(cur, normalise(x, STANDARDISED)) and torch.allclose(sub, normalise(y, STANDARDISED))
+
+
+def test_input_pipeline_augments_only_in_training_and_each_input_independently():
+    net = Echo()
+    x = images(2)
+    pipe = InputPipeline(net, augment=AugmentConfig(), gen=torch.Generator().manual_seed(0))
+    cur, sub = pipe(x, x)
+    assert not torch.equal(cur, x) and not torch.equal(cur, sub)
+    net.eval()
+    cur, sub = pipe(x, x)
+    assert cur is x and sub is x
+
+
+def test_augment_config_validation():
+    with pytest.raises(ValueError, match="brightness"):
+        AugmentConfig(brightness=(1.5, 0.6))
+    with pytest.raises(ValueError, match="occluder_probability"):
+        AugmentConfig(occluder_probability=2.0)

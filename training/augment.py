@@ -1,0 +1,121 @@
+"""What VelocityNet's two inputs go through in training: photometric augmentation, then the runtime's own
+normalisation (``runtime.preprocess.normalise``, the model's ``preprocessing``).
+
+Between teach and repeat the light changes, so the subgoal and the current image are augmented
+*independently* (different draws): the network learns to steer from geometry, not from brightness. ViewNet
+and the MPC loss's image targets are not touched: the loss still compares clean predicted images with
+clean recorded ones; only what VelocityNet sees is changed.
+
+Per image (each op's parameters drawn per image): brightness gain, contrast about the image mean, gamma,
+per-channel colour balance, one side darker (a horizontal gain ramp), a 3x3 blur, Gaussian sensor noise
+and a rectangular occluder of random colour (a box, a person, a moved chair in front of the camera).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+import torch.nn.functional as F  # noqa: N812
+from torch import nn
+
+from vtr.runtime.preprocess import PREPROCESSING, normalise
+
+
+@dataclass(frozen=True)
+class AugmentConfig:
+    """Ranges of the photometric augmentation (uniform draws; (1, 1) or probability 0 turns an op off)."""
+
+    brightness: tuple[float, float] = (0.6, 1.5)  # gain on every pixel
+    contrast: tuple[float, float] = (0.7, 1.3)  # gain on the deviation from the image mean
+    gamma: tuple[float, float] = (0.7, 1.4)  # x ** gamma
+    colour: tuple[float, float] = (0.8, 1.2)  # per-channel gain
+    side_probability: float = 0.3  # chance of one side darker
+    side_low: tuple[float, float] = (0.45, 0.9)  # gain at the dark edge (1 at the other)
+    blur_probability: float = 0.2  # chance of a 3x3 box blur
+    noise_std: tuple[float, float] = (0.0, 0.03)  # Gaussian sensor noise, in [0, 1] pixel units
+    occluder_probability: float = 0.25  # chance of one rectangle of random colour
+    occluder_size: tuple[float, float] = (0.1, 0.35)  # its sides, as fractions of the image's
+
+    def __post_init__(self) -> None:
+        for name in ("brightness", "contrast", "gamma", "colour", "side_low", "noise_std", "occluder_size"):
+            lo, hi = getattr(self, name)
+            if not 0 <= lo <= hi:
+                raise ValueError(f"AugmentConfig.{name} must be a range 0 <= low <= high, got {(lo, hi)}")
+        for name in ("side_probability", "blur_probability", "occluder_probability"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise ValueError(f"AugmentConfig.{name} must be in [0, 1], got {getattr(self, name)}")
+        if self.occluder_size[1] > 1 or self.side_low[1] > 1:
+            raise ValueError("AugmentConfig.occluder_size and side_low must be at most 1")
+
+
+def _uniform(n: int, bounds: tuple[float, float], gen: torch.Generator, device: torch.device) -> torch.Tensor:
+    lo, hi = bounds
+    return (lo + (hi - lo) * torch.rand(n, generator=gen)).to(device)
+
+
+def photometric(images: torch.Tensor, cfg: AugmentConfig, gen: torch.Generator) -> torch.Tensor:
+    """float (B, 3, H, W) in [0, 1] -> the same shape, augmented per image (see the module docstring)."""
+    b, c, h, w = images.shape
+    dev = images.device
+    x = images.float()
+    per_image = (b, 1, 1, 1)
+    x = x * _uniform(b, cfg.brightness, gen, dev).view(per_image)
+    mean = x.mean(dim=(1, 2, 3), keepdim=True)
+    x = (x - mean) * _uniform(b, cfg.contrast, gen, dev).view(per_image) + mean
+    x = x.clamp(0, 1) ** _uniform(b, cfg.gamma, gen, dev).view(per_image)
+    x = x * _uniform(b * c, cfg.colour, gen, dev).view(b, c, 1, 1)
+    side = (torch.rand(b, generator=gen) < cfg.side_probability).to(dev)
+    if side.any():
+        low = _uniform(b, cfg.side_low, gen, dev).view(b, 1)
+        t = torch.linspace(0, 1, w, device=dev).view(1, w)
+        flip = (torch.rand(b, generator=gen) < 0.5).to(dev).view(b, 1)
+        t = torch.where(flip, 1 - t, t)
+        ramp = low + (1 - low) * t  # (B, W)
+        x = torch.where(side.view(per_image), x * ramp.view(b, 1, 1, w), x)
+    blur = (torch.rand(b, generator=gen) < cfg.blur_probability).to(dev)
+    if blur.any():
+        blurred = F.avg_pool2d(x, 3, stride=1, padding=1, count_include_pad=False)
+        x = torch.where(blur.view(per_image), blurred, x)
+    std = _uniform(b, cfg.noise_std, gen, dev).view(per_image)
+    x = x + std * torch.randn(x.shape, generator=gen).to(dev)
+    occ = torch.rand(b, generator=gen) < cfg.occluder_probability
+    if occ.any():
+        sizes = _uniform(2 * b, cfg.occluder_size, gen, torch.device("cpu")).view(b, 2)
+        corners = torch.rand(b, 2, generator=gen)
+        colours = torch.rand(b, c, generator=gen).to(dev)
+        rows, cols = torch.arange(h).view(1, h, 1), torch.arange(w).view(1, 1, w)
+        hh, ww = (sizes[:, 0] * h).long().view(b, 1, 1), (sizes[:, 1] * w).long().view(b, 1, 1)
+        top = (corners[:, 0] * (h - hh.view(b) + 1)).long().view(b, 1, 1)
+        left = (corners[:, 1] * (w - ww.view(b) + 1)).long().view(b, 1, 1)
+        inside = (rows >= top) & (rows < top + hh) & (cols >= left) & (cols < left + ww)  # (B, H, W)
+        inside &= occ.view(b, 1, 1)
+        x = torch.where(inside.to(dev).unsqueeze(1), colours.view(b, c, 1, 1), x)
+    return x.clamp(0, 1).to(images.dtype)
+
+
+class InputPipeline(nn.Module):
+    """VelocityNet as the MPC loss sees it in training: both inputs augmented (while ``net`` is in training
+    mode and ``augment`` is given) and normalised as the runtime will (``preprocessing``).
+
+    With the default preprocessing and no augmentation it is exactly ``net``. Built around the network per
+    use (cheap), so the network itself, its checkpoint and its ONNX export stay unchanged.
+    """
+
+    def __init__(
+        self,
+        net: nn.Module,
+        preprocessing: str = PREPROCESSING,
+        augment: AugmentConfig | None = None,
+        gen: torch.Generator | None = None,
+    ) -> None:
+        super().__init__()
+        self.net, self.preprocessing, self.augment = net, preprocessing, augment
+        self.gen = gen if gen is not None else torch.Generator().manual_seed(0)
+
+    def forward(self, current: torch.Tensor, subgoal: torch.Tensor) -> torch.Tensor:
+        # current, subgoal: (B, 3, H, W) in [0, 1] -> (B, 2, N)
+        if self.augment is not None and self.net.training:
+            current = photometric(current, self.augment, self.gen)
+            subgoal = photometric(subgoal, self.augment, self.gen)
+        return self.net(normalise(current, self.preprocessing), normalise(subgoal, self.preprocessing))
