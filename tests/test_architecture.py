@@ -4,7 +4,12 @@ application layer (``vtr.cli``, ``vtr.pipeline``) or the evaluation, and a lean 
 from __future__ import annotations
 
 import ast
+import subprocess
+import sys
+import zipfile
 from pathlib import Path
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = {"runtime": "vtr.runtime", "sim2d": "vtr.sim2d", "training": "vtr.training", "export": "vtr.export",
@@ -75,3 +80,28 @@ def test_libraries_never_import_the_application_layer() -> None:
         text = path.read_text()
         for target in app:
             assert f"from {target}" not in text and f"import {target}" not in text, f"{name} imports {target}"
+
+
+def test_an_install_adds_only_vtr_to_site_packages(tmp_path: Path) -> None:
+    """`pip install .` must not put generic names (`runtime`, `training`, ...) into site-packages."""
+    pytest.importorskip("setuptools")  # the build backend; pip's own isolation would need the network
+    cmd = [
+        sys.executable,
+        "-m",
+        "pip",
+        "wheel",
+        "-q",
+        "--no-deps",
+        "--no-build-isolation",
+        "-w",
+        str(tmp_path),
+    ]
+    subprocess.run([*cmd, str(ROOT)], check=True, timeout=300, capture_output=True)
+    (wheel,) = tmp_path.glob("vtr_mpc-*.whl")
+    with zipfile.ZipFile(wheel) as archive:
+        names = archive.namelist()
+    tops = {n.split("/")[0] for n in names}
+    assert {t for t in tops if not t.endswith(".dist-info")} == {"vtr"}, tops
+    for package in PACKAGES.values():  # every library travels, under vtr
+        assert any(n.startswith(package.replace(".", "/") + "/") for n in names), package
+    assert "vtr/sim2d/maps/house.json" in names and "vtr/models/velocitynet.onnx" in names
