@@ -84,7 +84,8 @@ class BenchStep:
     The controller never switches (fixed e_m below any error, no stall guard, no settling): every step
     commands, the worst case. The route is ``ROUTE_LENGTH`` copies of ``subgoal``; the robot stays at
     its first. The zero command after each step is sent, as the daemon does by default
-    (stop-and-go); ``continuous=True`` leaves it out (`vtr repeat --continuous`).
+    (stop-and-go); ``continuous=True`` leaves it out (`vtr repeat --continuous`). ``match_light=True``
+    wraps the policy in ``LightMatchedPolicy`` as `vtr repeat` does by default.
     """
 
     name = "runtime.repeater.Repeater.step on a loopback link (protocol decode/encode, no socket)"
@@ -96,6 +97,7 @@ class BenchStep:
         current: np.ndarray,
         subgoal: np.ndarray,
         continuous: bool = False,
+        match_light: bool = False,
     ) -> None:
         from vtr.runtime.controller import ControllerConfig
         from vtr.runtime.policy import OnnxPolicy
@@ -103,6 +105,11 @@ class BenchStep:
         from vtr.runtime.route import Route
 
         self.policy = OnnxPolicy(model, threads=threads)
+        policy: Any = self.policy
+        if match_light:  # as `vtr repeat` does by default (--match-light)
+            from vtr.runtime.light import LightMatchedPolicy
+
+            policy = LightMatchedPolicy(self.policy)
         self.robot = LoopbackRobot(current)
         route = Route(
             images=np.ascontiguousarray(np.broadcast_to(subgoal, (ROUTE_LENGTH, *subgoal.shape))),
@@ -115,7 +122,7 @@ class BenchStep:
             e_m_mode="fixed", e_m=1e-3, stall_steps=0, settle_steps=0, continuous=continuous
         )
         self.repeater = Repeater(
-            self.robot, self.policy, route, config=RepeatConfig(controller=controller, max_steps=10**12)
+            self.robot, policy, route, config=RepeatConfig(controller=controller, max_steps=10**12)
         )
 
     def __call__(self) -> Any:

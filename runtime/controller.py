@@ -275,6 +275,9 @@ class Controller:
         self._localise_pending = True
 
     def _lost(self, view: np.ndarray, error: float) -> Decision | None:
+        if error <= self.lost_bound:  # the window holds the current subgoal: its best is no worse
+            self._lost_count = 0
+            return None
         ahead = max(self.cfg.lookahead, LOST_WINDOW)
         window = range(max(0, self.index - 2), min(len(self), self.index + 1 + ahead))
         errors = self.matcher.distances(view, self._feats[window.start : window.stop])
