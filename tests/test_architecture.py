@@ -105,3 +105,4 @@ def test_an_install_adds_only_vtr_to_site_packages(tmp_path: Path) -> None:
     for package in PACKAGES.values():  # every library travels, under vtr
         assert any(n.startswith(package.replace(".", "/") + "/") for n in names), package
     assert "vtr/sim2d/maps/house.json" in names and "vtr/models/velocitynet.onnx" in names
+    assert any(n.startswith("vtr/sim2d/routes/heldout/") for n in names)  # the held-out sets travel too
