@@ -4,6 +4,7 @@ application layer (``vtr.cli``, ``vtr.pipeline``) or the evaluation, and a lean 
 from __future__ import annotations
 
 import ast
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -85,18 +86,23 @@ def test_libraries_never_import_the_application_layer() -> None:
 def test_an_install_adds_only_vtr_to_site_packages(tmp_path: Path) -> None:
     """`pip install .` must not put generic names (`runtime`, `training`, ...) into site-packages."""
     pytest.importorskip("setuptools")  # the build backend; pip's own isolation would need the network
-    cmd = [
-        sys.executable,
-        "-m",
-        "pip",
-        "wheel",
-        "-q",
-        "--no-deps",
-        "--no-build-isolation",
-        "-w",
-        str(tmp_path),
-    ]
-    subprocess.run([*cmd, str(ROOT)], check=True, timeout=300, capture_output=True)
+    # build from a clean copy: a stale egg-info in the checkout would carry files an install no longer gets
+    src = tmp_path / "src"
+    junk = (
+        ".git",
+        ".venv",
+        "build",
+        "*.egg-info",
+        "__pycache__",
+        "data",
+        "runs",
+        "out",
+        "demo_out",
+        ".*_cache",
+    )
+    shutil.copytree(ROOT, src, ignore=shutil.ignore_patterns(*junk))
+    pip = [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation"]
+    subprocess.run([*pip, "-w", str(tmp_path), str(src)], check=True, timeout=300, capture_output=True)
     (wheel,) = tmp_path.glob("vtr_mpc-*.whl")
     with zipfile.ZipFile(wheel) as archive:
         names = archive.namelist()
