@@ -202,18 +202,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sim", default=None, help=f"robot endpoint, e.g. {EXAMPLE} (or --bag)")
     parser.add_argument("--route", default=None, help="ROUTE.json: start pose and (v, w, duration) segments")
     add_config_arguments(parser, TeachConfig)
-    from vtr.runtime import bag_teach
-
-    bag_teach.add_arguments(parser)
 
 
 def run_cli(args: argparse.Namespace) -> int:
     try:
         teach_cfg = config_from_args(TeachConfig, args)
-        if args.bag:  # a route from a recorded drive instead of a live robot
-            from vtr.runtime import bag_teach
-
-            return bag_teach.run_cli(args, teach_cfg)
         if not (args.sim and args.route):
             raise ValueError("needs --sim and --route (a live robot), or --bag (a recorded drive)")
         cfg = config_from_args(TeachRunConfig, args, teach=teach_cfg)

@@ -86,22 +86,20 @@ def run_serve(
     from vtr.sim2d.config import CameraConfig, SimConfig
 
     try:
-        from vtr.sim2d.server import ServerConfig, serve
+        from vtr.sim2d.server import BindError, ServerConfig, serve
     except ImportError as err:
         print(
             f"vtr sim serve: the simulator server (sim2d/server.py) is not available: {err}", file=sys.stderr
         )
         return 3
-    import zmq
-
     check_endpoint(bind, bind=True)
     sim_cfg = SimConfig(house=house, noise=noise, changes=changes, camera=CameraConfig(brightness=brightness))
     try:
         return int(
             serve(ServerConfig(bind=bind, sim=sim_cfg, mode=mode, cmd_vel_timeout=cmd_vel_timeout)) or 0
         )
-    except zmq.ZMQError as err:  # the port is taken, or the interface does not exist
-        print(f"vtr sim serve: cannot bind {bind}: {err}; choose another --bind", file=sys.stderr)
+    except BindError as err:  # the port is taken, or the interface does not exist
+        print(f"vtr sim serve: {err}; choose another --bind", file=sys.stderr)
         return 2
 
 

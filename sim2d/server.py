@@ -66,6 +66,10 @@ class Deferred:
     req: protocol.Request
 
 
+class BindError(OSError):
+    """The server could not bind its endpoint: the port is taken, or the interface does not exist."""
+
+
 class SimServer:
     """Request handling (frames in, frames out) plus a socket loop around it.
 
@@ -290,7 +294,10 @@ class SimServer:
         sock.setsockopt(zmq.LINGER, 0)
         sock.setsockopt(zmq.MAXMSGSIZE, self.cfg.hard_max_message_bytes)
         try:
-            sock.bind(self.cfg.bind)
+            try:
+                sock.bind(self.cfg.bind)
+            except zmq.ZMQError as exc:  # callers need not know ZeroMQ to report a taken port
+                raise BindError(f"cannot bind {self.cfg.bind}: {exc}") from None
             self.endpoint = sock.getsockopt_string(zmq.LAST_ENDPOINT)
             self._ready.set()
             poller = zmq.Poller()

@@ -243,7 +243,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     from vtr.training import collect_robot
 
     collect_robot.add_arguments(parser)
-    from vtr.runtime import bag_read
+    from vtr.training import bag_read
 
     bag_read.add_arguments(parser, "a dataset from teleoperated drives")
 

@@ -1,4 +1,4 @@
-"""`vtr collect --bag`: a training dataset from teleoperated drives recorded in ROS bags (runtime/bag_read.py).
+"""`vtr collect --bag`: a training dataset from teleoperated drives recorded in ROS bags (training/bag_read.py).
 
 Each gap-free segment of the resampled drive becomes an episode (a pair never spans a gap); the last frame of an
 episode gets a zero command, as in every dataset. Segments shorter than ``MIN_EPISODE`` frames are dropped.
@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from vtr.runtime.bag_read import BagDrive, BagError, read_bag_args
+from vtr.training.bag_read import BagDrive, BagError, read_bag_args
 from vtr.training.dataset import FORMAT_VERSION, FrameData, save_dataset
 
 #: Segments shorter than this (frames) make no useful training windows.

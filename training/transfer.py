@@ -69,8 +69,7 @@ def init_weights(model: Any, kind: str, model_cfg: Any, path: str | os.PathLike)
     """Load the weights of checkpoint `path` into `model` (in place); returns a note for the metadata.
 
     Raises ValueError (one line) when the file is not a `kind` checkpoint of the same architecture."""
-    import torch
-
+    from vtr.training.checkpoint import CheckpointError, read_checkpoint
     from vtr.training.config import to_dict
 
     p = Path(path)
@@ -83,13 +82,12 @@ def init_weights(model: Any, kind: str, model_cfg: Any, path: str | os.PathLike)
         raise FileNotFoundError(f"--init: no checkpoint at {p}{hint if kind == 'velocitynet' else ''}")
     if p.suffix == ".onnx":
         raise ValueError(f"--init: {p} is an ONNX export (batch norm folded in); pass a .pt checkpoint")
-    try:
-        ckpt = torch.load(p, map_location="cpu", weights_only=False)
-    except Exception as err:  # a torch.load failure has many types; report it in one line
-        raise ValueError(f"--init: cannot read {p} as a torch checkpoint ({type(err).__name__})") from None
-    if not isinstance(ckpt, dict) or ckpt.get("kind") != kind:
-        got = ckpt.get("kind") if isinstance(ckpt, dict) else type(ckpt).__name__
-        raise ValueError(f"--init: {p} holds a {got!r}, not a {kind}")
+    try:  # the one checkpoint reader: weights_only=True, so a crafted file cannot run code
+        ckpt = read_checkpoint(p)
+    except CheckpointError as err:
+        raise ValueError(f"--init: {err}") from None
+    if ckpt.get("kind") != kind:
+        raise ValueError(f"--init: {p} holds a {ckpt.get('kind')!r}, not a {kind}")
     if ckpt.get("model_config") != to_dict(model_cfg):
         raise ValueError(f"--init: {p} has another architecture than this preset's {kind}; use its --preset")
     model.load_state_dict(ckpt["state_dict"])

@@ -17,6 +17,8 @@ COMMANDS: dict[str, Command] = {
     ),
     "sim": Command("vtr.sim2d.cli", "simulator: serve over ZeroMQ, snapshot the house", "sim"),
     **ROBOT_COMMANDS,
+    # the robot's teach plus routes from ROS bags (a desktop job: rosbags, OpenCV)
+    "teach": Command("vtr.teach_cmd", ROBOT_COMMANDS["teach"].summary + ", or make one from a ROS bag", None),
     "collect": Command(
         "vtr.training.collect",
         "record a training dataset: simulator, protocol robot (--sim) or ROS bags (--bag)",

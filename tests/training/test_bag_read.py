@@ -11,8 +11,8 @@ import pytest
 from bag_fixtures import picture, write_drive_bag
 
 from vtr import cli
-from vtr.runtime.bag_read import BagError, read_bag
 from vtr.runtime.route import Route
+from vtr.training.bag_read import BagError, read_bag
 from vtr.training.dataset import load_dataset
 
 

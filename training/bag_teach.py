@@ -1,4 +1,4 @@
-"""`vtr teach --bag`: a route from a teleoperated drive recorded in a ROS bag (see runtime/bag_read.py).
+"""`vtr teach --bag`: a route from a teleoperated drive recorded in a ROS bag (see training/bag_read.py).
 
 The drive is resampled to the control step dt; subgoals follow the same spacing rules as `vtr teach` on a live
 robot (runtime/teach.py). A route is one continuous drive: when the bag has gaps, the longest segment is used
@@ -13,11 +13,11 @@ from typing import Any
 
 import numpy as np
 
-from vtr.runtime import bag_read
-from vtr.runtime.bag_read import BagDrive, BagError, read_bag_args
 from vtr.runtime.robot import Observation
 from vtr.runtime.route import Route
 from vtr.runtime.teach import TeachConfig, _due
+from vtr.training import bag_read
+from vtr.training.bag_read import BagDrive, BagError, read_bag_args
 
 
 def route_from_drive(
