@@ -31,7 +31,7 @@ from vtr.runtime.route_script import RouteScript, Segment
 from vtr.sim2d.config import Pose, SimConfig
 from vtr.sim2d.house import RANDOM_PREFIX, House, load_house
 from vtr.sim2d.physics import advance, build_world, pose_of
-from vtr.sim2d.route_plan import ClearanceGrid, clearance_grid, line_clearance, search, shortcut
+from vtr.sim2d.route_plan import ClearanceGrid, clearance_grid, line_clearance, search, shortcut, simplify
 
 ROBOT_RADIUS = SimConfig().robot_radius
 PLAN_CLEARANCE = ROBOT_RADIUS + 0.13  # m the planned path keeps from walls and furniture
@@ -100,7 +100,7 @@ def arc(angle: float, radius: float, v: float, dt: float) -> Segment:
     while abs(angle) / (n * dt) > LIMITS.w_max or abs(angle) * radius / (n * dt) > LIMITS.v_max:
         n += 1
     w = angle / (n * dt)
-    return Segment(round(abs(w) * radius, 5), round(w, 5), round(n * dt, 6))
+    return Segment(round(float(abs(w) * radius), 5), round(float(w), 5), round(n * dt, 6))
 
 
 def _speed(rng: np.random.Generator, length: float) -> float:
@@ -217,7 +217,8 @@ def plan_polyline(grid: ClearanceGrid, rng: np.random.Generator) -> np.ndarray |
         ok = open_cells & (tree.room_changes == k - 1) & (tree.length >= lo) & (tree.length <= hi)
         if np.any(ok):
             cells = tree.path(_pick(rng, np.argwhere(ok)))
-            return bend(grid, shortcut(grid, cells, PLAN_CLEARANCE, OPEN_CLEARANCE), rng)
+            poly = simplify(grid, shortcut(grid, cells, PLAN_CLEARANCE, OPEN_CLEARANCE), PLAN_CLEARANCE)
+            return bend(grid, poly, rng)
     return None
 
 

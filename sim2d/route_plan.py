@@ -157,3 +157,24 @@ def shortcut(grid: ClearanceGrid, cells: list[tuple[int, int]], floor: float, wa
         out.append(pts[j])
         i = j
     return np.asarray(out)
+
+
+def simplify(
+    grid: ClearanceGrid, pts: np.ndarray, floor: float, min_leg: float = 0.35, min_turn: float = 0.15
+) -> np.ndarray:
+    """Drop vertices that make a leg shorter than ``min_leg`` m or turn less than ``min_turn`` rad, where
+    the line that skips them keeps ``floor`` clearance: fewer, longer legs, as a person would drive."""
+    out = [p for p in pts]
+    changed = True
+    while changed and len(out) > 2:
+        changed = False
+        for j in range(1, len(out) - 1):
+            a, b, c = out[j - 1], out[j], out[j + 1]
+            ab, bc = b - a, c - b
+            turn = abs(math.atan2(ab[0] * bc[1] - ab[1] * bc[0], float(np.dot(ab, bc))))
+            short = min(float(np.hypot(*ab)), float(np.hypot(*bc))) < min_leg
+            if (short or turn < min_turn) and line_clearance(grid, a, c) >= floor:
+                del out[j]
+                changed = True
+                break
+    return np.asarray(out)
