@@ -5,6 +5,7 @@ Development houses only (random:900..999): random:5000.. are kept for the held-o
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -110,3 +111,15 @@ def test_vtr_teach_drives_a_generated_route_as_the_check_did(routes: dict) -> No
 def test_bad_seed_is_refused() -> None:
     with pytest.raises(ValueError, match="seed"):
         route_gen.generate_route("random:900", -1)
+
+
+def test_vtr_sim_route_writes_the_generated_route(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from vtr.cli import main
+    from vtr.runtime.route_script import load_route_script
+
+    out = tmp_path / "r.json"
+    assert main(["sim", "route", "--house", "random:900", "--seed", "1", "--out", str(out)]) == 0
+    script = load_route_script(out)
+    assert script == route_gen.generate_route("random:900", 1)
+    assert main(["sim", "route", "--house", "random:900", "--seed", "-1", "--out", str(out)]) == 2
+    assert "--seed" in capsys.readouterr().err
