@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 import zlib
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -55,16 +56,21 @@ class DriveCheck:
     poses: np.ndarray  # (N, 3) the pose after every control step, start included
 
 
+def _house_stem(house: str) -> str:
+    """A map file is known by its name (its folder does not change the routes), anything else as given."""
+    return Path(house).stem if house.endswith(".json") else house
+
+
 def house_key(house: str) -> int:
-    """A stable integer for a house name: the SEED of random:SEED, else a CRC of the name."""
+    """A stable integer for a house: the SEED of random:SEED, else a CRC of the map's name."""
     if house.startswith(RANDOM_PREFIX) and house[len(RANDOM_PREFIX) :].isdigit():
         return int(house[len(RANDOM_PREFIX) :])
-    return zlib.crc32(house.encode("utf-8"))
+    return zlib.crc32(_house_stem(house).encode("utf-8"))
 
 
 def route_name(house: str, seed: int) -> str:
-    """e.g. random5000_r2 (no colon: the name doubles as a file stem)."""
-    return f"{house.replace(RANDOM_PREFIX, 'random').replace('/', '_').replace(':', '')}_r{seed}"
+    """e.g. random5000_r2 or house_r0 (no colon: the name doubles as a file stem)."""
+    return f"{_house_stem(house).replace(RANDOM_PREFIX, 'random').replace(':', '')}_r{seed}"
 
 
 # ------------------------------------------------------------------------------------------ pieces

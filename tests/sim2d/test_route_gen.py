@@ -123,3 +123,16 @@ def test_vtr_sim_route_writes_the_generated_route(tmp_path: Path, capsys: pytest
     assert script == route_gen.generate_route("random:900", 1)
     assert main(["sim", "route", "--house", "random:900", "--seed", "-1", "--out", str(out)]) == 2
     assert "--seed" in capsys.readouterr().err
+
+
+def test_named_maps_get_routes_too_named_by_the_map_not_its_folder(tmp_path: Path) -> None:
+    import shutil
+
+    from vtr.sim2d.house import MAPS_DIR
+
+    script = route_gen.generate_route("house", 0)
+    assert script.name == "house_r0"
+    check = route_gen.drive(load_house("house"), script)
+    assert not check.touched and check.min_clearance >= route_gen.VERIFY_CLEARANCE
+    copy = shutil.copy(MAPS_DIR / "house.json", tmp_path / "house.json")
+    assert route_gen.generate_route(str(copy), 0) == script
