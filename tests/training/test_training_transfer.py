@@ -101,3 +101,18 @@ def test_fine_tune_starts_from_init_and_evaluate_reports_baselines(tmp_path: Pat
     v = report["velocitynet"]
     assert v["mean_baseline_mse"] > 0 and np.isfinite(v["mse_first_command"])
     assert v["mean_command"] == pytest.approx(ckpt["mean_command"])
+
+
+def test_named_maps_are_never_held_out() -> None:
+    from types import SimpleNamespace
+
+    from vtr.training.transfer import split_by_house
+
+    names = ["house"] + [f"random:{i}" for i in range(9)]
+    houses = np.repeat(np.arange(10), 4)
+    data = SimpleNamespace(houses=houses, house_names=names, episodes=np.arange(40) // 2)
+    for seed in range(20):
+        _, val_ids, held_out = split_by_house(data, 0.3, seed)
+        assert held_out and "house" not in held_out
+        assert all(h.startswith("random:") for h in held_out)
+        assert not np.isin(val_ids, data.episodes[houses == 0]).any()
