@@ -147,7 +147,8 @@ def route_paths(names: tuple[str, ...]) -> list[Path]:
 _POLICIES: dict[tuple[str, int], Any] = {}  # per worker process: ONNX sessions by (path, threads)
 
 
-def _policy(path: Path, threads: int) -> Any:
+def cached_policy(path: Path, threads: int) -> Any:
+    """One OnnxPolicy per (model, threads) in this process."""
     from vtr.runtime.policy import OnnxPolicy
 
     key = (str(path), threads)
@@ -164,9 +165,10 @@ def _start(pose: np.ndarray, offset: tuple[float, float], seed: int) -> tuple[fl
 
 
 def run_once(route: Any, script: Any, cond: Condition, house: str, seed: int, method: Method,
-             policy: Any, cfg: SuiteConfig) -> dict[str, Any]:  # fmt: skip
+             policy: Any, cfg: Any, keep_path: bool = False) -> dict[str, Any]:  # fmt: skip
     """One repeat under ``cond`` (evaluation.runs, the `vtr eval` harness's loop); its scores plus the
-    status, the failure's cause and the control steps per taught control step."""
+    status, the failure's cause and the control steps per taught control step (``keep_path``: and the
+    repeated x, y in mm precision). ``cfg`` needs dt, e_m and max_steps_factor (a SuiteConfig)."""
     from vtr.evaluation.conditions import LitRobot
     from vtr.evaluation.runs import repeat_closed_loop
     from vtr.evaluation.scoring import score
@@ -210,6 +212,7 @@ def run_once(route: Any, script: Any, cond: Condition, house: str, seed: int, me
         "cross_track_m": s["mean_cross_track_error_m"],
         "final_position_m": s["final_pose_error"]["position_m"],
         "final_yaw_deg": abs(s["final_pose_error"]["yaw_deg"]),
+        **({"path": np.round(np.asarray(log.poses)[:, :2], 3).tolist()} if keep_path else {}),
     }
 
 
@@ -224,7 +227,7 @@ def evaluate_task(task: tuple[Path, str, SuiteConfig]) -> list[dict[str, Any]]:
     os.environ.setdefault("OMP_NUM_THREADS", str(cfg.threads))
     cond = CONDITIONS[cond_name]
     models = {"fp32": cfg.model, "int8": cfg.int8_model}
-    route, script = teach(path, tuple(_policy(cfg.model, cfg.threads).image_shape), cfg.dt)
+    route, script = teach(path, tuple(cached_policy(cfg.model, cfg.threads).image_shape), cfg.dt)
     out = []
     with tempfile.TemporaryDirectory() as tmp:
         try:
@@ -234,7 +237,7 @@ def evaluate_task(task: tuple[Path, str, SuiteConfig]) -> list[dict[str, Any]]:
             return [{"route": path.stem, "condition": cond_name, "model": m, "controller": c, "seed": s, **blocked}
                     for m in cfg.models for c in cfg.controllers for s in cfg.seeds]  # fmt: skip
         for model in cfg.models:
-            policy = _policy(Path(models[model]), cfg.threads)
+            policy = cached_policy(Path(models[model]), cfg.threads)
             for ctrl in cfg.controllers:
                 for seed in cfg.seeds:
                     run = run_once(route, script, cond, house, seed, CONTROLLERS[ctrl], policy, cfg)

@@ -37,7 +37,7 @@ from vtr.models import find_int8, find_model
 from vtr.runtime.atomic import write_text_atomic
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT, Policy
-from vtr.runtime.route_script import load_route_script
+from vtr.runtime.route_script import RouteScript, load_route_script
 from vtr.sim2d.routes import ROUTES_DIR
 
 QUICK_ROUTES = ("translation",)
@@ -133,22 +133,25 @@ def route_files(names: tuple[str, ...]) -> list[Path]:
     return out
 
 
-def make_robot(noise: float, image_size: tuple[int, int]) -> Any:
+def make_robot(noise: float, image_size: tuple[int, int], house: str = "house") -> Any:
     from vtr.sim2d import CameraConfig, SimConfig, Simulator
     from vtr.sim2d.local_robot import LocalRobot
 
     h, w = image_size
-    return LocalRobot(Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=noise)))
+    return LocalRobot(Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=noise, house=house)))
 
 
-def teach(script_path: Path, image_size: tuple[int, int], dt: float) -> tuple[Any, Any]:
-    """Drive the scripted route noise-free with `runtime.teach`; returns (Route, RouteScript)."""
-    from vtr.runtime.route_script import load_route_script
+def teach(
+    script: Path | RouteScript, image_size: tuple[int, int], dt: float, house: str = "house"
+) -> tuple[Any, Any]:
+    """Drive the scripted route (a ROUTE.json path or a RouteScript) noise-free in ``house`` with
+    `runtime.teach`; returns (Route, RouteScript)."""
     from vtr.runtime.teach import TeachConfig
     from vtr.runtime.teach import teach as teach_route
 
-    script = load_route_script(script_path)
-    robot = make_robot(0.0, image_size)
+    if not isinstance(script, RouteScript):
+        script = load_route_script(script)
+    robot = make_robot(0.0, image_size, house)
     return teach_route(robot, script, TeachConfig(dt=dt, seed=0)), script
 
 
@@ -265,7 +268,7 @@ def run(cfg: EvalConfig) -> dict[str, Any]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from vtr.evaluation import condition_suite
+    from vtr.evaluation import condition_suite, house_suite
 
     add_config_arguments(parser, EvalConfig)
     parser.add_argument("--run", type=Path, default=None, help="score a run recorded by `vtr repeat --mcap`")
@@ -274,9 +277,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
     condition_suite.add_arguments(parser)
+    house_suite.add_arguments(parser)
 
 
 def run_cli(args: argparse.Namespace) -> int:
+    if getattr(args, "houses", None) is not None:  # generated routes in procedural houses
+        from vtr.evaluation import house_suite
+
+        return house_suite.run_cli(args)
     if getattr(args, "suite", None) == "conditions":
         from vtr.evaluation import condition_suite
 

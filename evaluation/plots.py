@@ -10,8 +10,8 @@ import numpy as np
 from vtr.runtime.atomic import atomic_path
 
 
-def draw_house(ax: Any) -> bool:
-    """Draw the house top-down on a matplotlib axis: walls dark, furniture light, room names.
+def draw_house(ax: Any, house: str = "house", labels: bool = True) -> bool:
+    """Draw ``house`` (a map name, path or random:SEED) top-down: walls dark, furniture light, room names.
 
     Returns False (and draws nothing) when the simulator's house cannot be loaded: a plot without a floor
     plan is still a plot.
@@ -19,8 +19,8 @@ def draw_house(ax: Any) -> bool:
     try:
         from vtr.sim2d import load_house
 
-        house = load_house()
-        seg = house.segments
+        h = load_house(house)
+        seg = h.segments
         walls = np.asarray(seg.is_wall, dtype=bool)
         a, b = np.asarray(seg.a), np.asarray(seg.b)
     except Exception:
@@ -28,7 +28,7 @@ def draw_house(ax: Any) -> bool:
     for mask, colour, width in ((~walls, "0.7", 0.8), (walls, "0.25", 1.6)):
         for p, q in zip(a[mask], b[mask], strict=True):
             ax.plot([p[0], q[0]], [p[1], q[1]], color=colour, lw=width, zorder=1)
-    for room in house.rooms:
+    for room in h.rooms if labels else ():
         c = np.asarray(room.polygon, dtype=np.float64).mean(axis=0)
         ax.text(
             c[0], c[1], room.name, color="0.55", fontsize=8, ha="center", va="center", zorder=1, clip_on=True

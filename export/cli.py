@@ -49,6 +49,7 @@ def run(cfg: ExportConfig, data: Any = None) -> dict[str, Any]:
     import torch
 
     from vtr.export.onnx_export import export_onnx, velocitynet_meta, viewnet_props
+    from vtr.export.provenance import camera_of, provenance_props
     from vtr.export.quantize import calibration_pairs, compare, quantize_int8
     from vtr.training.checkpoint import load_model
     from vtr.training.dataset import load_dataset
@@ -58,8 +59,9 @@ def run(cfg: ExportConfig, data: Any = None) -> dict[str, Any]:
         raise ValueError(
             f"{cfg.checkpoint} holds a {kind}; `vtr export` exports VelocityNet (use --viewnet for ViewNet)"
         )
-    dt = float(ckpt.get("data_meta", {}).get("dt", CONTROL_DT))
-    meta = velocitynet_meta(model.cfg, dt=dt)
+    data_meta = ckpt.get("data_meta") or {}
+    dt = float(data_meta.get("dt", CONTROL_DT))
+    meta = velocitynet_meta(model.cfg, dt=dt, **camera_of(data_meta))
     real = None
     if cfg.data and data is None:
         data = load_dataset(cfg.data, image_size=model.cfg.image_size)
@@ -68,8 +70,12 @@ def run(cfg: ExportConfig, data: Any = None) -> dict[str, Any]:
             data.images, data.episodes, count=cfg.calibration_pairs, seed=1, preprocessing=meta.preprocessing
         )
     parity_inputs = [real[0][:16], real[1][:16]] if real is not None else None
+    frames = len(data) if data is not None else data_meta.get("frames")
+    props = provenance_props(*_with_run_configs(cfg.checkpoint, ckpt), frames=frames)
     result: dict[str, Any] = {
-        "fp32": export_onnx(model, cfg.out, meta, opset=cfg.opset, real_inputs=parity_inputs)
+        "fp32": export_onnx(
+            model, cfg.out, meta, opset=cfg.opset, real_inputs=parity_inputs, extra_props=props
+        )
     }
     result["fp32"]["path"] = str(cfg.out)
     if cfg.int8 and data is not None and real is not None:
@@ -102,6 +108,24 @@ def run(cfg: ExportConfig, data: Any = None) -> dict[str, Any]:
         )
         result["viewnet"]["path"] = v_out
     return result
+
+
+def _with_run_configs(path: str, ckpt: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any] | None]:
+    """The checkpoint with its train_config (older model.pt files keep it only in the run folder's
+    checkpoint.pt) and the ViewNet checkpoint its MPC loss used, where they can still be read."""
+    from vtr.training.checkpoint import CheckpointError, read_checkpoint
+
+    def read(p: Path) -> dict[str, Any] | None:
+        try:
+            return read_checkpoint(p) if p.is_file() else None
+        except (CheckpointError, OSError, ValueError):
+            return None
+
+    folder = Path(path) if Path(path).is_dir() else Path(path).parent
+    if "train_config" not in ckpt and (run := read(folder / "checkpoint.pt")) is not None:
+        ckpt = {**ckpt, "train_config": run.get("train_config")}
+    viewnet = read(Path(ckpt["viewnet"])) if isinstance(ckpt.get("viewnet"), str) else None
+    return ckpt, viewnet
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -58,6 +58,7 @@ def export_onnx(
     atol: float = DEFAULT_ATOL,
     dynamo: bool = False,
     seed: int = 0,
+    extra_props: Mapping[str, str] | None = None,
 ) -> dict[str, Any]:
     """Export ``model`` to ``out_path`` and verify it.
 
@@ -74,6 +75,7 @@ def export_onnx(
         atol: max abs difference allowed between onnxruntime and torch; ParityError past it.
         dynamo: use the dynamo exporter instead of the TorchScript one.
         seed: seeds the fresh random parity inputs.
+        extra_props: more metadata (export/provenance.py: the recipe and the data summary).
 
     Returns:
         {"opset", "max_abs_err_random", "max_abs_err_real" (or None), "atol", "bytes"}.
@@ -82,6 +84,7 @@ def export_onnx(
 
     model = model.eval().cpu()
     props = meta.to_props() if isinstance(meta, ModelMeta) else dict(meta)
+    props.update(extra_props or {})
     if sample_inputs is None:
         if not isinstance(meta, ModelMeta):
             raise ValueError("export_onnx needs sample_inputs when meta is not a ModelMeta")
@@ -174,9 +177,11 @@ def viewnet_props(cfg: Any, dt: float = CONTROL_DT) -> dict[str, str]:
     }
 
 
-def velocitynet_meta(cfg: Any, dt: float = CONTROL_DT) -> ModelMeta:
-    """ModelMeta for a VelocityNetConfig."""
+def velocitynet_meta(cfg: Any, dt: float = CONTROL_DT, **camera: float) -> ModelMeta:
+    """ModelMeta for a VelocityNetConfig; ``camera``: camera_fov_deg / camera_height_m of the training data
+    where it recorded them (the defaults are sim2d's camera)."""
     return ModelMeta(
+        **camera,
         image_height=cfg.image_size,
         image_width=cfg.image_size,
         horizon=cfg.horizon,

@@ -2,6 +2,7 @@
 
 vtr sim snapshot --out house.png [--x X --y Y --yaw YAW] [--start NAME]
 vtr sim serve --bind tcp://127.0.0.1:5555 [--noise 0.05]
+vtr sim route --house random:SEED --seed K --out route.json   (a generated route to `vtr teach`)
 """
 
 from __future__ import annotations
@@ -74,6 +75,40 @@ def run_snapshot(cfg: SnapshotConfig) -> int:
     return 0
 
 
+@dataclass(frozen=True)
+class RouteGenConfig:
+    """What `vtr sim route` generates (sim2d.route_gen)."""
+
+    out: str = opt("route.json", "where to write the ROUTE.json")
+    house: str = opt("house", "map name in sim2d/maps, a path, or random:SEED (a procedural house)")
+    seed: int = opt(0, "route seed: another seed, another route in the same house")
+
+    def __post_init__(self) -> None:
+        if not self.out.endswith(".json"):
+            raise ValueError(f"--out {self.out!r}: give a .json file name")
+        if self.seed < 0:
+            raise ValueError(f"--seed must be >= 0, got {self.seed}")
+
+
+def run_route(cfg: RouteGenConfig) -> int:
+    import json
+
+    from vtr.runtime.atomic import write_text_atomic
+    from vtr.sim2d.route_gen import generate_route, route_json
+
+    try:
+        script = generate_route(cfg.house, cfg.seed)
+    except RuntimeError as err:
+        print(f"vtr sim route: {err}", file=sys.stderr)
+        return 1
+    write_text_atomic(cfg.out, json.dumps(route_json(script), indent=2) + "\n")
+    moved = sum(abs(s.v) * s.duration for s in script.segments)
+    print(
+        f"wrote {cfg.out}: {len(script.segments)} segments, {script.duration:.1f} s, {moved:.2f} m in {cfg.house}"
+    )
+    return 0
+
+
 def run_serve(
     bind: str,
     noise: float,
@@ -110,7 +145,7 @@ _CHANGE_HELP = (
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    sub = parser.add_subparsers(dest="sim_command", metavar="{snapshot,serve}")
+    sub = parser.add_subparsers(dest="sim_command", metavar="{snapshot,serve,route}")
     sub.required = True
     snap = sub.add_parser(
         "snapshot", help="write a top-down picture of the house beside the robot's camera image"
@@ -152,9 +187,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="realtime: stop the robot when no step arrived for this many seconds; 0 disables (default: 0.5)",
     )
 
+    route = sub.add_parser("route", help="generate a taught route for a house (ROUTE.json for `vtr teach`)")
+    add_config_arguments(route, RouteGenConfig)
+
 
 def run_cli(args: argparse.Namespace) -> int:
     try:
+        if args.sim_command == "route":
+            return run_route(config_from_args(RouteGenConfig, args))
         if args.sim_command == "snapshot":
             return run_snapshot(config_from_args(SnapshotConfig, args, changes=tuple(args.change)))
         return run_serve(

@@ -238,6 +238,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="frames per house (default: --frames / number of houses)",
     )
     houses.add_argument(
+        "--include-house",
+        action="append",
+        metavar="NAME",
+        help="also record this named map, e.g. `house` (the paper-style house); repeatable",
+    )
+    houses.add_argument(
+        "--include-house-frames",
+        type=int,
+        default=0,
+        help="frames per --include-house map (default 0: --frames-per-house)",
+    )
+    houses.add_argument(
         "--workers", type=int, default=0, help="worker processes (default 0: one per CPU core)"
     )
     from vtr.training import collect_robot

@@ -2,8 +2,11 @@
 
     vtr collect --houses 40 --frames-per-house 2000 --out data/houses --workers 2
     vtr collect --house-seeds 100:110 --out data/heldout
+    vtr collect --houses 40 --include-house house --out data/mixed   # plus the paper-style house
 
-Each house (``random:SEED``, sim2d.procedural) is one task: a worker builds the simulator, drives the
+Each house (``random:SEED``, sim2d.procedural, or a named map such as the paper-style ``house``) is one task: a
+worker builds the simulator, drives the
+
 "repeat" command mix (training.collect.MIXES) through every room and writes the frames straight into
 memory-mapped shard files (training.shards), so neither a worker nor the parent holds the dataset.
 The parent shows progress over all workers and rewrites the index after each finished house.
@@ -15,6 +18,7 @@ import json
 import multiprocessing as mp
 import os
 import time
+import zlib
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -48,14 +52,27 @@ class HousesConfig:
     frames_per_house: int = 2000
     workers: int = 0  # worker processes; 0 = the number of CPU cores
     collect: CollectConfig = field(default_factory=lambda: CollectConfig(mix="repeat", reverse_fraction=0.2))
+    named: tuple[str, ...] = ()  # named maps recorded as well (e.g. "house", the paper-style house)
+    named_frames: int = 0  # frames per named map; 0 = frames_per_house
 
     def __post_init__(self) -> None:
-        if not self.seeds:
+        if not self.seeds and not self.named:
             raise ValueError("HousesConfig.seeds: at least one house is needed")
         if self.frames_per_house < 2:
             raise ValueError(f"HousesConfig.frames_per_house must be >= 2, got {self.frames_per_house}")
         if self.workers < 0:
             raise ValueError(f"HousesConfig.workers must be >= 0, got {self.workers}")
+        if self.named_frames < 0 or 0 < self.named_frames < 2:
+            raise ValueError(f"HousesConfig.named_frames must be 0 or >= 2, got {self.named_frames}")
+
+    def tasks(self) -> list[tuple[str, int, int]]:
+        """(house, seed key, frames) for every house; the key seeds the driving and names the shards."""
+        # Named maps first: they are usually the larger tasks, so they should not start last.
+        out = []
+        for name in self.named:
+            key = zlib.crc32(name.encode()) & 0x7FFFFFFF  # stable across runs, unlike hash()
+            out.append((name, key, self.named_frames or self.frames_per_house))
+        return out + [(f"random:{s}", s, self.frames_per_house) for s in self.seeds]
 
 
 def _init_worker(counter: Any) -> None:
@@ -71,14 +88,13 @@ def _tick() -> None:
             _progress.value += 1
 
 
-def record_house(out: str, seed: int, frames: int, cfg: CollectConfig) -> dict[str, Any]:
+def record_house(out: str, house: str, seed: int, frames: int, cfg: CollectConfig) -> dict[str, Any]:
     """Record one house into shard files named after it; returns its index entries and tallies."""
     from vtr.runtime.atomic import atomic_path
     from vtr.sim2d import CameraConfig, SimConfig, Simulator
     from vtr.training.collect import Recording, drive
     from vtr.training.shards import MAX_SHARD_FRAMES, shard_paths
 
-    house = f"random:{seed}"
     sim = Simulator(
         SimConfig(
             house=house, camera=CameraConfig(width=cfg.image_size, height=cfg.image_size), noise=cfg.noise
@@ -88,7 +104,12 @@ def record_house(out: str, seed: int, frames: int, cfg: CollectConfig) -> dict[s
     done, part = 0, 0
     while done < frames:
         n = min(MAX_SHARD_FRAMES, frames - done)
-        name = f"house_{seed:07d}_{part}"
+        stem = (
+            f"{seed:07d}"
+            if house.startswith("random:")
+            else "".join(c if c.isalnum() else "_" for c in house)
+        )
+        name = f"house_{stem}_{part}"
         paths = shard_paths(Path(out), name)
         shapes = {
             "images": ((n, cfg.image_size, cfg.image_size, 3), np.uint8),
@@ -135,26 +156,26 @@ def run_houses(cfg: HousesConfig, progress: bool = True) -> dict[str, Any]:
     workers = cfg.workers or os.cpu_count() or 1
     ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
     counter = ctx.Value("q", 0)
-    total = cfg.frames_per_house * len(cfg.seeds)
+    tasks = cfg.tasks()
+    total = sum(frames for _, _, frames in tasks)
     meta = {
         "source": "vtr collect --houses",
         "house_seeds": list(cfg.seeds),
+        "named_houses": list(cfg.named),
         "frames_per_house": cfg.frames_per_house,
         "noise": cfg.collect.noise,
         "seed": cfg.collect.seed,
         "collect_config": {k: v for k, v in asdict(cfg.collect).items() if k not in ("progress", "out")},
     }
     entries: dict[int, list] = {}
-    summary: dict[str, Any] = {"out": str(out), "houses": len(cfg.seeds), "frames": total, "workers": workers}
+    summary: dict[str, Any] = {"out": str(out), "houses": len(tasks), "frames": total, "workers": workers}
     collisions, commands = 0, {}
-    bar = tqdm(total=total, desc=f"collect {len(cfg.seeds)} houses", disable=not progress, dynamic_ncols=True)
+    bar = tqdm(total=total, desc=f"collect {len(tasks)} houses", disable=not progress, dynamic_ncols=True)
     t0 = time.perf_counter()
     with ProcessPoolExecutor(
         max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=(counter,)
     ) as pool:
-        pending = {
-            pool.submit(record_house, str(out), s, cfg.frames_per_house, cfg.collect) for s in cfg.seeds
-        }
+        pending = {pool.submit(record_house, str(out), h, k, n, cfg.collect) for h, k, n in tasks}
         while pending:
             finished, pending = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
             bar.update(counter.value - bar.n)
@@ -164,7 +185,7 @@ def run_houses(cfg: HousesConfig, progress: bool = True) -> dict[str, Any]:
                 collisions += res["collisions"]
                 for k, v in res["commands"].items():
                     commands[k] = commands.get(k, 0) + v
-                shards = [e for s in cfg.seeds if s in entries for e in entries[s]]
+                shards = [e for _, k, _ in tasks if k in entries for e in entries[k]]
                 write_index(out, cfg.collect.image_size, cfg.collect.dt, meta, shards)
     bar.update(counter.value - bar.n)
     bar.close()
@@ -181,6 +202,12 @@ def run_houses(cfg: HousesConfig, progress: bool = True) -> dict[str, Any]:
 
 def main_houses(args: Any) -> int:
     seeds = parse_seed_range(args.house_seeds) if args.house_seeds else list(range(args.houses))
+    named = tuple(args.include_house or ())
+    from vtr.sim2d.house import resolve_house_path
+
+    for name in named:  # a typo is a one-line error before any worker starts or any file is written
+        if not name.startswith("random:"):
+            resolve_house_path(name)
     collect = CollectConfig(
         out=args.out,
         seed=args.seed,
@@ -190,8 +217,7 @@ def main_houses(args: Any) -> int:
         reverse_fraction=0.2,
     )
     per_house = args.frames_per_house or max(2, args.frames // len(seeds))
-    cfg = HousesConfig(
-        out=args.out, seeds=tuple(seeds), frames_per_house=per_house, workers=args.workers, collect=collect
-    )
+    cfg = HousesConfig(out=args.out, seeds=tuple(seeds), frames_per_house=per_house, workers=args.workers,
+                       collect=collect, named=named, named_frames=args.include_house_frames)  # fmt: skip
     print(json.dumps(run_houses(cfg, progress=not args.no_progress), indent=2))
     return 0

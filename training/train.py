@@ -223,7 +223,12 @@ def train_viewnet(
     if data is None:
         data = load_dataset(data_path, image_size=model_cfg.image_size)
     windows = Windows(data, 2, cfg, dist)
-    extra = {"data": str(data_path), "data_meta": data.meta, "val_episodes": windows.val_ids.tolist()}
+    extra = {
+        "data": str(data_path),
+        "data_meta": data.meta,
+        "val_episodes": windows.val_ids.tolist(),
+        "train_config": to_dict(cfg),  # kept in model.pt too: export writes the recipe into the ONNX
+    }
     model = ViewNet(model_cfg)
     if init is not None:
         extra.update(init_weights(model, "viewnet", model_cfg, init))
@@ -285,6 +290,7 @@ def train_velocitynet(
         "mean_command": windows.mean_command.tolist(),
         "preprocessing": model_cfg.preprocessing,
         "augment": cfg.augment,
+        "train_config": to_dict(cfg),
     }
     model = VelocityNet(model_cfg)
     if init is not None:

@@ -44,8 +44,12 @@ def split_by_house(
         raise ValueError("the dataset holds one house: split by episodes instead")
     names = list(getattr(data, "house_names", [str(h) for h in np.unique(houses)]))
     unique = np.unique(houses)
-    n_val = min(len(unique) - 1, max(1, math.ceil(val_fraction * len(unique))))
-    val_houses = np.sort(np.random.default_rng([seed, 5]).permutation(unique)[:n_val])
+    # Named maps (the paper-style house, a user's building) always train: only procedural houses are held
+    # out, when there are at least two of them to choose from.
+    procedural = np.array([h for h in unique if names[int(h)].startswith("random:")], dtype=unique.dtype)
+    pool = procedural if len(procedural) >= 2 else unique
+    n_val = min(len(pool) - 1, max(1, math.ceil(val_fraction * len(pool))))
+    val_houses = np.sort(np.random.default_rng([seed, 5]).permutation(pool)[:n_val])
     is_val = np.isin(houses, val_houses)
     val_ids = np.unique(data.episodes[is_val])
     train_ids = np.unique(data.episodes[~is_val])

@@ -22,7 +22,9 @@ from vtr.runtime.atomic import atomic_path, write_text_atomic
 from vtr.runtime.cliargs import opt
 from vtr.training import cli as stages
 
-EXPORTED = ("velocitynet.onnx", "velocitynet-int8.onnx", "viewnet.pt")
+# The ONNX models the runtime uses, and both torch checkpoints: ViewNet for the MPC loss and VelocityNet
+# so that a user can fine-tune the shipped policy (`vtr train velocitynet --init models/velocitynet.pt`).
+EXPORTED = ("velocitynet.onnx", "velocitynet-int8.onnx", "viewnet.pt", "velocitynet.pt")
 
 
 @dataclass
@@ -34,7 +36,7 @@ class AllConfig:
     data: str = opt(
         "data/house.npz", "dataset; recorded first with the preset's settings if it does not exist"
     )
-    models_dir: str = opt("models", "where --install-models puts the ONNX models and the ViewNet checkpoint")
+    models_dir: str = opt("models", "where --install-models puts the ONNX models and both torch checkpoints")
     install_models: bool = opt(False, "copy the exported models into --models-dir (replacing what is there)")
     resume: bool = False  # continue interrupted stages; finished stages are always skipped
     int8: bool = True  # also write the int8 model
@@ -84,8 +86,9 @@ def run_all(cfg: AllConfig, preset: Any) -> dict[str, Any]:
         checkpoint=str(pdir / MODEL), out=str(edir / EXPORTED[0]), data=cfg.data, int8=cfg.int8
     )
     export_report = export(export_cfg, data=data)
-    with atomic_path(edir / EXPORTED[2]) as tmp:
-        shutil.copyfile(vdir / MODEL, tmp)
+    for src, name in ((vdir / MODEL, EXPORTED[2]), (pdir / MODEL, EXPORTED[3])):
+        with atomic_path(edir / name) as tmp:
+            shutil.copyfile(src, tmp)
     timings["export_s"] = time.perf_counter() - t
     installed = install(edir, Path(cfg.models_dir)) if cfg.install_models else []
     timings["total_s"] = time.perf_counter() - t0

@@ -195,7 +195,7 @@ def test_train_all_collects_trains_and_exports(tmp_path: Path, monkeypatch: pyte
     assert data.exists()  # there was no dataset: `all` recorded one first
     assert not models.exists()  # never installed without --install-models
     assert len(loads) == 1  # one load serves both stages and the export
-    for name in ("velocitynet.onnx", "velocitynet-int8.onnx", "viewnet.pt"):
+    for name in ("velocitynet.onnx", "velocitynet-int8.onnx", "viewnet.pt", "velocitynet.pt"):
         assert (out / "export" / name).exists(), name
     args.append("--install-models")
     summary = json.loads((out / "summary.json").read_text())
@@ -204,9 +204,20 @@ def test_train_all_collects_trains_and_exports(tmp_path: Path, monkeypatch: pyte
     assert {"collect_s", "viewnet_s", "velocitynet_s", "export_s", "total_s"} <= set(summary["timings"])
     # A second run finds every stage done, only re-exports, and installs when asked.
     assert cli.main(args) == 0
-    for name in ("velocitynet.onnx", "velocitynet-int8.onnx", "viewnet.pt"):
+    for name in ("velocitynet.onnx", "velocitynet-int8.onnx", "viewnet.pt", "velocitynet.pt"):
         assert (models / name).exists(), name
     assert json.loads((out / "summary.json").read_text())["installed"]
+    # The ONNX models carry their recipe and a data summary; the shipped policy can be fine-tuned.
+    import onnxruntime as ort
+
+    from vtr.training.checkpoint import load_model
+
+    for name in ("velocitynet.onnx", "velocitynet-int8.onnx"):
+        props = ort.InferenceSession(str(models / name)).get_modelmeta().custom_metadata_map
+        recipe, data_summary = json.loads(props["vtr.recipe"]), json.loads(props["vtr.data"])
+        assert recipe["velocitynet"]["train"]["steps"] == 3 and recipe["viewnet"]["train"]["steps"] == 3
+        assert data_summary["frames"] == 60
+    assert load_model(models / "velocitynet.pt")[0] == "velocitynet"
 
 
 @pytest.mark.slow

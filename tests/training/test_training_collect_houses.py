@@ -100,3 +100,18 @@ def test_seed_range_parsing() -> None:
     for bad in ("a:b", "5:5", "-1:3", "6:2"):
         with pytest.raises(ValueError, match="house-seeds"):
             parse_seed_range(bad)
+
+
+def test_named_maps_join_the_procedural_houses(tmp_path: Path) -> None:
+    cfg = HousesConfig(
+        out=str(tmp_path / "mixed"), seeds=(3,), frames_per_house=40, workers=1, collect=SMALL,
+        named=("house",), named_frames=60,
+    )  # fmt: skip
+    summary = run_houses(cfg, progress=False)
+    data = load_sharded(tmp_path / "mixed", image_size=32)
+    assert summary["frames"] == 100 and summary["houses"] == 2
+    assert sorted(data.house_names) == ["house", "random:3"]
+    counts = dict(zip(data.house_names, np.bincount(data.houses).tolist(), strict=True))
+    assert counts == {"house": 60, "random:3": 40}
+    with pytest.raises(ValueError, match="named_frames"):
+        HousesConfig(named=("house",), named_frames=1)

@@ -126,3 +126,18 @@ def test_a_cli_fine_tune_keeps_the_base_preprocessing_and_augmentation(
     argv = [*stage, "--out", str(tmp_path / "bad"), "--init", str(tmp_path / "base")]
     assert cli.main([*argv, "--preprocessing", PREPROCESSINGS[0]]) != 0  # another one asked for: refused
     assert "differs from this preset's velocitynet in preprocessing" in capsys.readouterr().err
+
+
+def test_named_maps_are_never_held_out() -> None:
+    from types import SimpleNamespace
+
+    from vtr.training.transfer import split_by_house
+
+    names = ["house"] + [f"random:{i}" for i in range(9)]
+    houses = np.repeat(np.arange(10), 4)
+    data = SimpleNamespace(houses=houses, house_names=names, episodes=np.arange(40) // 2)
+    for seed in range(20):
+        _, val_ids, held_out = split_by_house(data, 0.3, seed)
+        assert held_out and "house" not in held_out
+        assert all(h.startswith("random:") for h in held_out)
+        assert not np.isin(val_ids, data.episodes[houses == 0]).any()

@@ -1,0 +1,239 @@
+"""`vtr eval --houses A:B`: teach and repeat generated routes in procedural houses (random:SEED).
+
+For each house and route index k < ``routes_per_house``, sim2d.route_gen makes the route a user would teach
+there (route seed k); it is taught once noise-free (evaluation.harness.teach), then repeated with actuation
+noise ``noise`` under each seed, by the runtime's default repeat (the condition suite's ``after`` method:
+evaluation.condition_suite.run_once over evaluation.runs, the Repeater). A run counts as completed only when
+the repeat finished and the robot touched nothing. Reported per house and overall (house_tables): completion,
+the paper's mean nearest-point error over completed runs, and control steps per taught step.
+
+Held-out discipline: random:5000..5099 are reserved for final tables; develop on random:900..999.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from vtr.evaluation.condition_suite import CONTROLLERS
+
+MAX_HOUSES = 1000
+
+
+def parse_houses(spec: str) -> tuple[str, ...]:
+    """Procedural houses ``random:SEED`` from ``A:B`` (seeds A..B-1, as a Python range), ``A`` or ``A,B,C``;
+    ValueError otherwise."""
+    from vtr.sim2d.procedural import MAX_SEED
+
+    text = spec.strip()
+    try:
+        if ":" in text:
+            a, b = (int(p) for p in text.split(":"))
+            seeds = tuple(range(a, b))
+        else:
+            seeds = tuple(int(p) for p in text.split(","))
+    except ValueError:
+        raise ValueError(
+            f"--houses {spec!r}: expected A:B (seeds A..B-1), A, or A,B,C with integers"
+        ) from None
+    if not seeds or len(seeds) > MAX_HOUSES or min(seeds) < 0 or max(seeds) > MAX_SEED:
+        raise ValueError(f"--houses {spec!r}: give 1..{MAX_HOUSES} house seeds in 0..{MAX_SEED}")
+    if len(set(seeds)) != len(seeds):
+        raise ValueError(f"--houses {spec!r}: a house is named twice")
+    return tuple(f"random:{s}" for s in seeds)
+
+
+@dataclass
+class HouseSuiteConfig:
+    """One held-out-house evaluation."""
+
+    houses: tuple[str, ...]  # house names: random:SEED (or any map sim2d.house loads)
+    routes_per_house: int = 3
+    noise: float = 0.05
+    seeds: tuple[int, ...] = (0, 1, 2)
+    model: Path | None = None  # fp32 VelocityNet ONNX; None: the shipped one (vtr.models.find_model)
+    controller: str = "after"  # the runtime's default repeat
+    max_steps_factor: float = 8.0  # step limit = factor * subgoals + 50
+    e_m: float | None = None  # unused: the controller comes with the method
+    dt: float = 0.1
+    threads: int = 1
+    workers: int = 2
+    json_path: Path | None = None
+    plot_path: Path | None = None  # default: beside the JSON file, same stem + .png
+
+    def __post_init__(self) -> None:
+        from vtr.models import find_model
+
+        try:
+            self.model = find_model(self.model)
+        except FileNotFoundError as err:
+            raise ValueError(str(err)) from err
+        if not 1 <= self.routes_per_house <= 100:
+            raise ValueError(f"--routes-per-house must be in 1..100, got {self.routes_per_house}")
+        if not 0.0 <= self.noise <= 1.0:
+            raise ValueError(f"--noise must be in [0, 1], got {self.noise}")
+        if not self.seeds or len(set(self.seeds)) != len(self.seeds):
+            raise ValueError(f"--seeds: give one or more distinct seeds, got {list(self.seeds)}")
+        if self.controller not in CONTROLLERS:
+            raise ValueError(f"unknown controller {self.controller!r}; known: {', '.join(CONTROLLERS)}")
+        if not self.max_steps_factor > 0 or self.workers < 1 or self.threads < 1:
+            raise ValueError("max_steps_factor must be > 0, workers and threads >= 1")
+        if self.json_path is not None and self.plot_path is None:
+            self.plot_path = Path(self.json_path).with_suffix(".png")
+
+
+# ---------------------------------------------------------------------------------------------- runs
+
+
+def evaluate_route(task: tuple[str, int, HouseSuiteConfig]) -> dict[str, Any]:
+    """Generate, teach and repeat (every seed) route ``k`` of ``house``: a process-pool task."""
+    from vtr.evaluation.condition_suite import Condition, cached_policy, run_once
+    from vtr.evaluation.harness import teach
+    from vtr.sim2d.house import load_house
+    from vtr.sim2d.route_gen import generate_route, route_json
+
+    house, k, cfg = task
+    os.environ.setdefault("OMP_NUM_THREADS", str(cfg.threads))
+    t0 = time.perf_counter()
+    out: dict[str, Any] = {"house": house, "route_seed": k, "runs": []}
+    try:
+        script = generate_route(house, k)
+    except RuntimeError as err:  # a house where no valid route could be drawn: say so, do not crash
+        return {**out, "error": str(err), "wall_s": time.perf_counter() - t0}
+    policy = cached_policy(Path(cfg.model), cfg.threads)
+    route, _ = teach(script, tuple(policy.image_shape), cfg.dt, house)
+    h = load_house(house)
+    xy = route.poses[:, :2]
+    out.update(
+        route=route_json(script),
+        subgoals=len(route),
+        duration_s=script.duration,
+        length_m=float(np.sum(np.hypot(*np.diff(xy, axis=0).T))),
+        rooms=len({h.room_at(float(x), float(y)) for x, y in xy}),
+        taught_path=np.round(xy, 3).tolist(),
+    )
+    method = CONTROLLERS[cfg.controller]
+    for s in cfg.seeds:
+        run = run_once(
+            route, script, Condition(noise=cfg.noise), house, s, method, policy, cfg, keep_path=True
+        )
+        out["runs"].append({"seed": s, **run})
+    out["wall_s"] = time.perf_counter() - t0
+    return out
+
+
+def summarise(routes: list[dict[str, Any]], houses: tuple[str, ...]) -> dict[str, Any]:
+    """Per house and overall: completion (x/N), mean nearest-point error (mm, completed runs), steps per
+    taught step (completed runs), contacts and failure causes."""
+    from collections import Counter
+
+    def stats(rs: list[dict[str, Any]]) -> dict[str, Any]:
+        runs = [r for route in rs for r in route["runs"]]
+        done = [r for r in runs if r["completed"]]
+        causes = Counter(r["cause"].split(":")[0] for r in runs if not r["completed"])
+        return {
+            "routes": len(rs),
+            "routes_not_generated": sum("error" in r for r in rs),
+            "runs": len(runs),
+            "completed": len(done),
+            "completion": len(done) / len(runs) if runs else None,
+            "mean_error_mm": 1000 * float(np.mean([r["position_error_m"] for r in done])) if done else None,
+            "max_error_mm": 1000 * float(np.max([r["max_position_error_m"] for r in done])) if done else None,
+            "steps_per_taught_step": float(np.mean([r["steps_per_taught_step"] for r in done]))
+            if done
+            else None,
+            "runs_with_contact": sum(r.get("contacts", 0) > 0 for r in runs),
+            "failure_causes": dict(causes),
+        }
+
+    return {
+        "per_house": {h: stats([r for r in routes if r["house"] == h]) for h in houses},
+        "overall": stats(routes),
+    }
+
+
+def _progress(done: int, total: int, routes: list[dict[str, Any]], t0: float) -> None:
+    runs = [r for route in routes for r in route["runs"]]
+    elapsed = time.perf_counter() - t0
+    eta = elapsed / done * (total - done)
+    bar = "#" * int(30 * done / total)
+    print(f"\rhouses [{bar:<30}] {done}/{total} routes, {sum(r['completed'] for r in runs)}/{len(runs)} "
+          f"runs completed, {elapsed:.0f} s, ~{eta:.0f} s left", end="\n" if done == total else "",
+          file=sys.stderr, flush=True)  # fmt: skip
+
+
+def run(cfg: HouseSuiteConfig, progress: bool = True) -> dict[str, Any]:
+    """Every (house, route) task, in a process pool when workers > 1; writes JSON, Markdown and a picture."""
+    from vtr.evaluation.house_tables import markdown, write_picture
+
+    tasks = [(h, k, cfg) for h in cfg.houses for k in range(cfg.routes_per_house)]
+    t0 = time.perf_counter()
+    routes: list[dict[str, Any]] = []
+    if cfg.workers > 1 and len(tasks) > 1:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        # spawn: a fresh interpreter per worker, no forked onnxruntime thread pools
+        with ProcessPoolExecutor(min(cfg.workers, len(tasks)), mp_context=mp.get_context("spawn")) as ex:
+            for fut in as_completed([ex.submit(evaluate_route, t) for t in tasks]):
+                routes.append(fut.result())
+                if progress:
+                    _progress(len(routes), len(tasks), routes, t0)
+    else:
+        for t in tasks:
+            routes.append(evaluate_route(t))
+            if progress:
+                _progress(len(routes), len(tasks), routes, t0)
+    routes.sort(key=lambda r: (cfg.houses.index(r["house"]), r["route_seed"]))
+    result = {
+        "config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
+        "summary": summarise(routes, cfg.houses),
+        "routes": routes,
+        "wall_s": time.perf_counter() - t0,
+    }
+    if cfg.json_path is not None:
+        import json
+
+        from vtr.runtime.atomic import write_text_atomic
+
+        write_text_atomic(cfg.json_path, json.dumps(result, indent=1))
+        write_text_atomic(Path(cfg.json_path).with_suffix(".md"), markdown(result))
+    if cfg.plot_path is not None:
+        result["plot"] = str(write_picture(result, Path(cfg.plot_path)))
+    return result
+
+
+# --------------------------------------------------------------------------- CLI (inside `vtr eval`)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of --houses, added to `vtr eval` (which owns --model, --noise, --seeds, --json, ...)."""
+    g = parser.add_argument_group("held-out houses (--houses): generated routes in procedural houses")
+    g.add_argument("--houses", default=None, metavar="A:B",
+                   help="evaluate in procedural houses random:A .. random:B-1 (or A, or A,B,C) instead; uses "
+                        "--noise, --seeds, --model, --workers, --max-steps-factor; --json also writes .md and "
+                        ".png beside it (default: off; held-out houses are 5000..5099, tune on 900..999)")  # fmt: skip
+    g.add_argument("--routes-per-house", type=int, default=3,
+                   help="generated routes per house, route seeds 0..N-1 (default: %(default)s)")  # fmt: skip
+
+
+def run_cli(args: argparse.Namespace) -> int:
+    from vtr.evaluation.house_tables import markdown
+
+    cfg = HouseSuiteConfig(houses=parse_houses(args.houses), routes_per_house=args.routes_per_house,
+                           noise=args.noise, seeds=tuple(args.seeds), model=args.model,
+                           max_steps_factor=args.max_steps_factor, threads=args.threads, workers=args.workers,
+                           json_path=args.json_path)  # fmt: skip
+    result = run(cfg)
+    print(markdown(result))
+    if cfg.json_path is not None:
+        md = Path(cfg.json_path).with_suffix(".md")
+        print(f"wrote {cfg.json_path}, {md} and {result['plot']}")
+    return 0

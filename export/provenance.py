@@ -1,0 +1,88 @@
+"""What a shipped model was trained on and how: the recipe and a data summary, carried in the ONNX metadata.
+
+Two JSON strings under ``vtr.recipe`` and ``vtr.data`` (runtime/model_meta.py ignores keys it does not
+know, so older runtimes still load the model). Read them with onnxruntime (no torch needed):
+
+    onnxruntime.InferenceSession(path).get_modelmeta().custom_metadata_map["vtr.recipe"]
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from typing import Any
+
+from vtr.runtime.model_meta import PREFIX
+
+RECIPE_KEY = PREFIX + "recipe"
+DATA_KEY = PREFIX + "data"
+# Data-meta fields worth keeping in the summary (the rest is per-run detail: shard names, paths).
+_DATA_FIELDS = ("source", "frames_per_house", "named_houses", "noise", "seed", "held_out_houses", "camera")
+
+
+def _ranges(seeds: list[int]) -> str:
+    """[0, 1, 2, 5] -> "0-2,5": a readable list of house seeds."""
+    out: list[str] = []
+    for s in sorted(seeds):
+        if out and out[-1].split("-")[-1] == str(s - 1):
+            out[-1] = f"{out[-1].split('-')[0]}-{s}"
+        else:
+            out.append(str(s))
+    return ",".join(out)
+
+
+def data_summary(data_meta: Mapping[str, Any], frames: int | None = None) -> dict[str, Any]:
+    """The dataset in a few fields: its source, size, houses and which houses validation held out."""
+    out: dict[str, Any] = {k: data_meta[k] for k in _DATA_FIELDS if k in data_meta}
+    if frames is not None:
+        out["frames"] = int(frames)
+    if "house_seeds" in data_meta:
+        out["procedural_houses"] = f"random:{{{_ranges(list(data_meta['house_seeds']))}}}"
+        out["houses"] = len(data_meta["house_seeds"]) + len(data_meta.get("named_houses", []))
+    collect = data_meta.get("collect_config") or {}
+    if "mix" in collect:
+        out["mix"] = collect["mix"]
+    return out
+
+
+def recipe(ckpt: Mapping[str, Any], viewnet_ckpt: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The training settings of a VelocityNet checkpoint (and of the ViewNet its MPC loss used)."""
+    train = dict(ckpt.get("train_config") or {})
+    keep = ("lr", "batch_size", "steps", "seed", "augment", "val_fraction")
+    out: dict[str, Any] = {
+        "velocitynet": {
+            "model": ckpt.get("model_config"),
+            "train": {k: train[k] for k in keep if k in train},
+            "loss": ckpt.get("loss_config"),
+        }
+    }
+    if viewnet_ckpt is not None:
+        vtrain = dict(viewnet_ckpt.get("train_config") or {})
+        out["viewnet"] = {
+            "model": viewnet_ckpt.get("model_config"),
+            "train": {k: vtrain[k] for k in keep if k in vtrain},
+        }
+    return out
+
+
+def provenance_props(
+    ckpt: Mapping[str, Any], viewnet_ckpt: Mapping[str, Any] | None = None, frames: int | None = None
+) -> dict[str, str]:
+    """ONNX metadata props for the recipe and the data summary."""
+    return {
+        RECIPE_KEY: json.dumps(recipe(ckpt, viewnet_ckpt), sort_keys=True, separators=(",", ":")),
+        DATA_KEY: json.dumps(
+            data_summary(ckpt.get("data_meta") or {}, frames), sort_keys=True, separators=(",", ":")
+        ),
+    }
+
+
+def camera_of(data_meta: Mapping[str, Any]) -> dict[str, float]:
+    """The training camera's field of view and height, where the dataset recorded them (robots, bags)."""
+    cam = data_meta.get("camera") or {}
+    out = {}
+    if isinstance(cam.get("fov_deg"), int | float):
+        out["camera_fov_deg"] = float(cam["fov_deg"])
+    if isinstance(cam.get("height_m"), int | float):
+        out["camera_height_m"] = float(cam["height_m"])
+    return out

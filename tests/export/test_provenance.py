@@ -1,0 +1,35 @@
+"""export/provenance.py: the recipe and data summary written into a model's metadata."""
+
+from __future__ import annotations
+
+import json
+
+from vtr.export.provenance import DATA_KEY, RECIPE_KEY, camera_of, data_summary, provenance_props
+
+
+def test_data_summary_names_houses_compactly_and_keeps_the_held_out_ones() -> None:
+    meta = {
+        "source": "vtr collect --houses",
+        "house_seeds": [0, 1, 2, 3, 7, 9, 10],
+        "named_houses": ["house"],
+        "held_out_houses": ["random:3"],
+        "collect_config": {"mix": "repeat", "seed": 0},
+        "shards": ["not", "kept"],
+    }
+    out = data_summary(meta, frames=1234)
+    assert out["procedural_houses"] == "random:{0-3,7,9-10}"
+    assert out["houses"] == 8 and out["frames"] == 1234 and out["mix"] == "repeat"
+    assert out["held_out_houses"] == ["random:3"] and "shards" not in out
+
+
+def test_props_are_json_and_the_camera_comes_from_the_data_when_recorded() -> None:
+    ckpt = {"model_config": {"channels": [4]}, "train_config": {"lr": 0.001, "steps": 9, "device": "cpu"}}
+    props = provenance_props(ckpt, None, frames=10)
+    recipe = json.loads(props[RECIPE_KEY])
+    assert recipe["velocitynet"]["train"] == {"lr": 0.001, "steps": 9}
+    assert json.loads(props[DATA_KEY]) == {"frames": 10}
+    assert camera_of({"camera": {"fov_deg": 70, "height_m": 0.5}}) == {
+        "camera_fov_deg": 70.0,
+        "camera_height_m": 0.5,
+    }
+    assert camera_of({"camera": {"width": 128}}) == {}
