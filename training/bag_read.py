@@ -93,6 +93,9 @@ class BagDrive:
             f"{self.source.get('seconds', 0.0):.1f} s -> {len(self)} frames at dt {self.dt} s in "
             f"{len(np.unique(self.segments)) if len(self) else 0} segments"
         ]
+        stamps = self.source.get("stamps") or {}
+        if stamps:
+            lines.append("  times: " + "; ".join(f"{topic} {clock}" for topic, clock in stamps.items()))
         lines += [
             f"  skipped {n} frames: {reason}"
             for reason, n in sorted(self.skipped.items(), key=lambda x: -x[1])

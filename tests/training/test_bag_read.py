@@ -60,6 +60,7 @@ def test_header_stamps_on_another_clock_fall_back_to_receive_times(tmp_path: Pat
     d = drive(write_drive_bag(tmp_path / "bag", camera_clock=-1e6))  # a camera stamping from its own boot
     assert len(d) == 30 and d.skipped == {}
     assert d.source["stamps"]["image"] == "receive (header stamps +1000000.0 s off the receive clock)"
+    assert "times: image receive (header stamps +1000000.0 s off" in d.report()
 
 
 def test_a_camera_gap_splits_the_drive_and_is_reported(tmp_path: Path) -> None:
