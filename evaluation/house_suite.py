@@ -28,26 +28,40 @@ MAX_HOUSES = 1000
 
 
 def parse_houses(spec: str) -> tuple[str, ...]:
-    """Procedural houses ``random:SEED`` from ``A:B`` (seeds A..B-1, as a Python range), ``A`` or ``A,B,C``;
-    ValueError otherwise."""
+    """House names from ``A:B`` (random:A .. random:B-1, as a Python range) or a comma list whose items are
+    seeds (``A``: random:A) or map names/paths (``house``: the paper-style map); ValueError otherwise."""
+    from vtr.sim2d.house import RANDOM_PREFIX, resolve_house_path
     from vtr.sim2d.procedural import MAX_SEED
 
     text = spec.strip()
     try:
-        if ":" in text:
+        if ":" in text and "," not in text and not text.startswith(RANDOM_PREFIX):
             a, b = (int(p) for p in text.split(":"))
-            seeds = tuple(range(a, b))
+            items = [str(s) for s in range(a, b)]
         else:
-            seeds = tuple(int(p) for p in text.split(","))
+            items = [p.strip() for p in text.split(",")]
     except ValueError:
         raise ValueError(
-            f"--houses {spec!r}: expected A:B (seeds A..B-1), A, or A,B,C with integers"
+            f"--houses {spec!r}: expected A:B (seeds A..B-1) or a list of seeds or map names"
         ) from None
-    if not seeds or len(seeds) > MAX_HOUSES or min(seeds) < 0 or max(seeds) > MAX_SEED:
-        raise ValueError(f"--houses {spec!r}: give 1..{MAX_HOUSES} house seeds in 0..{MAX_SEED}")
-    if len(set(seeds)) != len(seeds):
+    names = []
+    for item in items:
+        seed = item[len(RANDOM_PREFIX) :] if item.startswith(RANDOM_PREFIX) else item
+        if seed.isdigit() and int(seed) <= MAX_SEED:
+            names.append(f"{RANDOM_PREFIX}{int(seed)}")
+        elif item and not item.startswith(("-", RANDOM_PREFIX)) and not item.isdigit():
+            try:  # an unknown map is a one-line error now, not in a worker later
+                resolve_house_path(item)
+            except ValueError as err:
+                raise ValueError(f"--houses {spec!r}: {err}") from None
+            names.append(item)
+        else:
+            raise ValueError(f"--houses {spec!r}: {item!r} is neither a seed in 0..{MAX_SEED} nor a map name")
+    if not names or len(names) > MAX_HOUSES:
+        raise ValueError(f"--houses {spec!r}: give 1..{MAX_HOUSES} houses")
+    if len(set(names)) != len(names):
         raise ValueError(f"--houses {spec!r}: a house is named twice")
-    return tuple(f"random:{s}" for s in seeds)
+    return tuple(names)
 
 
 @dataclass
@@ -60,6 +74,7 @@ class HouseSuiteConfig:
     seeds: tuple[int, ...] = (0, 1, 2)
     model: Path | None = None  # fp32 VelocityNet ONNX; None: the shipped one (vtr.models.find_model)
     controller: str = "after"  # the runtime's default repeat
+    oracle: bool = False  # also repeat with the pose oracle (evaluation.runs.PoseOracle): switching's floor
     max_steps_factor: float = 8.0  # step limit = factor * subgoals + 50
     e_m: float | None = None  # unused: the controller comes with the method
     dt: float = 0.1
@@ -96,6 +111,7 @@ def evaluate_route(task: tuple[str, int, HouseSuiteConfig]) -> dict[str, Any]:
     """Generate, teach and repeat (every seed) route ``k`` of ``house``: a process-pool task."""
     from vtr.evaluation.condition_suite import Condition, cached_policy, run_once
     from vtr.evaluation.harness import teach
+    from vtr.evaluation.runs import PoseOracle
     from vtr.sim2d.house import load_house
     from vtr.sim2d.route_gen import generate_route, route_json
 
@@ -119,12 +135,16 @@ def evaluate_route(task: tuple[str, int, HouseSuiteConfig]) -> dict[str, Any]:
         rooms=len({h.room_at(float(x), float(y)) for x, y in xy}),
         taught_path=np.round(xy, 3).tolist(),
     )
-    method = CONTROLLERS[cfg.controller]
-    for s in cfg.seeds:
-        run = run_once(
-            route, script, Condition(noise=cfg.noise), house, s, method, policy, cfg, keep_path=True
-        )
-        out["runs"].append({"seed": s, **run})
+    methods = [("velocitynet", policy, CONTROLLERS[cfg.controller])]
+    if cfg.oracle:  # true poses steer, the images still switch subgoals; unwrapped, so no light matching
+        meta = policy.meta
+        oracle = PoseOracle(meta.v_max, meta.w_max, meta.horizon, cfg.dt, tuple(policy.image_shape))
+        methods.append(("pose_oracle", oracle, CONTROLLERS["after_no_light_matching"]))
+    condition = Condition(noise=cfg.noise)
+    for name, pol, method in methods:
+        for s in cfg.seeds:
+            run = run_once(route, script, condition, house, s, method, pol, cfg, keep_path=True)
+            out["runs"].append({"method": name, "seed": s, **run})
     out["wall_s"] = time.perf_counter() - t0
     return out
 
@@ -134,8 +154,8 @@ def summarise(routes: list[dict[str, Any]], houses: tuple[str, ...]) -> dict[str
     taught step (completed runs), contacts and failure causes."""
     from collections import Counter
 
-    def stats(rs: list[dict[str, Any]]) -> dict[str, Any]:
-        runs = [r for route in rs for r in route["runs"]]
+    def stats(rs: list[dict[str, Any]], method: str = "velocitynet") -> dict[str, Any]:
+        runs = [r for route in rs for r in route["runs"] if r.get("method", "velocitynet") == method]
         done = [r for r in runs if r["completed"]]
         causes = Counter(r["cause"].split(":")[0] for r in runs if not r["completed"])
         return {
@@ -153,14 +173,20 @@ def summarise(routes: list[dict[str, Any]], houses: tuple[str, ...]) -> dict[str
             "failure_causes": dict(causes),
         }
 
-    return {
+    out = {
         "per_house": {h: stats([r for r in routes if r["house"] == h]) for h in houses},
         "overall": stats(routes),
     }
+    if any(r.get("method") == "pose_oracle" for route in routes for r in route["runs"]):
+        out["pose_oracle"] = {
+            "per_house": {h: stats([r for r in routes if r["house"] == h], "pose_oracle") for h in houses},
+            "overall": stats(routes, "pose_oracle"),
+        }
+    return out
 
 
 def _progress(done: int, total: int, routes: list[dict[str, Any]], t0: float) -> None:
-    runs = [r for route in routes for r in route["runs"]]
+    runs = [r for route in routes for r in route["runs"] if r["method"] == "velocitynet"]
     elapsed = time.perf_counter() - t0
     eta = elapsed / done * (total - done)
     bar = "#" * int(30 * done / total)
@@ -217,9 +243,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of --houses, added to `vtr eval` (which owns --model, --noise, --seeds, --json, ...)."""
     g = parser.add_argument_group("held-out houses (--houses): generated routes in procedural houses")
     g.add_argument("--houses", default=None, metavar="A:B",
-                   help="evaluate in procedural houses random:A .. random:B-1 (or A, or A,B,C) instead; uses "
-                        "--noise, --seeds, --model, --workers, --max-steps-factor; --json also writes .md and "
-                        ".png beside it (default: off; held-out houses are 5000..5099, tune on 900..999)")  # fmt: skip
+                   help="evaluate in procedural houses random:A .. random:B-1 (or a list A,B,house of seeds and "
+                        "map names) instead; uses --noise, --seeds, --model, --oracle, --workers, "
+                        "--max-steps-factor; --json also writes .md and .png beside it (default: off; held-out houses are 5000..5099, tune on 900..999)")  # fmt: skip
     g.add_argument("--routes-per-house", type=int, default=3,
                    help="generated routes per house, route seeds 0..N-1 (default: %(default)s)")  # fmt: skip
 
@@ -230,7 +256,7 @@ def run_cli(args: argparse.Namespace) -> int:
     cfg = HouseSuiteConfig(houses=parse_houses(args.houses), routes_per_house=args.routes_per_house,
                            noise=args.noise, seeds=tuple(args.seeds), model=args.model,
                            max_steps_factor=args.max_steps_factor, threads=args.threads, workers=args.workers,
-                           json_path=args.json_path)  # fmt: skip
+                           oracle=args.oracle, json_path=args.json_path)  # fmt: skip
     result = run(cfg)
     print(markdown(result))
     if cfg.json_path is not None:
