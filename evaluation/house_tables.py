@@ -77,7 +77,8 @@ def markdown(result: dict[str, Any]) -> str:
             "",
             "Pose oracle (a diagnostic, not a visual method): the same repeat steered by true poses, subgoals "
             f"still switched on images; it completed {_pct(oracle['overall'])} "
-            f"({_num(oracle['overall']['mean_error_mm'], '.1f')} mm), so its failures are the switching's.",
+            f"({_num(oracle['overall']['mean_error_mm'], '.1f')} mm): what is left when no network steers (its "
+            "failures come from the switching rules or from its simple go-to-pose law).",
         ]
     return "\n".join(lines)
 
