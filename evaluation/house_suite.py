@@ -244,7 +244,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g = parser.add_argument_group("held-out houses (--houses): generated routes in procedural houses")
     g.add_argument("--houses", default=None, metavar="A:B",
                    help="evaluate in procedural houses random:A .. random:B-1 (or a list A,B,house of seeds and "
-                        "map names) instead; uses --noise, --seeds, --model, --oracle, --workers, "
+                        "map names) instead; uses --noise, --seeds, --model, --controllers (one), --oracle, --workers, "
                         "--max-steps-factor; --json also writes .md and .png beside it (default: off; held-out houses are 5000..5099, tune on 900..999)")  # fmt: skip
     g.add_argument("--routes-per-house", type=int, default=3,
                    help="generated routes per house, route seeds 0..N-1 (default: %(default)s)")  # fmt: skip
@@ -253,7 +253,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run_cli(args: argparse.Namespace) -> int:
     from vtr.evaluation.house_tables import markdown
 
-    cfg = HouseSuiteConfig(houses=parse_houses(args.houses), routes_per_house=args.routes_per_house,
+    controllers = args.controllers or ["after"]
+    if len(controllers) != 1:
+        raise ValueError(f"--houses runs one controller; got --controllers {' '.join(controllers)}")
+    cfg = HouseSuiteConfig(controller=controllers[0], houses=parse_houses(args.houses), routes_per_house=args.routes_per_house,
                            noise=args.noise, seeds=tuple(args.seeds), model=args.model,
                            max_steps_factor=args.max_steps_factor, threads=args.threads, workers=args.workers,
                            oracle=args.oracle, json_path=args.json_path)  # fmt: skip

@@ -39,7 +39,9 @@ def markdown(result: dict[str, Any]) -> str:
         f"# Repeat in procedural houses: {len(cfg['houses'])} houses x {cfg['routes_per_house']} routes x "
         f"{len(cfg['seeds'])} seeds",
         "",
-        f"Model `{cfg['model']}`, controller `{cfg['controller']}` (the runtime default), actuation noise "
+        f"Model `{cfg['model']}`, controller `{cfg['controller']}`"
+        + (" (the runtime default)" if cfg["controller"] == "after" else "")
+        + f", actuation noise "
         f"{cfg['noise']}, seeds {seeds}. Routes from `sim2d.route_gen` (route seeds 0..{cfg['routes_per_house'] - 1}), "
         "taught noise-free, repeated once per seed. Completed = the repeat finished and touched nothing; errors "
         "are the paper's nearest-point error per subgoal, averaged over completed runs.",
