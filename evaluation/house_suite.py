@@ -195,13 +195,48 @@ def _progress(done: int, total: int, routes: list[dict[str, Any]], t0: float) ->
           file=sys.stderr, flush=True)  # fmt: skip
 
 
+def _result(cfg: HouseSuiteConfig, routes: list[dict[str, Any]], total: int, t0: float) -> dict[str, Any]:
+    routes = sorted(routes, key=lambda r: (cfg.houses.index(r["house"]), r["route_seed"]))
+    out = {
+        "config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
+        "summary": summarise(routes, cfg.houses),
+        "routes": routes,
+        "wall_s": time.perf_counter() - t0,
+    }
+    if len(routes) < total:
+        out["partial"] = f"{len(routes)} of {total} routes finished"
+    return out
+
+
+def _write(cfg: HouseSuiteConfig, result: dict[str, Any]) -> None:
+    import json
+
+    from vtr.evaluation.house_tables import markdown
+    from vtr.runtime.atomic import write_text_atomic
+
+    assert cfg.json_path is not None
+    write_text_atomic(cfg.json_path, json.dumps(result, indent=1))
+    write_text_atomic(Path(cfg.json_path).with_suffix(".md"), markdown(result))
+
+
 def run(cfg: HouseSuiteConfig, progress: bool = True) -> dict[str, Any]:
-    """Every (house, route) task, in a process pool when workers > 1; writes JSON, Markdown and a picture."""
-    from vtr.evaluation.house_tables import markdown, write_picture
+    """Every (house, route) task, in a process pool when workers > 1; writes JSON, Markdown and a picture.
+
+    The JSON and Markdown files are rewritten (atomically) after every finished route, marked partial, so
+    an interrupted run keeps what it measured."""
+    from vtr.evaluation.house_tables import write_picture
 
     tasks = [(h, k, cfg) for h in cfg.houses for k in range(cfg.routes_per_house)]
     t0 = time.perf_counter()
     routes: list[dict[str, Any]] = []
+
+    def finished(route: dict[str, Any]) -> None:
+        routes.append(route)
+        if progress:
+            _progress(len(routes), len(tasks), routes, t0)
+        if cfg.json_path is not None and len(routes) < len(tasks):
+            _write(cfg, _result(cfg, routes, len(tasks), t0))
+
     if cfg.workers > 1 and len(tasks) > 1:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -209,28 +244,13 @@ def run(cfg: HouseSuiteConfig, progress: bool = True) -> dict[str, Any]:
         # spawn: a fresh interpreter per worker, no forked onnxruntime thread pools
         with ProcessPoolExecutor(min(cfg.workers, len(tasks)), mp_context=mp.get_context("spawn")) as ex:
             for fut in as_completed([ex.submit(evaluate_route, t) for t in tasks]):
-                routes.append(fut.result())
-                if progress:
-                    _progress(len(routes), len(tasks), routes, t0)
+                finished(fut.result())
     else:
         for t in tasks:
-            routes.append(evaluate_route(t))
-            if progress:
-                _progress(len(routes), len(tasks), routes, t0)
-    routes.sort(key=lambda r: (cfg.houses.index(r["house"]), r["route_seed"]))
-    result = {
-        "config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
-        "summary": summarise(routes, cfg.houses),
-        "routes": routes,
-        "wall_s": time.perf_counter() - t0,
-    }
+            finished(evaluate_route(t))
+    result = _result(cfg, routes, len(tasks), t0)
     if cfg.json_path is not None:
-        import json
-
-        from vtr.runtime.atomic import write_text_atomic
-
-        write_text_atomic(cfg.json_path, json.dumps(result, indent=1))
-        write_text_atomic(Path(cfg.json_path).with_suffix(".md"), markdown(result))
+        _write(cfg, result)
     if cfg.plot_path is not None:
         result["plot"] = str(write_picture(result, Path(cfg.plot_path)))
     return result

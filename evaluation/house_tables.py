@@ -46,6 +46,11 @@ def markdown(result: dict[str, Any]) -> str:
         "taught noise-free, repeated once per seed. Completed = the repeat finished and touched nothing; errors "
         "are the paper's nearest-point error per subgoal, averaged over completed runs.",
         "",
+        *(
+            [f"**Partial result**: {result['partial']} (the run is still going or was interrupted).", ""]
+            if result.get("partial")
+            else []
+        ),  # fmt: skip
         "| house | routes: rooms, m, s | completed | mean error (mm) | max error (mm) | steps / taught step "
         "| failures |" + (" pose oracle: completed |" if oracle else ""),
         "|---|---|---|---|---|---|---|" + ("---|" if oracle else ""),

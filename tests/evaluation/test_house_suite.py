@@ -88,3 +88,22 @@ def test_cli_bad_houses_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["eval", "--houses", "abc"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("vtr eval: --houses 'abc'") and "\n" not in err
+
+
+def test_an_interrupted_run_keeps_the_finished_routes(
+    small_model: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def fake(task: tuple) -> dict:
+        house, k, _ = task
+        if k == 1:
+            raise KeyboardInterrupt
+        return {"house": house, "route_seed": k, "runs": [{"method": "velocitynet", **_run(True, 0.01)}]}
+
+    monkeypatch.setattr(house_suite, "evaluate_route", fake)
+    cfg = house_suite.HouseSuiteConfig(houses=("random:900",), routes_per_house=2, seeds=(0,), model=small_model,
+                                       workers=1, json_path=tmp_path / "h.json")  # fmt: skip
+    with pytest.raises(KeyboardInterrupt):
+        house_suite.run(cfg, progress=False)
+    saved = json.loads((tmp_path / "h.json").read_text())
+    assert saved["partial"] == "1 of 2 routes finished" and saved["summary"]["overall"]["completed"] == 1
+    assert "Partial result" in (tmp_path / "h.md").read_text()
