@@ -97,7 +97,15 @@ def test_an_interrupted_run_keeps_the_finished_routes(
         house, k, _ = task
         if k == 1:
             raise KeyboardInterrupt
-        return {"house": house, "route_seed": k, "runs": [{"method": "velocitynet", **_run(True, 0.01)}]}
+        run = {"method": "velocitynet", **_run(True, 0.01)}
+        return {
+            "house": house,
+            "route_seed": k,
+            "rooms": 1,
+            "length_m": 2.0,
+            "duration_s": 9.0,
+            "runs": [run],
+        }
 
     monkeypatch.setattr(house_suite, "evaluate_route", fake)
     cfg = house_suite.HouseSuiteConfig(houses=("random:900",), routes_per_house=2, seeds=(0,), model=small_model,
