@@ -215,7 +215,7 @@ def _write(cfg: HouseSuiteConfig, result: dict[str, Any]) -> None:
     from vtr.runtime.atomic import write_text_atomic
 
     assert cfg.json_path is not None
-    write_text_atomic(cfg.json_path, json.dumps(result, indent=1))
+    write_text_atomic(cfg.json_path, json.dumps(result, separators=(",", ":")))  # paths: keep it compact
     write_text_atomic(Path(cfg.json_path).with_suffix(".md"), markdown(result))
 
 
