@@ -150,8 +150,9 @@ def evaluate_route(task: tuple[str, int, HouseSuiteConfig]) -> dict[str, Any]:
 
 
 def summarise(routes: list[dict[str, Any]], houses: tuple[str, ...]) -> dict[str, Any]:
-    """Per house and overall: completion (x/N), mean nearest-point error (mm, completed runs), steps per
-    taught step (completed runs), contacts and failure causes."""
+    """Per house and overall: completion (x/N), mean and median of the runs' mean nearest-point errors and the
+    largest subgoal error (mm, completed runs), steps per taught step (completed runs), contacts and failure
+    causes."""
     from collections import Counter
 
     def stats(rs: list[dict[str, Any]], method: str = "velocitynet") -> dict[str, Any]:
@@ -165,6 +166,9 @@ def summarise(routes: list[dict[str, Any]], houses: tuple[str, ...]) -> dict[str
             "completed": len(done),
             "completion": len(done) / len(runs) if runs else None,
             "mean_error_mm": 1000 * float(np.mean([r["position_error_m"] for r in done])) if done else None,
+            "median_error_mm": 1000 * float(np.median([r["position_error_m"] for r in done]))
+            if done
+            else None,
             "max_error_mm": 1000 * float(np.max([r["max_position_error_m"] for r in done])) if done else None,
             "steps_per_taught_step": float(np.mean([r["steps_per_taught_step"] for r in done]))
             if done

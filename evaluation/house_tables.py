@@ -51,21 +51,21 @@ def markdown(result: dict[str, Any]) -> str:
             if result.get("partial")
             else []
         ),  # fmt: skip
-        "| house | routes: rooms, m, s | completed | mean error (mm) | max error (mm) | steps / taught step "
-        "| failures |" + (" pose oracle: completed |" if oracle else ""),
-        "|---|---|---|---|---|---|---|" + ("---|" if oracle else ""),
+        "| house | routes: rooms, m, s | completed | mean error (mm) | median (mm) | max error (mm) "
+        "| steps / taught step | failures |" + (" pose oracle: completed |" if oracle else ""),
+        "|---|---|---|---|---|---|---|---|" + ("---|" if oracle else ""),
     ]
     for house, s in summary["per_house"].items():
         mine = [r for r in routes if r["house"] == house and "error" not in r]
         desc = "; ".join(f"{r['rooms']}, {r['length_m']:.1f}, {r['duration_s']:.0f}" for r in mine) or "-"
         lines.append(
-            f"| {house} | {desc} | {_pct(s)} | {_num(s['mean_error_mm'], '.1f')} | {_num(s['max_error_mm'], '.0f')} "
+            f"| {house} | {desc} | {_pct(s)} | {_num(s['mean_error_mm'], '.1f')} | {_num(s.get('median_error_mm'), '.1f')} | {_num(s['max_error_mm'], '.0f')} "
             f"| {_num(s['steps_per_taught_step'], '.2f')} | {_causes(s)} |"
             + (f" {_pct(oracle['per_house'][house])} |" if oracle else "")
         )
     o = summary["overall"]
     lines.append(
-        f"| **all** | {o['routes']} routes | **{_pct(o)}** | **{_num(o['mean_error_mm'], '.1f')}** | "
+        f"| **all** | {o['routes']} routes | **{_pct(o)}** | **{_num(o['mean_error_mm'], '.1f')}** | {_num(o.get('median_error_mm'), '.1f')} | "
         f"{_num(o['max_error_mm'], '.0f')} | {_num(o['steps_per_taught_step'], '.2f')} | {_causes(o)} |"
         + (f" {_pct(oracle['overall'])} |" if oracle else "")
     )
