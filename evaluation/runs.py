@@ -73,10 +73,8 @@ class PoseOracle:
         rho, alpha = math.hypot(ex, ey), math.atan2(ey, ex)
         # a differential drive cannot slide sideways: turn toward the goal point (backing up when it lies
         # behind), drive, and once there turn to the goal's heading; each gap closed in about two steps
-        held = (  # the controller allows no translation into this subgoal (hold_turns): only turn
-            self.controller.cfg.hold_turns and index > 0 and self.route.commands[index - 1, 0] == 0.0
-        )
-        if rho > self.position_tolerance and not held:
+        # where the controller allows no translation (a taught turn in place), only turn
+        if rho > self.position_tolerance and not self.controller.holds_turn(index):
             backwards = abs(alpha) > math.pi / 2
             heading = float(metrics.wrap_angle(alpha - math.pi)) if backwards else alpha
             v = (-1.0 if backwards else 1.0) * rho * max(math.cos(heading), 0.0) / (2 * self.dt)

@@ -277,10 +277,13 @@ class Controller:
                 held[1:] &= ~(np.hypot(*np.diff(xy, axis=0).T) >= HOLD_TOLERANCE_M)
         return held
 
+    def holds_turn(self, i: int) -> bool:
+        """Whether commands toward subgoal ``i`` are held at v = 0 (``hold_turns``: a taught turn in place)."""
+        return self.cfg.hold_turns and i < len(self._held) and bool(self._held[i])
+
     def _command(self, i: int, error: float, note: str = "") -> Decision:
-        turning = self.cfg.hold_turns and i < len(self._held) and bool(self._held[i])
         return Decision(Action.COMMAND, i, error, then_stop=not self.cfg.continuous, note=note,
-                        v_limit=0.0 if turning else math.inf)  # fmt: skip
+                        v_limit=0.0 if self.holds_turn(i) else math.inf)  # fmt: skip
 
     def judge(self, image: np.ndarray, collided: bool = False) -> Verdict:
         """Decide on ``image`` until a decision needs the robot: subgoal switches (ADVANCE, JUMP) are
