@@ -4,8 +4,11 @@ The "robot" lives in a 4 m x 4 m room whose four walls have different colours an
 128x128 rgb8 by casting one ray per image column. Replace ``World`` with your robot's camera and motors, keep
 ``serve``, and `vtr check-robot` tells you what is left to fix.
 
-    python examples/minimal_robot_server.py --bind tcp://127.0.0.1:5555
+    python examples/minimal_robot_server.py --bind tcp://127.0.0.1:5555 [--noise 0.05]
     vtr check-robot tcp://127.0.0.1:5555
+
+``--noise`` makes the motors imperfect as in our simulator (sim2d's SimConfig.noise): per reset, a speed-scale,
+turn-scale and curvature error (a miscalibrated robot), then per step a proportional and an additive jitter.
 """
 
 from __future__ import annotations
@@ -29,13 +32,22 @@ WALL_COLOURS = np.array([[200, 60, 50], [60, 160, 70], [50, 90, 200], [220, 190,
 class World:
     """A unicycle in a square room (lockstep: time passes only inside ``step``)."""
 
-    def __init__(self) -> None:
+    def __init__(self, noise: float = 0.0) -> None:
+        self.noise = noise
         self.reset()
 
-    def reset(self, x: float = 0.0, y: float = 0.0, yaw: float = 0.0) -> None:
+    def reset(self, x: float = 0.0, y: float = 0.0, yaw: float = 0.0, seed: int = 0) -> None:
         self.x, self.y, self.yaw, self.time, self.collided = x, y, yaw, 0.0, False
+        self.rng = np.random.default_rng(seed)  # same seed, same motor errors: runs are reproducible
+        b = self.noise * self.rng.standard_normal(3)
+        self.bias = (1 + b[0], 1 + b[1], 0.5 * b[2])  # v scale, w scale, curvature drift (rad per metre)
 
     def step(self, v: float, w: float, duration: float) -> None:
+        if self.noise:  # what the motors execute: the episode's bias, then this step's jitter
+            e = self.noise * self.rng.standard_normal(4)
+            v, w = v * self.bias[0], w * self.bias[1] + self.bias[2] * v
+            v = float(v * (1 + e[0]) + 0.1 * LIMITS["v_max"] * e[1] * (v != 0))  # plain floats for JSON
+            w = float(w * (1 + e[2]) + 0.1 * LIMITS["w_max"] * e[3] * (w != 0))
         for _ in range(max(1, math.ceil(duration / 0.02))):  # integrate in 20 ms substeps
             dt = duration / max(1, math.ceil(duration / 0.02))
             x, y = self.x + v * dt * math.cos(self.yaw), self.y + v * dt * math.sin(self.yaw)
@@ -99,8 +111,12 @@ def handle(world: World, session: str, frames: list[bytes]) -> list[bytes]:
         if cmd == "hello":
             reply.update(protocol_version=VERSION, camera=CAMERA, limits=LIMITS, dt=0.1, mode="lockstep")
         elif cmd == "reset":
-            pose = req.get("pose") or {}
-            world.reset(*(float(pose.get(k, 0.0)) for k in ("x", "y", "yaw")))  # our start pose: the centre
+            pose, seed = req.get("pose") or {}, req.get("seed", 0)
+            if type(seed) is not int or seed < 0:
+                raise ValueError("seed must be an integer >= 0")
+            world.reset(
+                *(float(pose.get(k, 0.0)) for k in ("x", "y", "yaw")), seed=seed
+            )  # default: the centre
         elif cmd == "step":
             v, w, duration = (req.get(k) for k in ("v", "w", "duration"))
             if not all(type(a) in (int, float) for a in (v, w, duration)):
@@ -126,10 +142,10 @@ def handle(world: World, session: str, frames: list[bytes]) -> list[bytes]:
     return [json.dumps(reply).encode(), image.tobytes()]
 
 
-def serve(bind: str) -> None:
+def serve(bind: str, noise: float = 0.0) -> None:
     sock = zmq.Context.instance().socket(zmq.REP)
     sock.bind(bind)
-    world, session = World(), uuid.uuid4().hex[:12]
+    world, session = World(noise), uuid.uuid4().hex[:12]
     print(f"minimal robot server on {sock.getsockopt_string(zmq.LAST_ENDPOINT)}", flush=True)
     while True:
         sock.send_multipart(handle(world, session, sock.recv_multipart()))
@@ -138,7 +154,13 @@ def serve(bind: str) -> None:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--bind", default="tcp://127.0.0.1:5555", help="ZeroMQ endpoint to bind")
+    parser.add_argument(
+        "--noise", type=float, default=0.0, help="actuation noise level, 0 = off (default: 0)"
+    )
+    args = parser.parse_args()
+    if not 0 <= args.noise <= 1:
+        parser.error(f"--noise must be in [0, 1], got {args.noise}")
     try:
-        serve(parser.parse_args().bind)
+        serve(args.bind, args.noise)
     except KeyboardInterrupt:
         pass

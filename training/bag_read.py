@@ -7,7 +7,10 @@ Messages understood: camera ``sensor_msgs/Image`` (rgb8, bgr8, mono8, rgba8, bgr
 (decoded with OpenCV or Pillow, whichever is installed); command ``geometry_msgs/Twist`` or ``TwistStamped``
 (v = linear.x, w = angular.z, REP-103); optional pose ``nav_msgs/Odometry`` or ``geometry_msgs/PoseStamped``.
 
-Resampling (all times are the bag's receive timestamps, one clock for every topic): frames lie on a grid of step
+Times: a message's own ``header.stamp`` (when it was captured or sent) where it has one, else the time the bag
+received it (``Twist`` has no header). A topic whose stamps are zero, or lie more than ``CLOCK_TOLERANCE_S`` from
+its receive times (a device clock, not the ROS clock the other topics use), is timed by its receive times;
+``source["stamps"]`` says which clock each topic used. Resampling: frames lie on a grid of step
 dt from the first moment both a camera frame and a command exist. Frame k takes the camera frame nearest to its
 time if it lies within dt/2 and was not used by frame k-1, and the command active at its time (the last one
 received; older than ``cmd_timeout`` means the robot's controller has stopped it, so zero, as ros2_controllers'
@@ -19,6 +22,7 @@ into segments (a training pair never spans a gap). Images are centre-cropped to 
 from __future__ import annotations
 
 import math
+import statistics
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -31,6 +35,8 @@ from vtr.runtime import protocol
 IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
 COMMAND_TYPES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped")
 POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped")
+#: Largest median gap between a topic's header stamps and its receive times that still counts as one clock, s.
+CLOCK_TOLERANCE_S = 1.0
 _CHANNELS = {
     "rgb8": (3, False),
     "bgr8": (3, True),
@@ -87,6 +93,9 @@ class BagDrive:
             f"{self.source.get('seconds', 0.0):.1f} s -> {len(self)} frames at dt {self.dt} s in "
             f"{len(np.unique(self.segments)) if len(self) else 0} segments"
         ]
+        stamps = self.source.get("stamps") or {}
+        if stamps:
+            lines.append("  times: " + "; ".join(f"{topic} {clock}" for topic, clock in stamps.items()))
         lines += [
             f"  skipped {n} frames: {reason}"
             for reason, n in sorted(self.skipped.items(), key=lambda x: -x[1])
@@ -192,26 +201,35 @@ def read_bag(
         image_conns = _connections(reader, image_topic, IMAGE_TYPES, "camera")
         cmd_conns = _connections(reader, cmd_topic, COMMAND_TYPES, "command")
         pose_conns = _connections(reader, odom_topic, POSE_TYPES, "pose")
-        image_t, cmd_t, cmds, pose_t, poses = [], [], [], [], []
+        times: dict[str, list[tuple[float, float | None]]] = {"image": [], "cmd": [], "pose": []}
+        cmds, poses = [], []
         for conn, stamp, raw in reader.messages(connections=image_conns + cmd_conns + pose_conns):
-            t = stamp * 1e-9
-            if conn.topic == image_topic:
-                image_t.append(t)
-                continue
             msg = reader.deserialize(raw, conn.msgtype)
-            if conn.topic == cmd_topic:
+            header = getattr(msg, "header", None)
+            pair = (
+                stamp * 1e-9,
+                header.stamp.sec + header.stamp.nanosec * 1e-9 if header is not None else None,
+            )
+            if conn.topic == image_topic:
+                times["image"].append(pair)
+            elif conn.topic == cmd_topic:
                 twist = msg.twist if conn.msgtype.endswith("TwistStamped") else msg
-                cmd_t.append(t)
+                times["cmd"].append(pair)
                 cmds.append((twist.linear.x, twist.angular.z))
             else:
                 pose = msg.pose.pose if conn.msgtype.endswith("Odometry") else msg.pose
-                pose_t.append(t)
+                times["pose"].append(pair)
                 poses.append((pose.position.x, pose.position.y, _yaw(pose.orientation)))
-        if not image_t or not cmd_t:
+        if not times["image"] or not times["cmd"]:
             raise BagError(
-                f"the bag has {len(image_t)} camera frames and {len(cmd_t)} commands: nothing to use"
+                f"the bag has {len(times['image'])} camera frames and {len(times['cmd'])} commands: nothing to use"
             )
-        plan, skipped = _plan(np.array(image_t), np.array(cmd_t), np.array(cmds), dt, cmd_timeout, limits)
+        clocks = {topic: _message_times(pairs) for topic, pairs in times.items()}
+        image_t, image_order = _sorted(clocks["image"][0])
+        cmd_t, cmd_order = _sorted(clocks["cmd"][0])
+        pose_t, pose_order = _sorted(clocks["pose"][0])
+        plan, skipped = _plan(image_t, cmd_t, np.array(cmds)[cmd_order], dt, cmd_timeout, limits)
+        plan = {k: (t, int(image_order[j]), c) for k, (t, j, c) in plan.items()}  # j: the message's position
         images, native = _decode_planned(reader, image_conns, plan, image_size, skipped)
     finally:
         reader.close()
@@ -223,7 +241,7 @@ def read_bag(
         if keep
         else np.zeros((0, image_size, image_size, 3), np.uint8),
         commands=np.array([plan[k][2] for k in keep], np.float64).reshape(-1, 2),
-        poses=_poses_at(frame_t, np.array(pose_t), np.array(poses).reshape(-1, 3), dt),
+        poses=_poses_at(frame_t, pose_t, np.array(poses).reshape(-1, 3)[pose_order], dt),
         segments=np.asarray(seg, np.int64),
         dt=dt,
         skipped=dict(skipped),
@@ -234,9 +252,32 @@ def read_bag(
             "images": len(image_t),
             "commands": len(cmd_t),
             "seconds": round(max(image_t[-1], cmd_t[-1]) - min(image_t[0], cmd_t[0]), 3),
+            "stamps": {topic: clock for topic, (_, clock) in clocks.items() if times[topic]},
             "camera": {"width": native[1], "height": native[0]} if native else {},
         },
     )
+
+
+def _message_times(pairs: list[tuple[float, float | None]]) -> tuple[np.ndarray, str]:
+    """One topic's message times, s, and which clock they are: the header stamps when every message has a
+    non-zero one on the receive clock (within CLOCK_TOLERANCE_S), else the receive times."""
+    received = np.array([r for r, _ in pairs], np.float64)
+    if not pairs or any(h is None for _, h in pairs):
+        return received, "receive (no header)"
+    stamped = np.array([h for _, h in pairs], np.float64)
+    if not np.all(stamped > 0):
+        return received, "receive (zero header stamps)"
+    offset = statistics.median((received - stamped).tolist())
+    if abs(offset) > CLOCK_TOLERANCE_S:
+        return received, f"receive (header stamps {offset:+.1f} s off the receive clock)"
+    return stamped, "header"
+
+
+def _sorted(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Times in increasing order and the message positions they came from (header stamps may arrive out of
+    order)."""
+    order = np.argsort(t, kind="stable")
+    return t[order], order
 
 
 def _plan(

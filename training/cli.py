@@ -107,6 +107,10 @@ def run_cli(args: argparse.Namespace) -> int:
         from vtr.training.transfer import run_evaluate
 
         return run_evaluate(args)
+    if args.stage == "velocitynet" and args.init:
+        from vtr.training.transfer import inherit_init_settings
+
+        inherit_init_settings(args)  # a fine-tune keeps the base's preprocessing and augmentation
     preset = get_preset(args.preset)
     preset.loss = override(preset.loss, w1=args.w1, w2=args.w2)
     preset.velocitynet = override(preset.velocitynet, preprocessing=args.preprocessing)

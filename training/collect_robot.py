@@ -10,6 +10,11 @@ within the robot's announced limits capped at the model's (0.5 m/s, 1.0 rad/s). 
 robot is reset between episodes only with ``--reset-every`` and only when it accepts ``reset`` (otherwise it
 drives on, continuously), and after repeated collisions (stuck) when it can.
 
+``--around ROUTE.npz ...`` records where the routes will be repeated: every episode then starts from a reset to a
+pose along those taught routes (yaw turned by up to +-35 degrees), so the data covers their rooms however far
+they lie from the robot's start pose. It needs a robot that accepts ``reset`` with a pose (a simulator; on a
+real robot drive it there, or record a teleoperated bag).
+
 Resumable: an existing ``--out`` is extended (new episodes appended) until it holds ``--frames`` frames; the file
 is rewritten atomically every ``--save-every`` frames and on Ctrl-C, so a crash loses at most that much.
 """
@@ -62,6 +67,11 @@ class RobotCollectConfig:
     save_every: int = opt(1000, "--sim: frames between atomic checkpoints")
     timeout_s: float = opt(2.0, "--sim: seconds to wait for each reply", flag="--timeout")
     retries: int = opt(3, "--sim: tries per request (hello, observe, stop; never a motion command)")
+    around: tuple[str, ...] = opt(
+        (),
+        "--sim: taught routes (.npz): each episode starts at a pose along them (reset with a pose)",
+        metavar="ROUTE",
+    )
     progress: bool = True
 
     def __post_init__(self) -> None:
@@ -81,6 +91,29 @@ class RobotCollectConfig:
             raise ValueError("episode_max/segment_max must be >= episode_min/segment_min")
         if self.reset_every < 0:
             raise ValueError(f"reset_every must be >= 0, got {self.reset_every}")
+
+
+#: How far an episode start turns from the taught heading at a pose along an --around route, rad.
+AROUND_YAW_JITTER = math.radians(35.0)
+
+
+def route_start_poses(paths: tuple[str, ...]) -> np.ndarray | None:
+    """Every known pose (x, y, yaw) of the taught routes at ``paths``, or None without routes."""
+    if not paths:
+        return None
+    from vtr.runtime.route import Route
+
+    poses = np.concatenate([Route.load(p).poses for p in paths])
+    poses = poses[np.isfinite(poses).all(axis=1)]
+    if len(poses) == 0:
+        raise ValueError(f"--around: no known poses in {', '.join(paths)} (routes taught without poses)")
+    return poses
+
+
+def _start_pose(rng: np.random.Generator, starts: np.ndarray) -> tuple[float, float, float]:
+    x, y, yaw = starts[int(rng.integers(len(starts)))]
+    yaw = (yaw + rng.uniform(-AROUND_YAW_JITTER, AROUND_YAW_JITTER) + math.pi) % (2 * math.pi) - math.pi
+    return float(x), float(y), float(yaw)
 
 
 class ExplorationDriver:
@@ -215,11 +248,16 @@ def collect(cfg: RobotCollectConfig, client: Any, log: Any = sys.stdout) -> dict
     )
     rng = np.random.default_rng([cfg.seed, start_frames])  # a resumed run does not replay the same commands
     driver = ExplorationDriver(rng, v_max, w_max, cfg)
-    try:
-        obs, can_reset = client.reset(seed=cfg.seed), True
-    except Exception as exc:  # a robot that cannot be reset drives continuously from where it stands
-        print(f"collect: no reset ({exc}); driving continuously from here", file=log)
-        obs, can_reset = client.observe(), False
+    starts = route_start_poses(cfg.around)
+    if starts is not None:
+        rec.meta["around"] = list(cfg.around)
+        obs, can_reset = client.reset(pose=_start_pose(rng, starts), seed=cfg.seed), True  # refused: one line
+    else:
+        try:
+            obs, can_reset = client.reset(seed=cfg.seed), True
+        except Exception as exc:  # a robot that cannot be reset drives continuously from where it stands
+            print(f"collect: no reset ({exc}); driving continuously from here", file=log)
+            obs, can_reset = client.observe(), False
     h, w = obs.image.shape[:2]
     if h != w:  # found now, not after an hour of driving when the dataset is written
         raise DatasetError(
@@ -252,7 +290,11 @@ def collect(cfg: RobotCollectConfig, client: Any, log: Any = sys.stdout) -> dict
                 in_episode, episode_len = 0, int(rng.integers(cfg.episode_min, cfg.episode_max + 1))
                 stuck = len(recent_hits) >= 3
                 due = cfg.reset_every and episodes_done % cfg.reset_every == 0
-                if can_reset and (stuck or due):
+                if starts is not None:  # every episode starts somewhere along the routes
+                    pose = _start_pose(rng, starts)
+                    new, recent_hits = client.reset(pose=pose, seed=cfg.seed + rec.episode), []
+                    rec.count("resets")
+                elif can_reset and (stuck or due):
                     new, recent_hits = client.reset(seed=cfg.seed + rec.episode), []
                     rec.count("resets")
             else:

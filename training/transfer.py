@@ -92,10 +92,36 @@ def init_weights(model: Any, kind: str, model_cfg: Any, path: str | os.PathLike)
         raise ValueError(f"--init: {err}") from None
     if ckpt.get("kind") != kind:
         raise ValueError(f"--init: {p} holds a {ckpt.get('kind')!r}, not a {kind}")
-    if ckpt.get("model_config") != to_dict(model_cfg):
-        raise ValueError(f"--init: {p} has another architecture than this preset's {kind}; use its --preset")
+    theirs, ours = ckpt.get("model_config") or {}, to_dict(model_cfg)
+    if theirs != ours:
+        differ = ", ".join(
+            f"{k} {theirs.get(k)!r} (here {ours.get(k)!r})" for k in ours if theirs.get(k) != ours[k]
+        )
+        raise ValueError(
+            f"--init: {p} differs from this preset's {kind} in {differ}; train with the base's settings"
+        )
     model.load_state_dict(ckpt["state_dict"])
     return {"init": str(p), "init_step": ckpt.get("step"), "init_data": ckpt.get("data")}
+
+
+def inherit_init_settings(args: argparse.Namespace) -> None:
+    """Fine-tuning a VelocityNet keeps its input normalisation and augmentation: `--preprocessing` and
+    `--augment` left unset take the values the `--init` checkpoint was trained with (a preprocessing that
+    differs from the base's would silently feed the network inputs it never saw)."""
+    from vtr.training.checkpoint import CheckpointError, read_checkpoint
+
+    p = Path(args.init)
+    p = p / "model.pt" if p.is_dir() else p
+    if not p.is_file() or p.suffix == ".onnx":
+        return  # init_weights gives the one-line error
+    try:
+        ckpt = read_checkpoint(p)
+    except CheckpointError:
+        return
+    if args.preprocessing is None:
+        args.preprocessing = (ckpt.get("model_config") or {}).get("preprocessing")
+    if args.augment is None and isinstance(ckpt.get("augment"), bool):
+        args.augment = ckpt["augment"]
 
 
 # --------------------------------------------------------------------------------------------- evaluate

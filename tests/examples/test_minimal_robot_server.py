@@ -7,6 +7,7 @@ import json
 import subprocess
 import sys
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -19,10 +20,12 @@ from vtr.runtime.teach import TeachConfig, teach
 SCRIPT = Path(__file__).resolve().parents[2] / "examples" / "minimal_robot_server.py"
 
 
-@pytest.fixture(scope="module")
-def endpoint() -> Iterator[str]:
+@contextmanager
+def _serve(*options: str) -> Iterator[str]:
     proc = subprocess.Popen(
-        [sys.executable, str(SCRIPT), "--bind", "tcp://127.0.0.1:*"], stdout=subprocess.PIPE, text=True
+        [sys.executable, str(SCRIPT), "--bind", "tcp://127.0.0.1:*", *options],
+        stdout=subprocess.PIPE,
+        text=True,
     )
     try:
         line = proc.stdout.readline() if proc.stdout else ""
@@ -33,8 +36,20 @@ def endpoint() -> Iterator[str]:
         proc.wait(5)
 
 
+@pytest.fixture(scope="module")
+def endpoint() -> Iterator[str]:
+    with _serve() as address:
+        yield address
+
+
 def test_the_example_passes_every_check(endpoint: str) -> None:
     results = run_checks(endpoint, timeout_s=2.0)
+    assert all(r.status == PASS for r in results), [(r.name, r.status, r.detail) for r in results]
+
+
+def test_the_example_with_actuation_noise_passes_every_check() -> None:
+    with _serve("--noise", "0.05") as address:
+        results = run_checks(address, timeout_s=2.0)
     assert all(r.status == PASS for r in results), [(r.name, r.status, r.detail) for r in results]
 
 
@@ -79,3 +94,27 @@ def test_collect_repeat_and_eval_work_on_the_example_unchanged(
     assert cli.main(["eval", "--run", str(run), "--taught", str(route)]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["status"] == "finished" and result["position_error_m"]["mean"] < 0.05
+
+
+def _drive(noise: float, seed: int) -> tuple[float, float, float]:
+    """Where the example's robot ends after 2 s straight ahead, from a reset with ``seed``."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("minimal_robot_server", SCRIPT)
+    assert spec and spec.loader
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    world = example.World(noise)
+    world.reset(-1.0, 0.0, 0.0, seed=seed)
+    for _ in range(20):
+        world.step(0.3, 0.0, 0.1)
+    world.step(0.0, 0.0, 0.1)  # a zero command stays a zero command under noise
+    return world.x, world.y, world.yaw
+
+
+def test_the_example_noise_perturbs_motion_reproducibly() -> None:
+    assert _drive(0.0, 3) == pytest.approx((-0.4, 0.0, 0.0), abs=1e-9)  # no noise: the exact unicycle
+    noisy = _drive(0.05, 3)
+    assert noisy == _drive(0.05, 3)  # same seed, same motor errors
+    assert noisy != _drive(0.05, 4)
+    assert 1e-4 < abs(noisy[0] + 0.4) < 0.1 and abs(noisy[2]) > 1e-5  # off the ideal end, but not wildly

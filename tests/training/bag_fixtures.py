@@ -76,8 +76,11 @@ def write_drive_bag(
     cmd_silence: tuple[float, float] | None = None,
     fast: float = 0.45,
     storage: str = "mcap",
+    camera_latency: float = 0.0,
+    camera_clock: float = 0.0,
 ) -> Path:
-    """Write the drive to the bag folder ``path``; returns it."""
+    """Write the drive to the bag folder ``path``; returns it. Camera frames reach the bag ``camera_latency``
+    seconds after their header stamp; ``camera_clock`` shifts the camera's header stamps (a device clock)."""
     types = STORE.types
     vec = types["geometry_msgs/msg/Vector3"]
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
@@ -86,8 +89,9 @@ def write_drive_bag(
         t = k / camera_hz
         if camera_gap and camera_gap[0] <= t < camera_gap[1]:
             continue
-        msgtype, msg = image_message(k, T0 + round(t * 1e9) + 3_000_000, image_kind)  # 3 ms after the tick
-        events.append((T0 + round(t * 1e9) + 3_000_000, "/camera/image", msg, msgtype))
+        captured = T0 + round(t * 1e9) + 3_000_000  # 3 ms after the tick
+        msgtype, msg = image_message(k, captured + round(camera_clock * 1e9), image_kind)
+        events.append((captured + round(camera_latency * 1e9), "/camera/image", msg, msgtype))
     for k in range(int(seconds * cmd_hz)):
         t = k / cmd_hz
         if cmd_silence and cmd_silence[0] <= t < cmd_silence[1]:

@@ -42,6 +42,27 @@ def test_frames_carry_the_command_active_at_their_time_and_the_odometry(
     np.testing.assert_allclose(d.poses[:, 2], 0.1 * t, atol=1e-9)  # yaw from the quaternion
 
 
+def test_frames_are_timed_by_their_header_stamps_not_by_when_the_bag_received_them(tmp_path: Path) -> None:
+    d = drive(write_drive_bag(tmp_path / "bag", camera_latency=0.12))  # frames arrive 120 ms late
+    assert len(d) == 30 and d.source["stamps"] == {
+        "image": "header",
+        "cmd": "receive (no header)",
+        "pose": "header",
+    }
+    np.testing.assert_array_equal(d.images[:, 0, 0, 0], np.arange(30))  # frame k is picture k
+    t = (
+        np.arange(30) * 0.1 + 0.003
+    )  # its capture time; receive times would pair frame 9 with the fast command
+    np.testing.assert_allclose(d.commands[:, 0], np.where((t >= 1.0) & (t < 1.5), 0.45, 0.2))
+
+
+def test_header_stamps_on_another_clock_fall_back_to_receive_times(tmp_path: Path) -> None:
+    d = drive(write_drive_bag(tmp_path / "bag", camera_clock=-1e6))  # a camera stamping from its own boot
+    assert len(d) == 30 and d.skipped == {}
+    assert d.source["stamps"]["image"] == "receive (header stamps +1000000.0 s off the receive clock)"
+    assert "times: image receive (header stamps +1000000.0 s off" in d.report()
+
+
 def test_a_camera_gap_splits_the_drive_and_is_reported(tmp_path: Path) -> None:
     d = drive(write_drive_bag(tmp_path / "bag", camera_gap=(1.2, 1.8)))
     assert len(np.unique(d.segments)) == 2 and len(d) == 24

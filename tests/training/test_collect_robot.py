@@ -26,6 +26,7 @@ class CorridorRobot:
         self.x, self.yaw, self.t = 0.5, 0.0, 0.0
         self.can_reset, self.fail_after = can_reset, fail_after
         self.steps: list[tuple[float, float, bool]] = []
+        self.resets: list[tuple | None] = []
         self.stopped = 0
 
     def _obs(self, collided: bool = False) -> Observation:
@@ -41,7 +42,8 @@ class CorridorRobot:
     def reset(self, pose: tuple | None = None, seed: int | None = None) -> Observation:
         if not self.can_reset:
             raise RobotError("reset is not supported by this robot")
-        self.x, self.yaw = 0.5, 0.0
+        self.x, self.yaw = (pose[0], pose[2]) if pose else (0.5, 0.0)
+        self.resets.append(pose)
         return self._obs()
 
     def observe(self) -> Observation:
@@ -161,3 +163,24 @@ def test_a_camera_that_is_not_square_is_refused_before_driving(tmp_path: Path) -
     with pytest.raises(ValueError, match="images are 8x6; datasets hold square images"):
         collect(config(tmp_path, 50), robot)
     assert robot.steps == [] and not (tmp_path / "d.npz").exists()
+
+
+def test_around_starts_every_episode_along_the_taught_routes(tmp_path: Path) -> None:
+    from vtr.runtime.route import Route
+
+    route = tmp_path / "r.npz"
+    poses = [(0.1, 0.0, 0.0), (0.9, 0.0, math.pi), (float("nan"),) * 3]  # an unknown pose is never used
+    Route(np.zeros((3, 8, 8, 3), np.uint8), poses, np.zeros((3, 2))).save(route)
+    robot = CorridorRobot()
+    summary = collect(config(tmp_path, 400, seed=2, around=(str(route),)), robot)
+    starts = np.array(robot.resets)
+    assert summary["counts"]["resets"] == summary["episodes"] - 1 and len(starts) == summary["episodes"]
+    assert set(np.round(starts[:, 0], 6)) == {0.1, 0.9}
+    yaw_offset = np.where(
+        starts[:, 0] < 0.5, starts[:, 2], (starts[:, 2] - math.pi + math.pi) % (2 * math.pi) - math.pi
+    )
+    assert np.abs(yaw_offset).max() <= math.radians(35) and np.abs(yaw_offset).max() > 0.05
+    assert load_dataset(tmp_path / "d.npz").meta["around"] == [str(route)]
+    no_reset = CorridorRobot(can_reset=False)
+    with pytest.raises(RobotError, match="reset is not supported"):  # --around needs reset with a pose
+        collect(config(tmp_path / "x", 50, around=(str(route),)), no_reset)

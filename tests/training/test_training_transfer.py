@@ -70,7 +70,7 @@ def test_init_loads_weights_and_refuses_a_mismatch(tmp_path: Path) -> None:
     assert note["init"].endswith("model.pt")
     with pytest.raises(ValueError, match="not a velocitynet"):
         init_weights(VelocityNet(preset.velocitynet), "velocitynet", preset.velocitynet, tmp_path / "v")
-    with pytest.raises(ValueError, match="architecture"):
+    with pytest.raises(ValueError, match="differs from this preset's viewnet in"):
         init_weights(
             ViewNet(get_preset("default").viewnet), "viewnet", get_preset("default").viewnet, tmp_path / "v"
         )
@@ -101,6 +101,31 @@ def test_fine_tune_starts_from_init_and_evaluate_reports_baselines(tmp_path: Pat
     v = report["velocitynet"]
     assert v["mean_baseline_mse"] > 0 and np.isfinite(v["mse_first_command"])
     assert v["mean_command"] == pytest.approx(ckpt["mean_command"])
+
+
+def test_a_cli_fine_tune_keeps_the_base_preprocessing_and_augmentation(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from vtr import cli
+    from vtr.runtime.preprocess import PREPROCESSINGS
+    from vtr.training.dataset import save_dataset
+
+    data = tmp_path / "d.npz"
+    save_dataset(data, synthetic_dataset(frames=64, size=32))
+    tiny = ["--data", str(data), "--preset", "tiny", "--steps", "1"]
+    assert cli.main(["train", "viewnet", *tiny, "--out", str(tmp_path / "v")]) == 0
+    stage = ["train", "velocitynet", *tiny, "--viewnet", str(tmp_path / "v")]
+    assert (
+        cli.main([*stage, "--out", str(tmp_path / "base"), "--augment", "--preprocessing", PREPROCESSINGS[1]])
+        == 0
+    )
+    assert cli.main([*stage, "--out", str(tmp_path / "ft"), "--init", str(tmp_path / "base")]) == 0
+    ckpt = torch.load(tmp_path / "ft" / "model.pt", weights_only=False)
+    assert ckpt["model_config"]["preprocessing"] == PREPROCESSINGS[1] and ckpt["augment"] is True
+    capsys.readouterr()
+    argv = [*stage, "--out", str(tmp_path / "bad"), "--init", str(tmp_path / "base")]
+    assert cli.main([*argv, "--preprocessing", PREPROCESSINGS[0]]) != 0  # another one asked for: refused
+    assert "differs from this preset's velocitynet in preprocessing" in capsys.readouterr().err
 
 
 def test_named_maps_are_never_held_out() -> None:
