@@ -20,6 +20,7 @@ import numpy as np
 
 from vtr.runtime import protocol
 from vtr.runtime.contracts import CONTROL_DT, Observation
+from vtr.runtime.matching import MatchConfig
 
 SESSION = "bench"
 #: Subgoals on the benchmark's route. One would do for a controller that looks at one subgoal per step; a
@@ -78,12 +79,42 @@ class LoopbackRobot:
         protocol.decode_reply(self._replies["stop"], expect_cmd="stop", expect_seq=1)
 
 
+def sample_route(height: int, width: int, length: int = ROUTE_LENGTH) -> tuple[np.ndarray, np.ndarray]:
+    """A current frame and a taught route of ``length`` frames driven from near it (first subgoal first).
+
+    From the simulator when it is installed, else shifted synthetic texture. The route's views change
+    from subgoal to subgoal, as on a real route, so the controller uses patch matching (a route of one
+    repeated view is "too plain" and makes it fall back to the raw error)."""
+    try:
+        from vtr.sim2d import CameraConfig, Pose, SimConfig, Simulator
+
+        sim = Simulator(SimConfig(camera=CameraConfig(width=width, height=height), noise=0.0))
+        sim.reset(seed=0)
+        start = sim.pose
+        first = sim.reset(pose=Pose(start.x, start.y, start.yaw), seed=0)
+        current = sim.step(0.1, 0.1, 0.1)  # near the first subgoal, not on it
+        sim.reset(pose=Pose(start.x, start.y, start.yaw), seed=0)
+        frames = [first] + [sim.step(0.2, 0.1, 0.1) for _ in range(length - 1)]
+    except (
+        Exception
+    ):  # simulator missing (the runtime-only memory probe): the timings do not depend on content
+        yy, xx = np.mgrid[0:height, 0:width].astype(np.float32)
+        base = np.stack([xx / width, yy / height, 0.5 + 0.5 * np.sin(xx / 3.0) * np.cos(yy / 5.0)], axis=-1)
+        texture = (base * 255).astype(np.uint8)
+        frames = [np.roll(texture, 2 * k, axis=1) for k in range(length)]
+        current = np.roll(texture, 1, axis=1)
+    return np.ascontiguousarray(current), np.ascontiguousarray(np.stack(frames))
+
+
 class BenchStep:
-    """``Repeater.step`` on a ``LoopbackRobot`` showing ``current`` while steering to ``subgoal``.
+    """``Repeater.step`` on a ``LoopbackRobot`` showing ``current`` while steering to ``route[0]``.
 
     The controller never switches (fixed e_m below any error, no stall guard, no settling): every step
-    commands, the worst case. The route is ``ROUTE_LENGTH`` copies of ``subgoal``; the robot stays at
-    its first. The zero command after each step is sent, as the daemon does by default
+    commands, the worst case; everything else is the default controller (its lost check included), with
+    ``match`` as its image comparison (default: patch matching; ``MatchConfig.paper()`` for the raw error).
+    ``route`` is the taught images (from :func:`sample_route`); a single (H, W, 3) image makes a route of
+    ``ROUTE_LENGTH`` copies, on which the controller falls back to the raw error (``matching`` says which
+    one is in force). The zero command after each step is sent, as the daemon does by default
     (stop-and-go); ``continuous=True`` leaves it out (`vtr repeat --continuous`). ``match_light=True``
     wraps the policy in ``LightMatchedPolicy`` as `vtr repeat` does by default.
     """
@@ -95,9 +126,10 @@ class BenchStep:
         model: str | Path,
         threads: int,
         current: np.ndarray,
-        subgoal: np.ndarray,
+        route: np.ndarray,
         continuous: bool = False,
         match_light: bool = False,
+        match: MatchConfig | None = None,
     ) -> None:
         from vtr.runtime.controller import ControllerConfig
         from vtr.runtime.policy import OnnxPolicy
@@ -111,19 +143,25 @@ class BenchStep:
 
             policy = LightMatchedPolicy(self.policy)
         self.robot = LoopbackRobot(current)
-        route = Route(
-            images=np.ascontiguousarray(np.broadcast_to(subgoal, (ROUTE_LENGTH, *subgoal.shape))),
-            poses=np.zeros((ROUTE_LENGTH, 3)),
-            commands=np.zeros((ROUTE_LENGTH, 2)),
+        if route.ndim == 3:
+            route = np.broadcast_to(route, (ROUTE_LENGTH, *route.shape))
+        n = len(route)
+        taught = Route(
+            images=np.ascontiguousarray(route),
+            poses=np.zeros((n, 3)),
+            commands=np.zeros((n, 2)),
             name="bench",
             dt=self.policy.meta.dt,
         )
         controller = ControllerConfig(
-            e_m_mode="fixed", e_m=1e-3, stall_steps=0, settle_steps=0, continuous=continuous
-        )
+            match=match or MatchConfig(), e_m_mode="fixed", e_m=1e-3, stall_steps=0, settle_steps=0,
+            continuous=continuous,
+        )  # fmt: skip
         self.repeater = Repeater(
-            self.robot, policy, route, config=RepeatConfig(controller=controller, max_steps=10**12)
+            self.robot, policy, taught, config=RepeatConfig(controller=controller, max_steps=10**12)
         )
+        #: The image comparison the controller uses ("raw" also when it fell back from patch matching).
+        self.matching = self.repeater.controller.cfg.match.method
 
     def __call__(self) -> Any:
         record = self.repeater.step()

@@ -332,8 +332,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     g.add_argument(
         "--seeds", type=int, nargs="*", default=[0, 1, 2], help="noise seeds (default: %(default)s)"
     )
-    g.add_argument("--controllers", nargs="*", default=["paper", "before", "after"],
-                   help=f"controllers among {', '.join(CONTROLLERS)} (default: %(default)s)")  # fmt: skip
+    g.add_argument("--controllers", nargs="*", default=None,
+                   help=f"controllers among {', '.join(CONTROLLERS)} (default: paper before after; with "
+                        "--houses: after)")  # fmt: skip
     g.add_argument(
         "--suite-models", nargs="*", default=["fp32", "int8"], help="fp32 and/or int8 (default: %(default)s)"
     )
@@ -345,7 +346,7 @@ def run_cli(args: argparse.Namespace) -> int:
     try:
         cfg = SuiteConfig(model=args.model, int8_model=args.int8_model, routes=tuple(args.routes),
                           conditions=tuple(args.conditions), seeds=tuple(args.seeds),
-                          controllers=tuple(args.controllers), models=tuple(args.suite_models),
+                          controllers=tuple(args.controllers or SuiteConfig.controllers), models=tuple(args.suite_models),
                           max_steps_factor=args.max_steps_factor, threads=args.threads, workers=args.workers,
                           json_path=args.json_path)  # fmt: skip
     except ValueError as err:

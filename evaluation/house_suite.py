@@ -28,26 +28,40 @@ MAX_HOUSES = 1000
 
 
 def parse_houses(spec: str) -> tuple[str, ...]:
-    """Procedural houses ``random:SEED`` from ``A:B`` (seeds A..B-1, as a Python range), ``A`` or ``A,B,C``;
-    ValueError otherwise."""
+    """House names from ``A:B`` (random:A .. random:B-1, as a Python range) or a comma list whose items are
+    seeds (``A``: random:A) or map names/paths (``house``: the paper-style map); ValueError otherwise."""
+    from vtr.sim2d.house import RANDOM_PREFIX, resolve_house_path
     from vtr.sim2d.procedural import MAX_SEED
 
     text = spec.strip()
     try:
-        if ":" in text:
+        if ":" in text and "," not in text and not text.startswith(RANDOM_PREFIX):
             a, b = (int(p) for p in text.split(":"))
-            seeds = tuple(range(a, b))
+            items = [str(s) for s in range(a, b)]
         else:
-            seeds = tuple(int(p) for p in text.split(","))
+            items = [p.strip() for p in text.split(",")]
     except ValueError:
         raise ValueError(
-            f"--houses {spec!r}: expected A:B (seeds A..B-1), A, or A,B,C with integers"
+            f"--houses {spec!r}: expected A:B (seeds A..B-1) or a list of seeds or map names"
         ) from None
-    if not seeds or len(seeds) > MAX_HOUSES or min(seeds) < 0 or max(seeds) > MAX_SEED:
-        raise ValueError(f"--houses {spec!r}: give 1..{MAX_HOUSES} house seeds in 0..{MAX_SEED}")
-    if len(set(seeds)) != len(seeds):
+    names = []
+    for item in items:
+        seed = item[len(RANDOM_PREFIX) :] if item.startswith(RANDOM_PREFIX) else item
+        if seed.isdigit() and int(seed) <= MAX_SEED:
+            names.append(f"{RANDOM_PREFIX}{int(seed)}")
+        elif item and not item.startswith(("-", RANDOM_PREFIX)) and not item.isdigit():
+            try:  # an unknown map is a one-line error now, not in a worker later
+                resolve_house_path(item)
+            except ValueError as err:
+                raise ValueError(f"--houses {spec!r}: {err}") from None
+            names.append(item)
+        else:
+            raise ValueError(f"--houses {spec!r}: {item!r} is neither a seed in 0..{MAX_SEED} nor a map name")
+    if not names or len(names) > MAX_HOUSES:
+        raise ValueError(f"--houses {spec!r}: give 1..{MAX_HOUSES} houses")
+    if len(set(names)) != len(names):
         raise ValueError(f"--houses {spec!r}: a house is named twice")
-    return tuple(f"random:{s}" for s in seeds)
+    return tuple(names)
 
 
 @dataclass
@@ -60,6 +74,7 @@ class HouseSuiteConfig:
     seeds: tuple[int, ...] = (0, 1, 2)
     model: Path | None = None  # fp32 VelocityNet ONNX; None: the shipped one (vtr.models.find_model)
     controller: str = "after"  # the runtime's default repeat
+    oracle: bool = False  # also repeat with the pose oracle (evaluation.runs.PoseOracle): switching's floor
     max_steps_factor: float = 8.0  # step limit = factor * subgoals + 50
     e_m: float | None = None  # unused: the controller comes with the method
     dt: float = 0.1
@@ -96,6 +111,7 @@ def evaluate_route(task: tuple[str, int, HouseSuiteConfig]) -> dict[str, Any]:
     """Generate, teach and repeat (every seed) route ``k`` of ``house``: a process-pool task."""
     from vtr.evaluation.condition_suite import Condition, cached_policy, run_once
     from vtr.evaluation.harness import teach
+    from vtr.evaluation.runs import PoseOracle
     from vtr.sim2d.house import load_house
     from vtr.sim2d.route_gen import generate_route, route_json
 
@@ -119,23 +135,28 @@ def evaluate_route(task: tuple[str, int, HouseSuiteConfig]) -> dict[str, Any]:
         rooms=len({h.room_at(float(x), float(y)) for x, y in xy}),
         taught_path=np.round(xy, 3).tolist(),
     )
-    method = CONTROLLERS[cfg.controller]
-    for s in cfg.seeds:
-        run = run_once(
-            route, script, Condition(noise=cfg.noise), house, s, method, policy, cfg, keep_path=True
-        )
-        out["runs"].append({"seed": s, **run})
+    methods = [("velocitynet", policy, CONTROLLERS[cfg.controller])]
+    if cfg.oracle:  # true poses steer, the images still switch subgoals; unwrapped, so no light matching
+        meta = policy.meta
+        oracle = PoseOracle(meta.v_max, meta.w_max, meta.horizon, cfg.dt, tuple(policy.image_shape))
+        methods.append(("pose_oracle", oracle, CONTROLLERS["after_no_light_matching"]))
+    condition = Condition(noise=cfg.noise)
+    for name, pol, method in methods:
+        for s in cfg.seeds:
+            run = run_once(route, script, condition, house, s, method, pol, cfg, keep_path=True)
+            out["runs"].append({"method": name, "seed": s, **run})
     out["wall_s"] = time.perf_counter() - t0
     return out
 
 
 def summarise(routes: list[dict[str, Any]], houses: tuple[str, ...]) -> dict[str, Any]:
-    """Per house and overall: completion (x/N), mean nearest-point error (mm, completed runs), steps per
-    taught step (completed runs), contacts and failure causes."""
+    """Per house and overall: completion (x/N), mean and median of the runs' mean nearest-point errors and the
+    largest subgoal error (mm, completed runs), steps per taught step (completed runs), contacts and failure
+    causes."""
     from collections import Counter
 
-    def stats(rs: list[dict[str, Any]]) -> dict[str, Any]:
-        runs = [r for route in rs for r in route["runs"]]
+    def stats(rs: list[dict[str, Any]], method: str = "velocitynet") -> dict[str, Any]:
+        runs = [r for route in rs for r in route["runs"] if r.get("method", "velocitynet") == method]
         done = [r for r in runs if r["completed"]]
         causes = Counter(r["cause"].split(":")[0] for r in runs if not r["completed"])
         return {
@@ -145,6 +166,9 @@ def summarise(routes: list[dict[str, Any]], houses: tuple[str, ...]) -> dict[str
             "completed": len(done),
             "completion": len(done) / len(runs) if runs else None,
             "mean_error_mm": 1000 * float(np.mean([r["position_error_m"] for r in done])) if done else None,
+            "median_error_mm": 1000 * float(np.median([r["position_error_m"] for r in done]))
+            if done
+            else None,
             "max_error_mm": 1000 * float(np.max([r["max_position_error_m"] for r in done])) if done else None,
             "steps_per_taught_step": float(np.mean([r["steps_per_taught_step"] for r in done]))
             if done
@@ -153,14 +177,20 @@ def summarise(routes: list[dict[str, Any]], houses: tuple[str, ...]) -> dict[str
             "failure_causes": dict(causes),
         }
 
-    return {
+    out = {
         "per_house": {h: stats([r for r in routes if r["house"] == h]) for h in houses},
         "overall": stats(routes),
     }
+    if any(r.get("method") == "pose_oracle" for route in routes for r in route["runs"]):
+        out["pose_oracle"] = {
+            "per_house": {h: stats([r for r in routes if r["house"] == h], "pose_oracle") for h in houses},
+            "overall": stats(routes, "pose_oracle"),
+        }
+    return out
 
 
 def _progress(done: int, total: int, routes: list[dict[str, Any]], t0: float) -> None:
-    runs = [r for route in routes for r in route["runs"]]
+    runs = [r for route in routes for r in route["runs"] if r["method"] == "velocitynet"]
     elapsed = time.perf_counter() - t0
     eta = elapsed / done * (total - done)
     bar = "#" * int(30 * done / total)
@@ -169,13 +199,48 @@ def _progress(done: int, total: int, routes: list[dict[str, Any]], t0: float) ->
           file=sys.stderr, flush=True)  # fmt: skip
 
 
+def _result(cfg: HouseSuiteConfig, routes: list[dict[str, Any]], total: int, t0: float) -> dict[str, Any]:
+    routes = sorted(routes, key=lambda r: (cfg.houses.index(r["house"]), r["route_seed"]))
+    out = {
+        "config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
+        "summary": summarise(routes, cfg.houses),
+        "routes": routes,
+        "wall_s": time.perf_counter() - t0,
+    }
+    if len(routes) < total:
+        out["partial"] = f"{len(routes)} of {total} routes finished"
+    return out
+
+
+def _write(cfg: HouseSuiteConfig, result: dict[str, Any]) -> None:
+    import json
+
+    from vtr.evaluation.house_tables import markdown
+    from vtr.runtime.atomic import write_text_atomic
+
+    assert cfg.json_path is not None
+    write_text_atomic(cfg.json_path, json.dumps(result, separators=(",", ":")))  # paths: keep it compact
+    write_text_atomic(Path(cfg.json_path).with_suffix(".md"), markdown(result))
+
+
 def run(cfg: HouseSuiteConfig, progress: bool = True) -> dict[str, Any]:
-    """Every (house, route) task, in a process pool when workers > 1; writes JSON, Markdown and a picture."""
-    from vtr.evaluation.house_tables import markdown, write_picture
+    """Every (house, route) task, in a process pool when workers > 1; writes JSON, Markdown and a picture.
+
+    The JSON and Markdown files are rewritten (atomically) after every finished route, marked partial, so
+    an interrupted run keeps what it measured."""
+    from vtr.evaluation.house_tables import write_picture
 
     tasks = [(h, k, cfg) for h in cfg.houses for k in range(cfg.routes_per_house)]
     t0 = time.perf_counter()
     routes: list[dict[str, Any]] = []
+
+    def finished(route: dict[str, Any]) -> None:
+        routes.append(route)
+        if progress:
+            _progress(len(routes), len(tasks), routes, t0)
+        if cfg.json_path is not None and len(routes) < len(tasks):
+            _write(cfg, _result(cfg, routes, len(tasks), t0))
+
     if cfg.workers > 1 and len(tasks) > 1:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -183,28 +248,13 @@ def run(cfg: HouseSuiteConfig, progress: bool = True) -> dict[str, Any]:
         # spawn: a fresh interpreter per worker, no forked onnxruntime thread pools
         with ProcessPoolExecutor(min(cfg.workers, len(tasks)), mp_context=mp.get_context("spawn")) as ex:
             for fut in as_completed([ex.submit(evaluate_route, t) for t in tasks]):
-                routes.append(fut.result())
-                if progress:
-                    _progress(len(routes), len(tasks), routes, t0)
+                finished(fut.result())
     else:
         for t in tasks:
-            routes.append(evaluate_route(t))
-            if progress:
-                _progress(len(routes), len(tasks), routes, t0)
-    routes.sort(key=lambda r: (cfg.houses.index(r["house"]), r["route_seed"]))
-    result = {
-        "config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
-        "summary": summarise(routes, cfg.houses),
-        "routes": routes,
-        "wall_s": time.perf_counter() - t0,
-    }
+            finished(evaluate_route(t))
+    result = _result(cfg, routes, len(tasks), t0)
     if cfg.json_path is not None:
-        import json
-
-        from vtr.runtime.atomic import write_text_atomic
-
-        write_text_atomic(cfg.json_path, json.dumps(result, indent=1))
-        write_text_atomic(Path(cfg.json_path).with_suffix(".md"), markdown(result))
+        _write(cfg, result)
     if cfg.plot_path is not None:
         result["plot"] = str(write_picture(result, Path(cfg.plot_path)))
     return result
@@ -217,9 +267,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of --houses, added to `vtr eval` (which owns --model, --noise, --seeds, --json, ...)."""
     g = parser.add_argument_group("held-out houses (--houses): generated routes in procedural houses")
     g.add_argument("--houses", default=None, metavar="A:B",
-                   help="evaluate in procedural houses random:A .. random:B-1 (or A, or A,B,C) instead; uses "
-                        "--noise, --seeds, --model, --workers, --max-steps-factor; --json also writes .md and "
-                        ".png beside it (default: off; held-out houses are 5000..5099, tune on 900..999)")  # fmt: skip
+                   help="evaluate in procedural houses random:A .. random:B-1 (or a list A,B,house of seeds and "
+                        "map names) instead; uses --noise, --seeds, --model, --controllers (one), --oracle, --workers, "
+                        "--max-steps-factor; --json also writes .md and .png beside it (default: off; held-out houses are 5000..5099, tune on 900..999)")  # fmt: skip
     g.add_argument("--routes-per-house", type=int, default=3,
                    help="generated routes per house, route seeds 0..N-1 (default: %(default)s)")  # fmt: skip
 
@@ -227,10 +277,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run_cli(args: argparse.Namespace) -> int:
     from vtr.evaluation.house_tables import markdown
 
-    cfg = HouseSuiteConfig(houses=parse_houses(args.houses), routes_per_house=args.routes_per_house,
+    controllers = args.controllers or ["after"]
+    if len(controllers) != 1:
+        raise ValueError(f"--houses runs one controller; got --controllers {' '.join(controllers)}")
+    cfg = HouseSuiteConfig(controller=controllers[0], houses=parse_houses(args.houses), routes_per_house=args.routes_per_house,
                            noise=args.noise, seeds=tuple(args.seeds), model=args.model,
                            max_steps_factor=args.max_steps_factor, threads=args.threads, workers=args.workers,
-                           json_path=args.json_path)  # fmt: skip
+                           oracle=args.oracle, json_path=args.json_path)  # fmt: skip
     result = run(cfg)
     print(markdown(result))
     if cfg.json_path is not None:

@@ -33,31 +33,41 @@ def markdown(result: dict[str, Any]) -> str:
     """Per house and overall: completion, mean nearest-point error, steps per taught step, failures."""
     cfg, summary = result["config"], result["summary"]
     routes = result["routes"]
+    oracle = summary.get("pose_oracle")
     seeds = ",".join(str(s) for s in cfg["seeds"])
     lines = [
         f"# Repeat in procedural houses: {len(cfg['houses'])} houses x {cfg['routes_per_house']} routes x "
         f"{len(cfg['seeds'])} seeds",
         "",
-        f"Model `{cfg['model']}`, controller `{cfg['controller']}` (the runtime default), actuation noise "
+        f"Model `{cfg['model']}`, controller `{cfg['controller']}`"
+        + (" (the runtime default)" if cfg["controller"] == "after" else "")
+        + f", actuation noise "
         f"{cfg['noise']}, seeds {seeds}. Routes from `sim2d.route_gen` (route seeds 0..{cfg['routes_per_house'] - 1}), "
         "taught noise-free, repeated once per seed. Completed = the repeat finished and touched nothing; errors "
         "are the paper's nearest-point error per subgoal, averaged over completed runs.",
         "",
-        "| house | routes: rooms, m, s | completed | mean error (mm) | max error (mm) | steps / taught step "
-        "| failures |",
-        "|---|---|---|---|---|---|---|",
+        *(
+            [f"**Partial result**: {result['partial']} (the run is still going or was interrupted).", ""]
+            if result.get("partial")
+            else []
+        ),  # fmt: skip
+        "| house | routes: rooms, m, s | completed | mean error (mm) | median (mm) | max error (mm) "
+        "| steps / taught step | failures |" + (" pose oracle: completed |" if oracle else ""),
+        "|---|---|---|---|---|---|---|---|" + ("---|" if oracle else ""),
     ]
     for house, s in summary["per_house"].items():
         mine = [r for r in routes if r["house"] == house and "error" not in r]
         desc = "; ".join(f"{r['rooms']}, {r['length_m']:.1f}, {r['duration_s']:.0f}" for r in mine) or "-"
         lines.append(
-            f"| {house} | {desc} | {_pct(s)} | {_num(s['mean_error_mm'], '.1f')} | {_num(s['max_error_mm'], '.0f')} "
+            f"| {house} | {desc} | {_pct(s)} | {_num(s['mean_error_mm'], '.1f')} | {_num(s.get('median_error_mm'), '.1f')} | {_num(s['max_error_mm'], '.0f')} "
             f"| {_num(s['steps_per_taught_step'], '.2f')} | {_causes(s)} |"
+            + (f" {_pct(oracle['per_house'][house])} |" if oracle else "")
         )
     o = summary["overall"]
     lines.append(
-        f"| **all** | {o['routes']} routes | **{_pct(o)}** | **{_num(o['mean_error_mm'], '.1f')}** | "
+        f"| **all** | {o['routes']} routes | **{_pct(o)}** | **{_num(o['mean_error_mm'], '.1f')}** | {_num(o.get('median_error_mm'), '.1f')} | "
         f"{_num(o['max_error_mm'], '.0f')} | {_num(o['steps_per_taught_step'], '.2f')} | {_causes(o)} |"
+        + (f" {_pct(oracle['overall'])} |" if oracle else "")
     )
     ok_c = o["completion"] is not None and o["completion"] >= TARGET_COMPLETION
     ok_e = o["mean_error_mm"] is not None and o["mean_error_mm"] <= TARGET_ERROR_MM
@@ -69,6 +79,14 @@ def markdown(result: dict[str, Any]) -> str:
         f"Runs with a contact: {o['runs_with_contact']}. Wall time {result['wall_s']:.0f} s.",
         "",
     ]
+    if oracle:
+        lines[-1:-1] = [
+            "",
+            "Pose oracle (a diagnostic, not a visual method): the same repeat steered by true poses, subgoals "
+            f"still switched on images; it completed {_pct(oracle['overall'])} "
+            f"({_num(oracle['overall']['mean_error_mm'], '.1f')} mm): what is left when no network steers (its "
+            "failures come from the switching rules or from its simple go-to-pose law).",
+        ]
     return "\n".join(lines)
 
 
@@ -91,7 +109,7 @@ def write_picture(result: dict[str, Any], path: Path) -> Path:
         draw_house(ax, house, labels=False)
         for r in (r for r in result["routes"] if r["house"] == house and "error" not in r):
             for run in r["runs"]:
-                if "path" in run:
+                if "path" in run and run.get("method", "velocitynet") == "velocitynet":
                     xs, ys = zip(*run["path"], strict=True)
                     ax.plot(xs, ys, lw=0.7, color="tab:green" if run["completed"] else "tab:red", zorder=3)
             tx, ty = zip(*r["taught_path"], strict=True)

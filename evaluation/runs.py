@@ -73,7 +73,8 @@ class PoseOracle:
         rho, alpha = math.hypot(ex, ey), math.atan2(ey, ex)
         # a differential drive cannot slide sideways: turn toward the goal point (backing up when it lies
         # behind), drive, and once there turn to the goal's heading; each gap closed in about two steps
-        if rho > self.position_tolerance:
+        # where the controller allows no translation (a taught turn in place), only turn
+        if rho > self.position_tolerance and not self.controller.holds_turn(index):
             backwards = abs(alpha) > math.pi / 2
             heading = float(metrics.wrap_angle(alpha - math.pi)) if backwards else alpha
             v = (-1.0 if backwards else 1.0) * rho * max(math.cos(heading), 0.0) / (2 * self.dt)
@@ -105,7 +106,7 @@ def repeat_closed_loop(
     ccfg = ControllerConfig() if cfg.e_m is None else ControllerConfig(e_m_mode="fixed", e_m=cfg.e_m)
     ccfg = controller_cfg if controller_cfg is not None else ccfg
     rcfg = RepeatConfig(controller=ccfg, dt=cfg.dt, max_steps=int(cfg.max_steps_factor * len(route) + 50))
-    controller = Controller(route.images, ccfg, route.commands)
+    controller = Controller(route.images, ccfg, route.commands, route.poses)
     if isinstance(policy, PoseOracle):
         policy.bind(robot, controller, route)
 

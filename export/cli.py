@@ -110,14 +110,15 @@ def run(cfg: ExportConfig, data: Any = None) -> dict[str, Any]:
     return result
 
 
-def _with_run_configs(path: str, ckpt: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any] | None]:
+def _with_run_configs(path: str, ckpt: dict[str, Any]) -> tuple[dict[str, Any], Any, Any]:
     """The checkpoint with its train_config (older model.pt files keep it only in the run folder's
-    checkpoint.pt) and the ViewNet checkpoint its MPC loss used, where they can still be read."""
+    checkpoint.pt), the ViewNet checkpoint its MPC loss used and the one it was fine-tuned from
+    (``--init``), where they can still be read."""
     from vtr.training.checkpoint import CheckpointError, read_checkpoint
 
     def read(p: Path) -> dict[str, Any] | None:
         try:
-            return read_checkpoint(p) if p.is_file() else None
+            return read_checkpoint(p) if p.exists() else None  # a file or a run folder
         except (CheckpointError, OSError, ValueError):
             return None
 
@@ -125,7 +126,8 @@ def _with_run_configs(path: str, ckpt: dict[str, Any]) -> tuple[dict[str, Any], 
     if "train_config" not in ckpt and (run := read(folder / "checkpoint.pt")) is not None:
         ckpt = {**ckpt, "train_config": run.get("train_config")}
     viewnet = read(Path(ckpt["viewnet"])) if isinstance(ckpt.get("viewnet"), str) else None
-    return ckpt, viewnet
+    init = read(Path(ckpt["init"])) if isinstance(ckpt.get("init"), str) else None
+    return ckpt, viewnet, init
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

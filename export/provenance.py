@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 from vtr.runtime.model_meta import PREFIX
@@ -45,32 +46,44 @@ def data_summary(data_meta: Mapping[str, Any], frames: int | None = None) -> dic
     return out
 
 
-def recipe(ckpt: Mapping[str, Any], viewnet_ckpt: Mapping[str, Any] | None = None) -> dict[str, Any]:
-    """The training settings of a VelocityNet checkpoint (and of the ViewNet its MPC loss used)."""
+_TRAIN_FIELDS = ("lr", "batch_size", "steps", "seed", "augment", "val_fraction")
+
+
+def _stage(ckpt: Mapping[str, Any], init_ckpt: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """One network's settings; a fine-tune (``--init``) also names its start and that start's settings."""
     train = dict(ckpt.get("train_config") or {})
-    keep = ("lr", "batch_size", "steps", "seed", "augment", "val_fraction")
     out: dict[str, Any] = {
-        "velocitynet": {
-            "model": ckpt.get("model_config"),
-            "train": {k: train[k] for k in keep if k in train},
-            "loss": ckpt.get("loss_config"),
-        }
+        "model": ckpt.get("model_config"),
+        "train": {k: train[k] for k in _TRAIN_FIELDS if k in train},
     }
+    if ckpt.get("init"):
+        out["init"] = "/".join(Path(str(ckpt["init"])).parts[-3:])  # no local absolute paths
+        if init_ckpt is not None:
+            out["init_stage"] = _stage(init_ckpt)
+    return out
+
+
+def recipe(
+    ckpt: Mapping[str, Any],
+    viewnet_ckpt: Mapping[str, Any] | None = None,
+    init_ckpt: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The training settings of a VelocityNet checkpoint (and of the ViewNet its MPC loss used)."""
+    out: dict[str, Any] = {"velocitynet": {**_stage(ckpt, init_ckpt), "loss": ckpt.get("loss_config")}}
     if viewnet_ckpt is not None:
-        vtrain = dict(viewnet_ckpt.get("train_config") or {})
-        out["viewnet"] = {
-            "model": viewnet_ckpt.get("model_config"),
-            "train": {k: vtrain[k] for k in keep if k in vtrain},
-        }
+        out["viewnet"] = _stage(viewnet_ckpt)
     return out
 
 
 def provenance_props(
-    ckpt: Mapping[str, Any], viewnet_ckpt: Mapping[str, Any] | None = None, frames: int | None = None
+    ckpt: Mapping[str, Any],
+    viewnet_ckpt: Mapping[str, Any] | None = None,
+    init_ckpt: Mapping[str, Any] | None = None,
+    frames: int | None = None,
 ) -> dict[str, str]:
     """ONNX metadata props for the recipe and the data summary."""
     return {
-        RECIPE_KEY: json.dumps(recipe(ckpt, viewnet_ckpt), sort_keys=True, separators=(",", ":")),
+        RECIPE_KEY: json.dumps(recipe(ckpt, viewnet_ckpt, init_ckpt), sort_keys=True, separators=(",", ":")),
         DATA_KEY: json.dumps(
             data_summary(ckpt.get("data_meta") or {}, frames), sort_keys=True, separators=(",", ":")
         ),

@@ -78,6 +78,8 @@ class Action(str, enum.Enum):
     COLLIDED = "collided"  # the robot reported a contact: stop
 
 
+#: A taught step that moved the robot less than this (m) is a turn in place (``hold_turns``).
+HOLD_TOLERANCE_M = 0.005
 TERMINAL = (Action.FINISHED, Action.STALLED, Action.LOST, Action.COLLIDED)
 
 
@@ -117,9 +119,16 @@ class Controller:
     """Decide, image by image, whether to command, advance, jump, finish or stop (stalled, lost, collided)."""
 
     def __init__(
-        self, subgoals: np.ndarray, cfg: ControllerConfig | None = None, commands: np.ndarray | None = None
+        self,
+        subgoals: np.ndarray,
+        cfg: ControllerConfig | None = None,
+        commands: np.ndarray | None = None,
+        poses: np.ndarray | None = None,
     ) -> None:
-        """``commands``: the taught (v, w) after each subgoal (``Route.commands``), for ``hold_turns``."""
+        """``commands``: the taught (v, w) after each subgoal (``Route.commands``), for ``hold_turns``;
+        ``poses``: the taught (x, y, yaw) (``Route.poses``), so that a subgoal the teach reached partly by
+        translating is not held (a route keeps one subgoal every few control steps: the first command
+        after subgoal i-1 can be the end of a turn and the next one a drive)."""
         if (
             subgoals.dtype != np.uint8
             or subgoals.ndim != 4
@@ -131,6 +140,7 @@ class Controller:
             )
         self.cfg = cfg or ControllerConfig()
         self.commands = None if commands is None else np.asarray(commands, dtype=np.float64).reshape(-1, 2)
+        self._held = self._turns_in_place(self.commands, poses, len(subgoals))
         self.subgoals = subgoals
         self.matcher = Matcher(self.cfg.match)
         self._feats = self.matcher.features(subgoals)
@@ -253,12 +263,27 @@ class Controller:
                 return self._unstall(view, error)
         return self._command(i, error)
 
+    @staticmethod
+    def _turns_in_place(commands: np.ndarray | None, poses: np.ndarray | None, n: int) -> np.ndarray:
+        """Per subgoal: did the taught robot reach it by turning on the spot? The command after subgoal
+        i-1 had v = 0, and (where poses are known) the taught position moved under HOLD_TOLERANCE_M."""
+        held = np.zeros(n, dtype=bool)
+        if commands is None or len(commands) < n:
+            return held
+        held[1:] = commands[: n - 1, 0] == 0.0
+        if poses is not None and len(poses) >= n:
+            xy = np.asarray(poses, dtype=np.float64)[:n, :2]
+            with np.errstate(invalid="ignore"):  # unknown (NaN) poses leave the command's verdict
+                held[1:] &= ~(np.hypot(*np.diff(xy, axis=0).T) >= HOLD_TOLERANCE_M)
+        return held
+
+    def holds_turn(self, i: int) -> bool:
+        """Whether commands toward subgoal ``i`` are held at v = 0 (``hold_turns``: a taught turn in place)."""
+        return self.cfg.hold_turns and i < len(self._held) and bool(self._held[i])
+
     def _command(self, i: int, error: float, note: str = "") -> Decision:
-        turning = (
-            self.cfg.hold_turns and self.commands is not None and i > 0 and self.commands[i - 1, 0] == 0.0
-        )
         return Decision(Action.COMMAND, i, error, then_stop=not self.cfg.continuous, note=note,
-                        v_limit=0.0 if turning else math.inf)  # fmt: skip
+                        v_limit=0.0 if self.holds_turn(i) else math.inf)  # fmt: skip
 
     def judge(self, image: np.ndarray, collided: bool = False) -> Verdict:
         """Decide on ``image`` until a decision needs the robot: subgoal switches (ADVANCE, JUMP) are

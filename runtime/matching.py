@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtr.runtime.preprocess import image_error
+from vtr.runtime.preprocess import image_error, planar_levels
 
 MATCH_METHODS = ("raw", "patch")
 
@@ -35,6 +35,11 @@ MATCH_METHODS = ("raw", "patch")
 def _column_sum(f: int, c: int, dtype: type) -> np.ndarray:
     """(f * c, c) 0/1 matrix: f adjacent pixels of c channels -> their per-channel sums."""
     return np.tile(np.eye(c, dtype=dtype), (f, 1))
+
+
+@functools.cache
+def _ones(n: int, dtype: type) -> np.ndarray:
+    return np.ones(n, dtype=dtype)
 
 
 @dataclass(frozen=True)
@@ -84,17 +89,21 @@ class Matcher:
             )
         if self.cfg.method == "raw":
             return images
-        single = images.ndim == 3
-        batch = images[None] if single else images
-        b, h, w, c = batch.shape
         f, p = self.cfg.downsample, self.cfg.patch
+        h, w = images.shape[-3:-1]
         if h % (f * p) or w % (f * p):
             raise ValueError(f"image {h}x{w} is not a multiple of downsample * patch = {f * p}")
         # Pool by sums (f * f times the mean, so the floor is scaled to match) in float32 (float64 past
         # f = 256): the sums are integers the type holds exactly whatever the order of the adds, so they
-        # equal integer sums made float32 bit for bit. Rows: adds of long contiguous rows; columns: a product with a 0/1 matrix
-        # (strided adds over the 3-channel inner axis were 5x slower).
+        # equal integer sums made float32 bit for bit, and both paths below give the same tiles.
         exact = np.float32 if 255 * f * f < 2**24 else np.float64
+        if images.ndim == 3 and exact is np.float32:
+            return self._normalised(self._tiles_of_frame(images))[0]
+        single = images.ndim == 3
+        batch = images[None] if single else images
+        b, c = batch.shape[0], batch.shape[-1]
+        # Rows: adds of long contiguous rows; columns: a product with a 0/1 matrix (strided adds over the
+        # 3-channel inner axis were 5x slower).
         rows = batch.reshape(b, h // f, f, w * c)
         x = rows[:, :, 0].astype(exact)
         for dy in range(1, f):
@@ -109,17 +118,54 @@ class Matcher:
             .transpose(0, 1, 3, 5, 2, 4)
             .reshape(b, hp * wp, c, p * p)
         )
-        tiles -= np.add.reduce(tiles, axis=-1, keepdims=True) / (p * p)  # the mean, as ndarray.mean does
+        out = self._normalised(tiles)
+        return out[0] if single else out
+
+    def _tiles_of_frame(self, image: np.ndarray) -> np.ndarray:
+        """(1, tiles, C, p * p) pooled sums of one image, from its planar levels (shared with the policy:
+        one conversion per frame); planar, every pooling add runs over contiguous rows or pairs."""
+        f, p = self.cfg.downsample, self.cfg.patch
+        levels = planar_levels(image)  # (C, H, W) float32, read-only
+        c, h, w = levels.shape
+        rows = levels.reshape(c, h // f, f, w)
+        x = rows[:, :, 0] + rows[:, :, 1] if f > 1 else levels
+        for dy in range(2, f):
+            x += rows[:, :, dy]
+        cols = x.reshape(c, h // f, w // f, f)
+        y = cols[..., 0] + cols[..., 1] if f > 1 else x
+        for dx in range(2, f):
+            y += cols[..., dx]
+        hp, wp = h // (f * p), w // (f * p)
+        # (C, hp, p, wp, p) -> (1, tiles, C, p * p): a copy, the same layout as the batch path's
+        tiles = y.reshape(c, hp, p, wp, p).transpose(1, 3, 0, 2, 4).reshape(1, hp * wp, c, p * p)
+        return tiles if tiles.flags.writeable else tiles.copy()  # one tile: a view of read-only levels
+
+    def _normalised(self, tiles: np.ndarray) -> np.ndarray:
+        """(B, tiles, C, p * p) pooled sums -> (B, tiles, C * p * p) features, normalised in place."""
+        f, p = self.cfg.downsample, self.cfg.patch
+        # the mean: the sums are of integers (pooled levels) below 2**24, exact in any order, so a BLAS
+        # product gives the bits ndarray.mean's pairwise sum does
+        tiles -= np.matmul(tiles, _ones(p * p, tiles.dtype))[..., None] / (p * p)
         std = np.sqrt(np.einsum("...i,...i->...", tiles, tiles) / (p * p))[..., None]
         tiles /= np.maximum(std, np.float32(self.cfg.std_floor * f * f))
-        out = tiles.reshape(b, hp * wp, c * p * p)
-        return out[0] if single else out
+        b, n, c, _ = tiles.shape
+        return tiles.reshape(b, n, c * p * p)
 
     def distance(self, a: np.ndarray, b: np.ndarray) -> float:
         """Distance between two features (or images for raw) from :meth:`features`."""
         if self.cfg.method == "raw":
             return image_error(a, b)
-        return float(self.distances(a, b[None])[0])
+        if a.shape != b.shape:
+            raise ValueError(f"feature shape {a.shape} differs from {b.shape}")
+        # distances() for one pair, without the stack: the same operations on the same values, so the
+        # same number (the controller compares distances from both)
+        diff = b - a
+        np.abs(diff, out=diff)
+        per_tile = np.add.reduce(diff, axis=-1) / diff.shape[-1]
+        keep = max(1, int(round(per_tile.shape[0] * (1.0 - self.cfg.trim))))
+        if keep < per_tile.shape[0]:
+            per_tile = np.partition(per_tile, keep - 1)[:keep]
+        return float(np.add.reduce(per_tile) / keep)
 
     def distances(self, feature: np.ndarray, others: np.ndarray) -> np.ndarray:
         """(K,) distances from one feature to each of K features (a stack from :meth:`features`)."""

@@ -14,7 +14,7 @@ import numpy as np
 import onnxruntime as ort
 
 from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
-from vtr.runtime.preprocess import PREPROCESSINGS, to_nchw
+from vtr.runtime.preprocess import PREPROCESSINGS, nchw_into, normalise_planar, to_nchw
 
 if TYPE_CHECKING:
     from vtr.runtime.route import Route
@@ -72,6 +72,7 @@ class OnnxPolicy:
         # while the same array object comes back (the Repeater passes one view per subgoal).
         self._subgoal_src: np.ndarray | None = None
         self._subgoal_feed: np.ndarray | None = None
+        self._current_buf: np.ndarray | None = None  # the current image's tensor, rewritten every step
         self._high = np.array([[self.meta.v_max], [self.meta.w_max]], dtype=np.float32)
         self._low = -self._high
         self._expect = (self.meta.image_height, self.meta.image_width, 3)
@@ -131,15 +132,22 @@ class OnnxPolicy:
         """uint8 (H, W, 3) images -> the session's feeds (float32 (1, 3, H, W) each).
 
         The subgoal's tensor is reused while ``subgoal`` is the same array object as last time, so a
-        subgoal image must not be changed in place while it is being steered to."""
+        subgoal image must not be changed in place while it is being steered to. The current image's
+        tensor is one buffer, rewritten by the next call."""
         if current.shape != self._expect or subgoal.shape != self._expect:
             which, image = (
                 (INPUT_CURRENT, current) if current.shape != self._expect else (INPUT_SUBGOAL, subgoal)
             )
             raise ValueError(f"{which} image has shape {image.shape}, the model takes {self._expect}")
+        if self._current_buf is None:
+            self._current_buf = np.empty((3, *self.image_shape), np.float32)
+        current_tensor = nchw_into(current, self._current_buf, self.meta.preprocessing)
+        return {INPUT_CURRENT: current_tensor, INPUT_SUBGOAL: self._subgoal_tensor(subgoal)}
+
+    def _subgoal_tensor(self, subgoal: np.ndarray) -> np.ndarray:
         if subgoal is not self._subgoal_src or self._subgoal_feed is None:
             self._subgoal_feed, self._subgoal_src = to_nchw(subgoal, self.meta.preprocessing), subgoal
-        return {INPUT_CURRENT: to_nchw(current, self.meta.preprocessing), INPUT_SUBGOAL: self._subgoal_feed}
+        return self._subgoal_feed
 
     def infer(self, feeds: dict[str, np.ndarray]) -> np.ndarray:
         """Run the network; returns the raw (2, N) output of the first batch item."""
@@ -157,7 +165,24 @@ class OnnxPolicy:
     def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
         """(H, W, 3) uint8 current and subgoal images -> (2, N): row 0 v (m/s), row 1 w (rad/s)."""
         t0 = time.perf_counter()
-        feeds = self.preprocess(current, subgoal)
+        return self._infer_timed(t0, self.preprocess(current, subgoal))
+
+    def predict_planar(self, levels: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+        """As :meth:`predict`, with the current image already planar: float32 (3, H, W) in 0..255 levels
+        (``runtime.light``'s output), scaled into the input tensor in place. Same result as ``predict``
+        on those levels as a uint8 (H, W, 3) image."""
+        t0 = time.perf_counter()
+        h, w, c = self._expect
+        if levels.shape != (c, h, w) or levels.dtype != np.float32 or subgoal.shape != self._expect:
+            raise ValueError(
+                f"expected float32 {(c, h, w)} levels and a {self._expect} subgoal, got {levels.dtype} "
+                f"{levels.shape} and {subgoal.shape}"
+            )
+        current = normalise_planar(levels, self.meta.preprocessing)
+        return self._infer_timed(t0, {INPUT_CURRENT: current, INPUT_SUBGOAL: self._subgoal_tensor(subgoal)})
+
+    def _infer_timed(self, t0: float, feeds: dict[str, np.ndarray]) -> np.ndarray:
+        """Inference and postprocess on ready ``feeds``; the stages since ``t0`` go to ``last_timing_ms``."""
         t1 = time.perf_counter()
         raw = self.infer(feeds)
         t2 = time.perf_counter()

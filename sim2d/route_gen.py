@@ -166,7 +166,7 @@ def polyline_segments(
     heads = np.arctan2(legs[:, 1], legs[:, 0])
     n = len(legs)
     cut_in, cut_out = np.zeros(n), np.zeros(n)  # metres an arc takes from each leg's start / end
-    corners: list[Segment | None] = []
+    corners: list[Segment] = []
     for i in range(1, n):
         delta = _wrap(float(heads[i] - heads[i - 1]))
         room = min(lengths[i - 1] * (0.9 if i == 1 else 0.5), lengths[i] * (0.9 if i == n - 1 else 0.5))

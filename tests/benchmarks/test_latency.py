@@ -61,17 +61,22 @@ def test_latency_smoke_run(tiny_model: Path, tmp_path: Path) -> None:
     )
     result = latency.run(cfg)
     stages = result["stages"]["stages"]
-    for name in ("frame_decode", "preprocess", "inference", "image_error", "whole_step"):
+    names = ("frame_decode", "preprocess", "inference", "image_error", "light_matching", "whole_step_raw",
+             "whole_step", "whole_step_continuous", "whole_step_match_light")  # fmt: skip
+    for name in names:
         assert stages[name]["n"] == 3 and stages[name]["p99_ms"] >= stages[name]["p50_ms"] > 0
     b = result["backends"]["threads"]["1"]["backends"]
     assert b["ort_fp32"]["gflop_per_step"] == pytest.approx(result["gflop"])
     assert "skipped" in b["ort_int8"]  # no int8 twin beside the tiny model
     assert result["memory"]["heavy_modules_loaded"] == []
     assert result["memory"]["peak_rss_mb"] > 0
-    assert result["ratios"]["step_overhead"] is not None
+    assert all(result["ratios"][key] is not None for key in latency.STEP_VARIANTS)
+    # the route's views differ, so the whole step times patch matching, not the plain-route fallback
+    assert result["stages"]["matching"] == {"whole_step_raw": "raw", "whole_step": "patch",
+                                            "whole_step_continuous": "patch", "whole_step_match_light": "patch"}  # fmt: skip
     on_disk = json.loads((tmp_path / "lat.json").read_text())
     assert on_disk["gflop"] == pytest.approx(result["gflop"])
-    assert "targets (issue 5)" in latency.format_report(result)
+    assert "targets (issues 5 and 11)" in latency.format_report(result)
     from vtr.evaluation import report
 
     md = report.build(on_disk, [])
@@ -97,3 +102,22 @@ def test_vtr_bench_latency_cli(tiny_model: Path, tmp_path: Path, capsys: pytest.
     assert "whole_step" in capsys.readouterr().out
     assert json.loads((tmp_path / "l.json").read_text())["stages"]["stages"]["whole_step"]["n"] == 3
     assert main(["bench", "latency", "--model", str(tmp_path / "missing.onnx")]) == 2
+
+
+def test_the_ab_script_steps_all_three_variants_on_a_saved_route(tiny_model: Path, tmp_path: Path) -> None:
+    from vtr.benchmarks import step_bench_ab
+
+    route_file = str(tmp_path / "route.npz")
+    step_bench_ab.write_route(route_file, str(tiny_model))
+    out = step_bench_ab.medians(route_file, str(tiny_model), steps=3, warmup=1)
+    assert set(out) == {"raw", "patch", "light"} and all(v > 0 for v in out.values())
+    inside = step_bench_ab.sections(route_file, str(tiny_model), steps=3, warmup=1, variant="light")
+    assert {
+        "step",
+        "controller.judge",
+        "matcher.features",
+        "policy.match",
+        "onnx.infer",
+        "robot.stop",
+    } <= set(inside)
+    assert inside["step"] > inside["onnx.infer"] > 0

@@ -25,8 +25,8 @@ def small_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_parse_houses() -> None:
     assert house_suite.parse_houses("900:903") == ("random:900", "random:901", "random:902")
     assert house_suite.parse_houses("905") == ("random:905",)
-    assert house_suite.parse_houses("901,907") == ("random:901", "random:907")
-    for bad in ("x", "900:900", "5:2", "-1", "1,1", "1:2:3", ""):
+    assert house_suite.parse_houses("901,random:907,house") == ("random:901", "random:907", "house")
+    for bad in ("x", "900:900", "5:2", "-1", "1,1", "1:2:3", "", "random:x", "901,,902"):
         with pytest.raises(ValueError, match="--houses"):
             house_suite.parse_houses(bad)
 
@@ -61,22 +61,24 @@ def test_summary_counts_runs_and_averages_errors_over_completed_runs_only() -> N
 
 def test_run_teaches_repeats_and_writes_json_markdown_and_picture(small_model: Path, tmp_path: Path) -> None:
     cfg = house_suite.HouseSuiteConfig(houses=("random:900",), routes_per_house=1, seeds=(0, 1),
-                                       model=small_model, workers=1, max_steps_factor=1.0,
+                                       model=small_model, workers=1, max_steps_factor=1.0, oracle=True,
                                        json_path=tmp_path / "houses.json")  # fmt: skip
     result = house_suite.run(cfg, progress=False)
     (route,) = result["routes"]
     assert parse_route_script(route["route"]) == generate_route("random:900", 0)
     assert 1 <= route["rooms"] <= 3 and route["subgoals"] == len(route["taught_path"])
-    assert [r["seed"] for r in route["runs"]] == [0, 1]
+    assert [(r["method"], r["seed"]) for r in route["runs"]] == [
+        ("velocitynet", 0), ("velocitynet", 1), ("pose_oracle", 0), ("pose_oracle", 1)]  # fmt: skip
     for run in route["runs"]:
         assert run["ran"] and len(run["path"]) == run["steps"] + 1
         assert run["completed"] == (run["status"] == "finished" and run["contacts"] == 0)
-    overall = result["summary"]["overall"]
-    assert overall["runs"] == 2 and overall["completed"] == sum(r["completed"] for r in route["runs"])
+    overall, oracle = result["summary"]["overall"], result["summary"]["pose_oracle"]["overall"]
+    assert overall["runs"] == 2 and overall["completed"] == sum(r["completed"] for r in route["runs"][:2])
+    assert oracle["runs"] == 2 and oracle["completed"] == sum(r["completed"] for r in route["runs"][2:])
     saved = json.loads((tmp_path / "houses.json").read_text())
     assert saved["summary"] == result["summary"]
     md = (tmp_path / "houses.md").read_text()
-    assert "| random:900 |" in md and "| **all** |" in md and md == markdown(saved)
+    assert "| random:900 |" in md and "| **all** |" in md and "Pose oracle" in md and md == markdown(saved)
     assert (tmp_path / "houses.png").stat().st_size > 1000
 
 
@@ -86,3 +88,30 @@ def test_cli_bad_houses_is_one_line(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["eval", "--houses", "abc"]) == 2
     err = capsys.readouterr().err.strip()
     assert err.startswith("vtr eval: --houses 'abc'") and "\n" not in err
+
+
+def test_an_interrupted_run_keeps_the_finished_routes(
+    small_model: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def fake(task: tuple) -> dict:
+        house, k, _ = task
+        if k == 1:
+            raise KeyboardInterrupt
+        run = {"method": "velocitynet", **_run(True, 0.01)}
+        return {
+            "house": house,
+            "route_seed": k,
+            "rooms": 1,
+            "length_m": 2.0,
+            "duration_s": 9.0,
+            "runs": [run],
+        }
+
+    monkeypatch.setattr(house_suite, "evaluate_route", fake)
+    cfg = house_suite.HouseSuiteConfig(houses=("random:900",), routes_per_house=2, seeds=(0,), model=small_model,
+                                       workers=1, json_path=tmp_path / "h.json")  # fmt: skip
+    with pytest.raises(KeyboardInterrupt):
+        house_suite.run(cfg, progress=False)
+    saved = json.loads((tmp_path / "h.json").read_text())
+    assert saved["partial"] == "1 of 2 routes finished" and saved["summary"]["overall"]["completed"] == 1
+    assert "Partial result" in (tmp_path / "h.md").read_text()

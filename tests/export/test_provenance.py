@@ -33,3 +33,13 @@ def test_props_are_json_and_the_camera_comes_from_the_data_when_recorded() -> No
         "camera_height_m": 0.5,
     }
     assert camera_of({"camera": {"width": 128}}) == {}
+
+
+def test_a_fine_tune_names_its_start_and_that_starts_settings() -> None:
+    start = {"model_config": {"channels": [4]}, "train_config": {"lr": 1e-3, "steps": 4000}}
+    tuned = {**start, "train_config": {"lr": 3e-4, "steps": 4000}, "init": "runs/a/velocitynet/model.pt"}
+    out = json.loads(provenance_props(tuned, {"train_config": {"steps": 2000}}, start)[RECIPE_KEY])
+    assert out["velocitynet"]["train"]["lr"] == 3e-4
+    assert out["velocitynet"]["init"] == "a/velocitynet/model.pt"  # no local absolute paths
+    assert out["velocitynet"]["init_stage"]["train"] == {"lr": 1e-3, "steps": 4000}
+    assert out["viewnet"]["train"] == {"steps": 2000}

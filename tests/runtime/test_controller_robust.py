@@ -222,3 +222,17 @@ def test_paper_is_still_algorithm_1_and_turns_every_extension_off():
     add_arguments(parser)
     args = parser.parse_args(["--sim", "tcp://127.0.0.1:1", "--model", "m", "--route", "r", "--paper"])
     assert controller_from_args(args) == ControllerConfig.paper()
+
+
+def test_a_subgoal_reached_partly_by_driving_is_not_held() -> None:
+    # One subgoal every two control steps: the step after subgoal 2 ends a turn (v = 0 recorded) and the
+    # next one drives 3 cm, so subgoal 3 must not be held at v = 0 (it stalled the robot 3 cm short).
+    commands = np.array([[0.2, 0.0], [0.0, 0.5], [0.0, 0.5], [0.3, 0.0], [0.3, 0.0]])
+    poses = np.array([[0, 0, 0], [0.04, 0, 0.05], [0.04, 0, 0.15], [0.07, 0, 0.2], [0.13, 0, 0.2]], float)
+    images = ROUTE[:5]
+    c = Controller(images, robust(), commands, poses)
+    assert c._held.tolist() == [False, False, True, False, False]
+    # Without poses (or with unknown ones) the taught command alone decides, as before.
+    assert Controller(images, robust(), commands)._held.tolist() == [False, False, True, True, False]
+    nan = np.full_like(poses, np.nan)
+    assert Controller(images, robust(), commands, nan)._held.tolist() == [False, False, True, True, False]

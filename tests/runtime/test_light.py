@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from texture_views import lit, view
 
-from vtr.runtime.light import LightMatchedPolicy, match_statistics
+from vtr.runtime.light import LightMatchedPolicy, channel_stats, match_statistics
+from vtr.runtime.preprocess import PREPROCESSINGS
 
 
 @pytest.mark.parametrize("gain, offset", [(0.7, 0.0), (1.3, 0.0), ((1.2, 1.0, 0.75), 0.0), (0.8, 25.0)])
@@ -59,3 +60,37 @@ def test_one_side_darker_is_evened_out_before_the_statistics_are_matched():
     both = match_statistics(remove_side_ramp(darker, taught), taught)
     err = lambda a: np.abs(a.astype(int) - taught.astype(int)).mean()  # noqa: E731
     assert err(both) < 0.5 * err(only_stats) and err(both) < 4
+
+
+@pytest.mark.parametrize("preprocessing", PREPROCESSINGS)
+def test_an_onnx_policy_gets_the_recoloured_image_as_its_tensor_with_the_uint8_paths_values(
+    tmp_path, preprocessing
+):
+    from vtr.benchmarks.standin import make_standin_velocitynet
+    from vtr.runtime.light import remove_side_ramp
+    from vtr.runtime.model_meta import ModelMeta
+    from vtr.runtime.policy import OnnxPolicy
+
+    meta = ModelMeta(image_height=64, image_width=64, horizon=2, preprocessing=preprocessing)
+    policy = OnnxPolicy(make_standin_velocitynet(tmp_path / "m.onnx", meta=meta, widths=(4, 8, 8)))
+    wrapped = LightMatchedPolicy(policy)
+    for k, (gain, offset) in enumerate([(0.7, 10.0), ((1.2, 1.0, 0.75), -20.0), (1.0, 0.0)]):
+        taught = lit(view(20 * k), 0.6, 40)
+        ramp = np.linspace(0.5, 1.2, 64, dtype=np.float32)[None, :, None]
+        current = lit(view(20 * k + 3), np.asarray(gain, np.float32) * ramp, offset)
+        expected = policy.predict(match_statistics(remove_side_ramp(current, taught), taught), taught)
+        assert np.array_equal(wrapped.predict(current, taught), expected)  # bit for bit, no uint8 round trip
+        assert np.array_equal(
+            LightMatchedPolicy(Recorder()).match(current, taught), wrapped.match(current, taught)
+        )
+
+
+def test_channel_statistics_are_exact_sums():
+    rng = np.random.default_rng(5)
+    for h, w in [(64, 64), (128, 128), (7, 33)]:
+        image = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
+        image[: h // 2] //= 4  # a wide spread: float32 sums of squares in the wrong order drift here
+        mean, std = channel_stats(image)
+        x = image.reshape(-1, 3).astype(np.float64)
+        np.testing.assert_allclose(mean, x.mean(axis=0), rtol=1e-7)
+        np.testing.assert_allclose(std, np.maximum(x.std(axis=0), 2.0), rtol=1e-6)

@@ -1,5 +1,6 @@
-"""Light matching's row-wise arithmetic must equal, bit for bit, the broadcast arithmetic it replaced
-(kept here as the reference): same operations on the same values, only numpy's loop layout differs."""
+"""Light matching's in-place arithmetic on planar (3, H, W) float32 must equal, bit for bit, the broadcast
+arithmetic on (H, W, 3) it replaced (kept here as the reference): same operations on the same values, only
+numpy's memory layout and loops differ."""
 
 from __future__ import annotations
 

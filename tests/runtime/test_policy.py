@@ -7,6 +7,7 @@ import pytest
 from runtime_fakes import H, W, build_velocitynet_onnx, corridor_route, render
 
 from vtr.runtime.policy import ModelMismatchError, OnnxPolicy
+from vtr.runtime.preprocess import to_nchw
 
 
 @pytest.fixture(scope="module")
@@ -103,3 +104,15 @@ def test_postprocess_zeroes_exactly_the_outputs_with_a_non_finite_value(tmp_path
     out = policy.postprocess(raw)
     assert out[0, 0] == -policy.meta.v_max and out[1, 0] == policy.meta.w_max
     assert policy.nonfinite_count == 3
+
+
+def test_the_current_tensor_is_to_nchws_and_the_tensors_are_c_ordered(model_path):
+    policy = OnnxPolicy(model_path)
+    current, subgoal = render(0.0), render(0.1)
+    feeds = policy.preprocess(current, subgoal)
+    for name, image in (("current", current), ("subgoal", subgoal)):
+        assert np.array_equal(feeds[name], to_nchw(image)) and feeds[name].flags.c_contiguous
+    planar = policy.predict_planar(current.transpose(2, 0, 1).astype(np.float32), subgoal)
+    assert np.array_equal(planar, policy.predict(current, subgoal))
+    with pytest.raises(ValueError, match="levels"):
+        policy.predict_planar(current.astype(np.float32), subgoal)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vtr.runtime.preprocess import image_error, to_nchw
+from vtr.runtime.preprocess import PREPROCESSINGS, image_error, to_nchw
 
 
 def test_image_error_is_the_mean_absolute_difference_on_the_255_scale():
@@ -79,3 +79,58 @@ def test_model_meta_names_a_known_preprocessing():
     assert ModelMeta(preprocessing=STANDARDISED).preprocessing == STANDARDISED
     with pytest.raises(ValueError, match="unknown preprocessing"):
         ModelMeta(preprocessing="bgr_minus_mean")
+
+
+def test_planar_levels_converts_an_immutable_frame_once_and_any_other_image_every_time():
+    from vtr.runtime.preprocess import planar_levels
+
+    rng = np.random.default_rng(1)
+    image = rng.integers(0, 256, (8, 12, 3), dtype=np.uint8)
+    levels = planar_levels(image)
+    assert levels.dtype == np.float32 and levels.flags.c_contiguous and not levels.flags.writeable
+    assert np.array_equal(levels, image.transpose(2, 0, 1))
+    image[0, 0] = 7  # a writeable image may change in place: never served from the cache
+    assert planar_levels(image)[:, 0, 0].tolist() == [7, 7, 7]
+    frame = np.frombuffer(image.tobytes(), np.uint8).reshape(image.shape)  # as decoded from the wire
+    assert planar_levels(frame) is planar_levels(frame)
+    view = image.view()  # read-only, but its pixels can change through `image`: never cached
+    view.flags.writeable = False
+    assert planar_levels(view) is not planar_levels(view)
+    other = np.frombuffer(bytes(image.size), np.uint8).reshape(image.shape)
+    assert not planar_levels(other).any() and planar_levels(frame)[:, 0, 0].tolist() == [7, 7, 7]
+    with pytest.raises(ValueError, match="uint8"):
+        planar_levels(image.astype(np.float32))
+
+
+@pytest.mark.parametrize("preprocessing", PREPROCESSINGS)
+def test_normalise_planar_and_nchw_into_give_to_nchws_tensor(preprocessing):
+    from vtr.runtime.preprocess import nchw_into, normalise_planar, planar_levels
+
+    image = np.random.default_rng(2).integers(0, 256, (16, 8, 3), dtype=np.uint8)
+    expected = to_nchw(image, preprocessing)
+    tensor = normalise_planar(planar_levels(image).copy(), preprocessing)
+    assert tensor.shape == (1, 3, 16, 8) and np.array_equal(tensor, expected)
+    frame = np.frombuffer(image.tobytes(), np.uint8).reshape(image.shape)
+    buffer = np.empty((3, 16, 8), np.float32)
+    assert np.array_equal(nchw_into(frame, buffer, preprocessing), expected)  # one strided pass
+    planar_levels(frame)  # the matcher converted this frame already: its levels are reused
+    assert np.array_equal(nchw_into(frame, buffer, preprocessing), expected)
+    with pytest.raises(ValueError, match="uint8"):
+        nchw_into(image.astype(np.float32), buffer)
+
+
+def test_numpy_standardisation_in_place_equals_the_formula_bit_for_bit():
+    from vtr.runtime.preprocess import STANDARDISED, normalise
+
+    x = to_nchw(np.random.default_rng(3).integers(0, 256, (2, 24, 40, 3), dtype=np.uint8))
+    centred = x - x.mean(axis=(-2, -1), keepdims=True)
+    formula = centred / ((centred * centred).mean(axis=(-2, -1), keepdims=True) + 1e-4) ** 0.5
+    copy = normalise(x, STANDARDISED)
+    assert copy is not x and np.array_equal(copy, formula)
+    strided = x.transpose(
+        0, 1, 3, 2
+    )  # not C-ordered: standardised on a copy (sums in its order), never in place
+    out = normalise(strided, STANDARDISED, in_place=True)
+    assert not np.shares_memory(out, x)
+    np.testing.assert_allclose(out, formula.transpose(0, 1, 3, 2), atol=1e-6)
+    assert normalise(x, STANDARDISED, in_place=True) is x and np.array_equal(x, formula)

@@ -16,7 +16,7 @@ from vtr.sim2d import route_gen
 from vtr.sim2d.house import load_house
 from vtr.sim2d.route_plan import line_clearance, search, shortcut
 
-HOUSES = ("random:900", "random:901", "random:902")
+HOUSES = ("random:900", "random:901")
 
 
 @pytest.fixture(scope="module")
@@ -81,7 +81,7 @@ def test_pieces_drive_exact_distances_in_whole_steps() -> None:
 
 
 def test_search_and_shortcut_keep_their_clearance() -> None:
-    grid = route_gen.grid_of(load_house("random:902"))
+    grid = route_gen.grid_of(load_house("random:901"))
     start = tuple(int(v) for v in np.argwhere(grid.clear >= 0.5)[0])
     tree = search(grid, start, route_gen.PLAN_CLEARANCE, 5.0)
     reached = np.isfinite(tree.cost)
@@ -100,10 +100,10 @@ def test_vtr_teach_drives_a_generated_route_as_the_check_did(routes: dict) -> No
     from vtr.sim2d import CameraConfig, SimConfig, Simulator
     from vtr.sim2d.local_robot import LocalRobot
 
-    script = routes[("random:902", 0)]
-    robot = LocalRobot(Simulator(SimConfig(house="random:902", camera=CameraConfig(width=16, height=16))))
+    script = routes[("random:900", 1)]
+    robot = LocalRobot(Simulator(SimConfig(house="random:900", camera=CameraConfig(width=16, height=16))))
     route = teach(robot, script, TeachConfig(seed=0))
-    expected = route_gen.drive(load_house("random:902"), script)
+    expected = route_gen.drive(load_house("random:900"), script)
     assert len(route.poses) >= len(expected.poses) // 2
     assert np.allclose(route.poses[-1], expected.end, atol=1e-6)
 
@@ -135,4 +135,15 @@ def test_named_maps_get_routes_too_named_by_the_map_not_its_folder(tmp_path: Pat
     check = route_gen.drive(load_house("house"), script)
     assert not check.touched and check.min_clearance >= route_gen.VERIFY_CLEARANCE
     copy = shutil.copy(MAPS_DIR / "house.json", tmp_path / "house.json")
-    assert route_gen.generate_route(str(copy), 0) == script
+    assert route_gen.house_key(str(copy)) == route_gen.house_key("house") != route_gen.house_key("other")
+    assert route_gen.route_name(str(copy), 0) == "house_r0"
+
+
+def test_the_generator_is_pinned(routes: dict) -> None:
+    """Held-out tables and sim2d/routes/heldout3 were made with this generator: a change that alters the
+    routes must be deliberate (and the tables re-measured), so one route is pinned here."""
+    assert routes[("random:900", 0)] == RouteScript(
+        (10.325, 0.925, 3.09602),
+        (Segment(0.23688, 0.0, 9.5), Segment(0.0, -0.56336, 0.5), Segment(0.28708, 0.0, 8.1)),
+        "random900_r0",
+    )
