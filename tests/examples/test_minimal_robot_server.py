@@ -118,3 +118,22 @@ def test_the_example_noise_perturbs_motion_reproducibly() -> None:
     assert noisy == _drive(0.05, 3)  # same seed, same motor errors
     assert noisy != _drive(0.05, 4)
     assert 1e-4 < abs(noisy[0] + 0.4) < 0.1 and abs(noisy[2]) > 1e-5  # off the ideal end, but not wildly
+
+
+def test_the_room_routes_parse_and_stay_clear_of_the_walls() -> None:
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("minimal_robot_server", SCRIPT)
+    assert spec and spec.loader
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    routes = sorted((SCRIPT.parent / "room_routes").glob("*.json"))
+    assert len(routes) == 8
+    for path in routes:
+        script = parse_route_script(json.loads(path.read_text()))
+        world = example.World()
+        world.reset(*script.start)
+        for seg in script.segments:
+            for _ in range(round(seg.duration / 0.1)):
+                world.step(seg.v, seg.w, 0.1)
+                assert not world.collided and max(abs(world.x), abs(world.y)) < example.HALF - 0.25, path.name
