@@ -38,6 +38,10 @@ def _add_common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--val-every", type=int, help="steps between validation passes and checkpoints")
     p.add_argument(
+        "--max-minutes", type=float,
+        help="stop after this much wall time, validate and save as if done (default 0: no limit)",
+    )  # fmt: skip
+    p.add_argument(
         "--augment", action=argparse.BooleanOptionalAction, default=None,
         help="photometric augmentation of VelocityNet's inputs (training/augment.py; default: off)",
     )  # fmt: skip
@@ -95,6 +99,7 @@ def train_cfg(base: Any, args: argparse.Namespace, steps: int | None = None) -> 
         val_every=args.val_every,
         data_on_device=args.data_on_device,
         augment=getattr(args, "augment", None),
+        max_minutes=getattr(args, "max_minutes", None),
     )
 
 

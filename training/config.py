@@ -7,6 +7,7 @@ A :class:`Preset` bundles them: ``tiny`` (tests), ``default`` (trains on a 2-cor
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
@@ -161,6 +162,9 @@ class TrainConfig:
     amp: bool = False  # bfloat16 autocast on CUDA
     data_on_device: str = "auto"  # auto | yes | no: keep the whole uint8 dataset on the training device
     augment: bool = False  # photometric augmentation of VelocityNet's inputs (training/augment.py)
+    # Wall-time budget in minutes (0: none): training stops at the first log interval past it and finishes
+    # as if its steps were done (validation, checkpoint, model.pt, report), e.g. "a fine-tune in 15 minutes".
+    max_minutes: float = 0.0
 
     def __post_init__(self) -> None:
         _check_positive(self, "lr", "batch_size", "steps", "val_every", "val_batches", "log_every")
@@ -172,6 +176,8 @@ class TrainConfig:
             raise ValueError(
                 f"num_threads/num_workers must be >= 0, got {self.num_threads}, {self.num_workers}"
             )
+        if not (math.isfinite(self.max_minutes) and self.max_minutes >= 0):
+            raise ValueError(f"TrainConfig.max_minutes must be >= 0, got {self.max_minutes!r}")
         if self.data_on_device not in ("auto", "yes", "no"):
             raise ValueError(
                 f"TrainConfig.data_on_device must be auto, yes or no, got {self.data_on_device!r}"

@@ -51,3 +51,12 @@ def setup_dist(cfg: TrainConfig) -> Dist:
 def barrier(dist: Dist) -> None:
     if dist.world > 1:
         torch.distributed.barrier()
+
+
+def any_rank(dist: Dist, flag: bool) -> bool:
+    """True on every rank if ``flag`` is true on any (so all ranks stop at the same step)."""
+    if dist.world == 1:
+        return flag
+    t = torch.tensor([1.0 if flag else 0.0], device=dist.device)
+    torch.distributed.all_reduce(t, op=torch.distributed.ReduceOp.MAX)
+    return bool(t.item() > 0)

@@ -37,7 +37,7 @@ from vtr.training.checkpoint import (
 )
 from vtr.training.config import MPCLossConfig, TrainConfig, VelocityNetConfig, ViewNetConfig, to_dict
 from vtr.training.dataset import FrameData, load_dataset
-from vtr.training.distributed import Dist, barrier, setup_dist
+from vtr.training.distributed import Dist, any_rank, barrier, setup_dist
 from vtr.training.losses import mpc_loss, viewnet_loss
 from vtr.training.models import VelocityNet, ViewNet
 from vtr.training.transfer import init_weights
@@ -135,6 +135,7 @@ def _fit(
     bar = tqdm(total=cfg.steps, initial=step, desc=f"train {kind}", disable=not dist.main, dynamic_ncols=True)
     model.train()
     t_start, running, n_running, busy = time.perf_counter(), 0.0, 0, 0.0
+    deadline = t_start + 60.0 * cfg.max_minutes if cfg.max_minutes > 0 else math.inf
     try:
         while step < cfg.steps:
             t0 = time.perf_counter()
@@ -163,6 +164,14 @@ def _fit(
                     }
                 )
                 running, n_running, busy = 0.0, 0, 0.0
+                if any_rank(dist, time.perf_counter() > deadline) and step < cfg.steps:
+                    bar.write(f"{kind}: --max-minutes {cfg.max_minutes:g} reached at step {step}; finishing")
+                    log({"step": step, "split": "budget", "max_minutes": cfg.max_minutes})
+                    if dist.main:
+                        log({"step": step, "split": "val", **validate(cfg.val_batches)})
+                    save(step)
+                    barrier(dist)
+                    break
             if step % cfg.val_every == 0 or step == cfg.steps:
                 if dist.main:
                     metrics = validate(cfg.val_batches)
