@@ -20,6 +20,16 @@ NO_STALL = RepeatConfig(
 )
 
 
+def _repeat_against(behaviour):
+    """Run the repeat loop against a FakeRobot answering with ``behaviour``; (robot, summary)."""
+    robot = FakeRobot(behaviour)
+    try:
+        with SimClient(robot.endpoint, expect_shape=(16, 16)) as client:
+            return robot, run_repeat(client, DrivingPolicy(), unreachable_route(), NO_STALL)
+    finally:
+        robot.close()
+
+
 def test_a_bad_reply_to_the_zero_command_is_counted_and_the_run_goes_on():
     stops = {"n": 0}
 
@@ -30,12 +40,7 @@ def test_a_bad_reply_to_the_zero_command_is_counted_and_the_run_goes_on():
                 return [[b"{not json"]]
         return [good_reply(robot, req)]
 
-    robot = FakeRobot(behaviour)
-    try:
-        with SimClient(robot.endpoint, expect_shape=(16, 16)) as client:
-            summary = run_repeat(client, DrivingPolicy(), unreachable_route(), NO_STALL)
-    finally:
-        robot.close()
+    robot, summary = _repeat_against(behaviour)
     assert summary.status == "step_limit" and summary.steps == 12 and summary.bad_frames == 2
     cmds = [a.req.cmd for a in robot.commands()]
     first_bad = cmds.index("stop", cmds.index("step"))
@@ -48,12 +53,7 @@ def test_a_silent_robot_gets_its_zero_command_within_half_a_second_and_the_run_e
             robot.mute = True
         return [] if robot.mute else [good_reply(robot, req)]
 
-    robot = FakeRobot(behaviour)
-    try:
-        with SimClient(robot.endpoint, expect_shape=(16, 16)) as client:
-            summary = run_repeat(client, DrivingPolicy(), unreachable_route(), NO_STALL)
-    finally:
-        robot.close()
+    robot, summary = _repeat_against(behaviour)
     assert summary.status == "link_lost" and summary.steps == 3
     cmds = robot.commands()
     last_step = max(i for i, a in enumerate(cmds) if a.req.cmd == "step")
