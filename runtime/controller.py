@@ -25,7 +25,10 @@ default of the release before the robust rules, kept for comparison):
   cannot pass for a match): the robot is past i, whatever the light does to both errors.
   It switches early; a robot standing on a taught pose can always switch (threshold, or the plateau).
 - **Settling** (``settle_steps``): once under the threshold, keep steering to the same subgoal while the
-  error still falls, for at most ``settle_steps`` extra commands.
+  error still falls, for at most ``settle_steps`` extra commands. With ``settle_needs_fall`` (default)
+  "falls" needs an earlier image judged against the same subgoal: the first view of a subgoal that
+  already matches switches at once. (Without it, a robot started on subgoal 0's taught pose settled: the
+  policy, facing a changed room, drove it 5-90 mm or 2-3 deg away and the run stalled at subgoal 0.)
 - **Stall guard** (``stall_steps`` > 0): after ``stall_steps`` commands without progress, JUMP to the best
   of the next ``lookahead`` subgoals if it is within ``jump_factor`` thresholds and better than the
   current one; else ADVANCE if the current error is within ``jump_factor`` thresholds (a plateau next to
@@ -240,10 +243,14 @@ class Controller:
                 return Decision(Action.ADVANCE, self.index, error, note="next subgoal matches as well")
         min_step = self.cfg.stall_min_improvement
         min_step = 0.02 * threshold if min_step is None else min_step
-        improving = error < self._last_error - min_step
+        previous = self._last_error
+        improving = error < previous - min_step
         self._last_error = error
         if error <= threshold:
-            if improving and self._settled < self.cfg.settle_steps:
+            # settling needs the error seen falling at this subgoal: a first view that already matches
+            # (a robot standing on the taught pose) switches at once (``settle_needs_fall``)
+            fell = improving and (math.isfinite(previous) or not self.cfg.settle_needs_fall)
+            if fell and self._settled < self.cfg.settle_steps:
                 self._settled += 1
                 return self._command(i, error, note="settling")
             self._set_index(i + 1)

@@ -60,6 +60,9 @@ class ControllerConfig:
     continuous: bool = False
     #: Extra commands at a subgoal while the error still falls under the threshold (0: switch at once).
     settle_steps: int = 1
+    #: Settle only on an error seen falling (an earlier image judged against the same subgoal); False:
+    #: also on the first view of a subgoal (the previous rule, which moved robots off a matched pose).
+    settle_needs_fall: bool = True
 
     @classmethod
     def paper(cls) -> ControllerConfig:
@@ -72,7 +75,7 @@ class ControllerConfig:
         """The previous default: raw error, one calibrated e_m per route, settle 2, old plateau rule."""
         return cls(match=MatchConfig.paper(), e_m_mode="calibrated", pass_ratio=0.0, settle_steps=2,
                    plateau_needs_motion=False, lost_steps=0, stop_on_contact=False, hold_turns=False,
-                   stall_min_improvement=0.25)  # fmt: skip
+                   stall_min_improvement=0.25, settle_needs_fall=False)  # fmt: skip
 
     def __post_init__(self) -> None:
         if self.e_m_mode not in THRESHOLD_MODES:
