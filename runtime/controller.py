@@ -29,6 +29,9 @@ default of the release before the robust rules, kept for comparison):
   "falls" needs an earlier image judged against the same subgoal: the first view of a subgoal that
   already matches switches at once. (Without it, a robot started on subgoal 0's taught pose settled: the
   policy, facing a changed room, drove it 5-90 mm or 2-3 deg away and the run stalled at subgoal 0.)
+  With ``settle_keeps_match`` (default) a subgoal that matched stays reached: when a settling command
+  moves the robot off it again (error back above the threshold), the controller advances instead of
+  steering back (in a changed room the policy overshot a matched turn by 3 deg and never came back).
 - **Stall guard** (``stall_steps`` > 0): after ``stall_steps`` commands without progress, JUMP to the best
   of the next ``lookahead`` subgoals if it is within ``jump_factor`` thresholds and better than the
   current one; else ADVANCE if the current error is within ``jump_factor`` thresholds (a plateau next to
@@ -255,6 +258,10 @@ class Controller:
                 return self._command(i, error, note="settling")
             self._set_index(i + 1)
             return Decision(Action.ADVANCE, self.index, error)
+        if self._settled and self.cfg.settle_keeps_match:
+            # the subgoal matched before a settling command moved the robot off it again: it was reached
+            self._set_index(i + 1)
+            return Decision(Action.ADVANCE, self.index, error, note="reached before settling")
         if self.cfg.lost_steps > 0:
             lost = self._lost(view, error)
             if lost is not None:

@@ -63,6 +63,9 @@ class ControllerConfig:
     #: Settle only on an error seen falling (an earlier image judged against the same subgoal); False:
     #: also on the first view of a subgoal (the previous rule, which moved robots off a matched pose).
     settle_needs_fall: bool = True
+    #: A subgoal that matched stays reached: a settling command that moves the robot off it again ends
+    #: in ADVANCE, not in steering back (False: the previous rule).
+    settle_keeps_match: bool = True
 
     @classmethod
     def paper(cls) -> ControllerConfig:
@@ -75,7 +78,8 @@ class ControllerConfig:
         """The previous default: raw error, one calibrated e_m per route, settle 2, old plateau rule."""
         return cls(match=MatchConfig.paper(), e_m_mode="calibrated", pass_ratio=0.0, settle_steps=2,
                    plateau_needs_motion=False, lost_steps=0, stop_on_contact=False, hold_turns=False,
-                   stall_min_improvement=0.25, settle_needs_fall=False)  # fmt: skip
+                   stall_min_improvement=0.25, settle_needs_fall=False,
+                   settle_keeps_match=False)  # fmt: skip
 
     def __post_init__(self) -> None:
         if self.e_m_mode not in THRESHOLD_MODES:
