@@ -76,9 +76,7 @@ CONTROLLERS: dict[str, Method] = {
     "after_route_threshold": Method(replace(AFTER, e_m_mode="calibrated", pass_ratio=0.0), match_light=True),
     "after_per_subgoal": Method(replace(AFTER, e_m_mode="per_subgoal", pass_ratio=1.0), match_light=True),
     "after_no_hold_turns": Method(replace(AFTER, hold_turns=False), match_light=True),
-    "after_old_settling": Method(
-        replace(AFTER, settle_needs_fall=False, settle_keeps_match=False), match_light=True
-    ),
+    "after_plateau_2x": Method(replace(AFTER, jump_factor=2.0), match_light=True),  # the previous bound
 }
 
 

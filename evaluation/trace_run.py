@@ -21,9 +21,10 @@ from typing import Any
 import numpy as np
 
 
-def trace(route_path: Path, cond_name: str, seed: int, controller: str = "after", model: Path | None = None,
-          max_steps_factor: float = 8.0) -> tuple[list[dict[str, Any]], str]:  # fmt: skip
-    """Rows (one per judged image) and the run's final status and detail."""
+def trace(route_path: Path | Any, cond_name: str, seed: int, controller: str = "after", model: Path | None = None,
+          max_steps_factor: float = 8.0, base: str = "house") -> tuple[list[dict[str, Any]], str]:  # fmt: skip
+    """Rows (one per judged image) and the run's final status and detail. ``route_path``: a ROUTE.json or
+    a RouteScript; ``base``: the house it is taught in (a scene condition changes a copy of it)."""
     import tempfile
 
     from vtr.evaluation.condition_suite import CONDITIONS, CONTROLLERS, _start, cached_policy
@@ -38,16 +39,16 @@ def trace(route_path: Path, cond_name: str, seed: int, controller: str = "after"
 
     cond, method = CONDITIONS[cond_name], CONTROLLERS[controller]
     policy: Any = cached_policy(find_model(model), 1)
-    route, _ = teach(route_path, tuple(policy.image_shape), 0.1)
+    route, _ = teach(route_path, tuple(policy.image_shape), 0.1, base)
     taught = np.asarray(route.poses, dtype=np.float64)
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp:
-        house = str(write_scene_house(cond.scene, Path(tmp), path=route.poses)) if cond.scene else "house"
+        house = str(write_scene_house(cond.scene, Path(tmp), base, route.poses)) if cond.scene else base
         h, w = route.images.shape[1:3]
         sim = Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=cond.noise, house=house))
         robot: Any = LocalRobot(sim)
         # the unchanged house, noise-free: what the camera would see at the same pose without the change
-        clean = Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=0.0, house="house"))
+        clean = Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=0.0, house=base))
         if cond.light:
             robot = LitRobot(robot, LIGHTING[cond.light])
         if method.match_light:
@@ -88,7 +89,8 @@ def trace(route_path: Path, cond_name: str, seed: int, controller: str = "after"
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m vtr.evaluation.trace_run", description=__doc__.split("\n")[0])
-    p.add_argument("route", type=Path, help="ROUTE.json")
+    p.add_argument("route", help="ROUTE.json, or with --house the generated route's index (sim2d.route_gen)")
+    p.add_argument("--house", default=None, help="a procedural house (random:SEED) the route is generated in")
     p.add_argument("condition", help="a condition of the suite (evaluation.condition_suite.CONDITIONS)")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
     p.add_argument("--controller", default="after", help="a suite controller (default: %(default)s)")
@@ -98,11 +100,22 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     from vtr.evaluation.condition_suite import CONDITIONS, CONTROLLERS
 
-    if args.condition not in CONDITIONS or args.controller not in CONTROLLERS or not args.route.is_file():
+    route: Any = Path(args.route)
+    if args.house is not None:
+        from vtr.sim2d.route_gen import generate_route
+
+        route = generate_route(args.house, int(args.route))
+    if (
+        args.condition not in CONDITIONS
+        or args.controller not in CONTROLLERS
+        or not (args.house or route.is_file())
+    ):
         print(f"trace_run: unknown condition/controller or no route file: {args.condition} {args.controller} "
               f"{args.route}", file=sys.stderr)  # fmt: skip
         return 2
-    rows, end = trace(args.route, args.condition, args.seed, args.controller, args.model)
+    rows, end = trace(
+        route, args.condition, args.seed, args.controller, args.model, base=args.house or "house"
+    )
     print(" step    i  action    error  clean  thresh  err_i+1  dist_mm  dyaw  near_mm near_k")
     for k, r in enumerate(rows):
         if k % args.every == 0 or r["status"] or k == len(rows) - 1:

@@ -25,13 +25,7 @@ default of the release before the robust rules, kept for comparison):
   cannot pass for a match): the robot is past i, whatever the light does to both errors.
   It switches early; a robot standing on a taught pose can always switch (threshold, or the plateau).
 - **Settling** (``settle_steps``): once under the threshold, keep steering to the same subgoal while the
-  error still falls, for at most ``settle_steps`` extra commands. With ``settle_needs_fall`` (default)
-  "falls" needs an earlier image judged against the same subgoal: the first view of a subgoal that
-  already matches switches at once. (Without it, a robot started on subgoal 0's taught pose settled: the
-  policy, facing a changed room, drove it 5-90 mm or 2-3 deg away and the run stalled at subgoal 0.)
-  With ``settle_keeps_match`` (default) a subgoal that matched stays reached: when a settling command
-  moves the robot off it again (error back above the threshold), the controller advances instead of
-  steering back (in a changed room the policy overshot a matched turn by 3 deg and never came back).
+  error still falls, for at most ``settle_steps`` extra commands.
 - **Stall guard** (``stall_steps`` > 0): after ``stall_steps`` commands without progress, JUMP to the best
   of the next ``lookahead`` subgoals if it is within ``jump_factor`` thresholds and better than the
   current one; else ADVANCE if the current error is within ``jump_factor`` thresholds (a plateau next to
@@ -246,22 +240,14 @@ class Controller:
                 return Decision(Action.ADVANCE, self.index, error, note="next subgoal matches as well")
         min_step = self.cfg.stall_min_improvement
         min_step = 0.02 * threshold if min_step is None else min_step
-        previous = self._last_error
-        improving = error < previous - min_step
+        improving = error < self._last_error - min_step
         self._last_error = error
         if error <= threshold:
-            # settling needs the error seen falling at this subgoal: a first view that already matches
-            # (a robot standing on the taught pose) switches at once (``settle_needs_fall``)
-            fell = improving and (math.isfinite(previous) or not self.cfg.settle_needs_fall)
-            if fell and self._settled < self.cfg.settle_steps:
+            if improving and self._settled < self.cfg.settle_steps:
                 self._settled += 1
                 return self._command(i, error, note="settling")
             self._set_index(i + 1)
             return Decision(Action.ADVANCE, self.index, error)
-        if self._settled and self.cfg.settle_keeps_match:
-            # the subgoal matched before a settling command moved the robot off it again: it was reached
-            self._set_index(i + 1)
-            return Decision(Action.ADVANCE, self.index, error, note="reached before settling")
         if self.cfg.lost_steps > 0:
             lost = self._lost(view, error)
             if lost is not None:
