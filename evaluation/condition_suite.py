@@ -77,6 +77,8 @@ CONTROLLERS: dict[str, Method] = {
     "after_per_subgoal": Method(replace(AFTER, e_m_mode="per_subgoal", pass_ratio=1.0), match_light=True),
     "after_no_hold_turns": Method(replace(AFTER, hold_turns=False), match_light=True),
     "after_plateau_2x": Method(replace(AFTER, jump_factor=2.0), match_light=True),  # the previous bound
+    "x_gate8": Method(replace(AFTER, progress_gate=0.8), match_light=True),
+    "x_gate10": Method(replace(AFTER, progress_gate=1.0), match_light=True),
 }
 
 
@@ -165,6 +167,17 @@ def _start(pose: np.ndarray, offset: tuple[float, float], seed: int) -> tuple[fl
     return (x - math.sin(yaw) * lateral, y + math.cos(yaw) * lateral, yaw + dyaw)
 
 
+def switch_lag(taught: np.ndarray, switch_poses: dict[int, tuple[float, float, float]]) -> float | None:
+    """Mean along-track offset (m) of the robot from each subgoal's taught pose when the controller
+    switched past it: negative = the robot was still short of the subgoal (the index ran ahead)."""
+    if not switch_poses:
+        return None
+    k = np.fromiter(switch_poses, dtype=int)
+    at = np.asarray([switch_poses[i] for i in k], dtype=np.float64)
+    p = np.asarray(taught, dtype=np.float64)[k]
+    return float(np.mean((at[:, 0] - p[:, 0]) * np.cos(p[:, 2]) + (at[:, 1] - p[:, 1]) * np.sin(p[:, 2])))
+
+
 def run_once(route: Any, script: Any, cond: Condition, house: str, seed: int, method: Method,
              policy: Any, cfg: Any, keep_path: bool = False) -> dict[str, Any]:  # fmt: skip
     """One repeat under ``cond`` (evaluation.runs, the `vtr eval` harness's loop); its scores plus the
@@ -213,6 +226,7 @@ def run_once(route: Any, script: Any, cond: Condition, house: str, seed: int, me
         "cross_track_m": s["mean_cross_track_error_m"],
         "final_position_m": s["final_pose_error"]["position_m"],
         "final_yaw_deg": abs(s["final_pose_error"]["yaw_deg"]),
+        "switch_lag_m": switch_lag(route.poses, log.switch_poses),
         **({"path": np.round(np.asarray(log.poses)[:, :2], 3).tolist()} if keep_path else {}),
     }
 

@@ -32,6 +32,10 @@ default of the release before the robust rules, kept for comparison):
   the subgoal) -- but with ``plateau_needs_motion`` only if the view changed since the last plateau
   acceptance by at least ``motion_fraction`` of a gap, so a robot that does not move never accepts more
   than one subgoal; else STALLED.
+- **Progress gate** (``progress_gate`` > 0, with the taught poses): switch past subgoal i (threshold or
+  relative rule) only once the travel commanded since i was set reaches that fraction of the taught
+  travel into i, or after ``gate_patience`` commands held (runtime.progress_gate): where the view barely
+  changes as the robot drives, the index otherwise runs ahead of the robot.
 - **Lost** (``lost_steps`` > 0): when the best match among subgoals i-2 .. i+20 stays above ``lost_factor``
   times the route's median gap (and LOST_FLOOR) for ``lost_steps`` commands, stop with LOST ("lost at
   subgoal i, best match error X"): the view cannot be matched and driving on is a guess.
@@ -56,6 +60,7 @@ import numpy as np
 
 from vtr.runtime.controller_config import ControllerConfig
 from vtr.runtime.matching import MatchConfig, Matcher
+from vtr.runtime.progress_gate import ProgressGate
 from vtr.runtime.thresholds import (  # noqa: F401 - calibrate_e_m, consecutive_errors: part of this API
     DEFAULT_BOUNDS,
     LOST_FLOOR,
@@ -176,6 +181,9 @@ class Controller:
         self._lost_count = 0
         self._view_of: np.ndarray | None = None
         self._view = np.empty(0)
+        self.gate = None  # the progress gate: needs the taught poses
+        if self.cfg.progress_gate > 0 and poses is not None and len(poses) >= n:
+            self.gate = ProgressGate(poses, n, self.cfg.progress_gate, self.cfg.gate_patience)
         self._set_index(0)
 
     def __len__(self) -> int:
@@ -201,6 +209,16 @@ class Controller:
         self._no_progress = 0
         self._last_error = math.inf
         self._settled = 0
+        if self.gate is not None:
+            self.gate.reset(index)
+
+    def _may_pass(self, i: int) -> bool:
+        return self.gate is None or self.gate.passes(i)
+
+    def commanded(self, v: float, w: float, dt: float) -> None:
+        """The repeat loop applied (v, w) for ``dt`` seconds (the progress gate counts it)."""
+        if self.gate is not None:
+            self.gate.commanded(v, w, dt)
 
     def _stop(self, action: Action, error: float, note: str) -> Decision:
         self.status = action
@@ -234,7 +252,7 @@ class Controller:
             nxt = self.matcher.distance(view, self._feats[i + 1])
             # only a real match counts (under the lost bound): two unrelated views score alike, and a
             # lost robot must not "pass" subgoals on noise
-            if nxt <= self.cfg.pass_ratio * error and nxt < self.lost_bound:
+            if nxt <= self.cfg.pass_ratio * error and nxt < self.lost_bound and self._may_pass(i):
                 self.early_switches += 1
                 self._set_index(i + 1)
                 return Decision(Action.ADVANCE, self.index, error, note="next subgoal matches as well")
@@ -246,6 +264,8 @@ class Controller:
             if improving and self._settled < self.cfg.settle_steps:
                 self._settled += 1
                 return self._command(i, error, note="settling")
+            if not self._may_pass(i):
+                return self._command(i, error, note="waiting for travel")
             self._set_index(i + 1)
             return Decision(Action.ADVANCE, self.index, error)
         if self.cfg.lost_steps > 0:

@@ -58,6 +58,11 @@ class ControllerConfig:
     #: Where the taught robot turned in place (v = 0 into the subgoal), the repeat does not translate
     #: either: the policy's forward output there pushed the robot into the furniture it turned beside.
     hold_turns: bool = True
+    #: Progress gate (runtime.progress_gate): switch past a subgoal only after commanding this fraction of
+    #: the taught travel into it; 0 disables it (the paper's rule and the previous default).
+    progress_gate: float = 0.0
+    #: ... or after this many commands held back by the gate (a robot already at the subgoal).
+    gate_patience: int = 3
     #: Keep moving between control steps instead of the paper's stop-and-go.
     continuous: bool = False
     #: Extra commands at a subgoal while the error still falls under the threshold (0: switch at once).
@@ -89,12 +94,12 @@ class ControllerConfig:
         lo, hi = self.bounds
         if not 0 < lo <= hi:
             raise ValueError(f"e_m_max={hi} must be >= e_m_min={lo} > 0")
-        for name in ("stall_steps", "settle_steps", "lost_steps"):
+        for name in ("stall_steps", "settle_steps", "lost_steps", "gate_patience"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if self.stall_min_improvement is not None and not self.stall_min_improvement >= 0:
             raise ValueError(f"stall_min_improvement must be >= 0, got {self.stall_min_improvement}")
-        for name in ("pass_ratio", "motion_fraction"):
+        for name in ("pass_ratio", "motion_fraction", "progress_gate"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if self.lookahead < 1:

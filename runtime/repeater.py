@@ -265,6 +265,7 @@ class Repeater:
         stage["policy"] = (t_policy - t_error) * 1e3
         stage["compute"] = (t_policy - t0) * 1e3
         new_obs = self._fetch(lambda: self.robot.step(v, w, self.dt))
+        self.controller.commanded(v, w, self.dt)  # the progress gate counts what the robot was told
         # the robot's own breakdown of the step round trip (SimClient: receive, decode)
         robot_stage = getattr(self.robot, "last_timing_ms", None) or {}
         if decision.then_stop:
