@@ -77,8 +77,7 @@ CONTROLLERS: dict[str, Method] = {
     "after_per_subgoal": Method(replace(AFTER, e_m_mode="per_subgoal", pass_ratio=1.0), match_light=True),
     "after_no_hold_turns": Method(replace(AFTER, hold_turns=False), match_light=True),
     "after_plateau_2x": Method(replace(AFTER, jump_factor=2.0), match_light=True),  # the previous bound
-    "x_gate8": Method(replace(AFTER, progress_gate=0.8), match_light=True),
-    "x_gate10": Method(replace(AFTER, progress_gate=1.0), match_light=True),
+    "after_no_progress_gate": Method(replace(AFTER, progress_gate=0.0), match_light=True),
 }
 
 

@@ -7,8 +7,8 @@ steers to a subgoal 30 cm away, cuts the corner and drives the rest of the route
 
 Every robot knows what it was told to do: the gate sums the commanded travel since the current subgoal
 was set (|v| dt, and |w| dt for turns) and lets the controller switch past subgoal i only when that travel
-reaches ``fraction`` of the taught travel into i (from the taught poses i-1 -> i, in distance or in
-heading, whichever the taught robot mostly did). Travel beyond that carries over to the next subgoal, so
+reaches ``fraction`` of the taught travel into i (from the taught poses i-1 -> i: the distance, the
+change of heading, or both on a curve). Travel beyond that carries over to the next subgoal, so
 the index follows the commanded travel along the route, not a fraction of it per subgoal. While the policy
 still drives toward i the gate holds; a robot that is already at i (it started there, or it overshot) gets
 near-zero commands and would wait forever, so after ``patience`` held commands that moved it less than
@@ -55,7 +55,8 @@ class ProgressGate:
             ratios.append(distance / self.distance[i])
         if self.turn[i] >= MIN_TURN_RAD:
             ratios.append(turn / self.turn[i])
-        return max(ratios) if ratios else math.inf  # NaN poses compare False: no ratio, no gate
+        # both parts of a curve: a robot that over-turns has not driven the distance yet
+        return min(ratios) if ratios else math.inf  # NaN poses compare False: no ratio, no gate
 
     def reset(self, index: int) -> None:
         """Subgoal ``index`` was set. After a switch to the next subgoal the travel beyond the previous one

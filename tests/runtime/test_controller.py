@@ -259,3 +259,15 @@ def test_stall_in_the_loop_stops_with_a_reason():
     assert (
         summary.status == "stalled" and "stopped falling" in summary.detail and robot.calls[-1] == ("stop",)
     )
+
+
+def test_the_default_plateau_bound_is_two_and_a_half_thresholds():
+    from vtr.runtime.matching import MatchConfig
+
+    cfg = ControllerConfig(match=MatchConfig.paper(), e_m_mode="fixed", e_m=5.0, stall_steps=2, lookahead=2)
+    assert cfg.jump_factor == 2.5 and ControllerConfig.before().jump_factor == 2.0
+    for factor, expected in ((2.5, Action.ADVANCE), (2.0, Action.STALLED)):
+        c = Controller(subgoals(0, 60, 120), replace(cfg, jump_factor=factor))
+        for _ in range(2):
+            c.decide(flat(11))  # stuck at 2.2 thresholds
+        assert c.decide(flat(11)).action is expected

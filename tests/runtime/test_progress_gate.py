@@ -78,8 +78,11 @@ def test_the_gate_holds_the_relative_rule_too():
     assert c.decide(view(100 + 2 + 1 + 1)).action is Action.ADVANCE and c.early_switches == 1
 
 
-def test_off_without_poses_or_by_default():
-    for c in (Controller(ROUTE, gated()), Controller(ROUTE, ControllerConfig(settle_steps=0), poses=POSES)):
+def test_on_by_default_off_without_poses_and_for_the_paper_and_before():
+    assert Controller(ROUTE, ControllerConfig(), poses=POSES).gate is not None
+    assert ControllerConfig.paper().progress_gate == 0.0 and ControllerConfig.before().progress_gate == 0.0
+    off = ControllerConfig(settle_steps=0, progress_gate=0.0)
+    for c in (Controller(ROUTE, gated()), Controller(ROUTE, off, poses=POSES)):
         assert c.gate is None
         c.decide(ROUTE[0])
         assert c.decide(ROUTE[1]).action is Action.ADVANCE
