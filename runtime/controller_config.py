@@ -59,9 +59,10 @@ class ControllerConfig:
     #: either: the policy's forward output there pushed the robot into the furniture it turned beside.
     hold_turns: bool = True
     #: Progress gate (runtime.progress_gate): switch past a subgoal only after commanding this fraction of
-    #: the taught travel into it; 0 disables it (the paper's rule and the previous default). 1.0 on the
-    #: dev houses: mean error 15.0 -> 8.8 mm, but 1.59 -> 2.54 control steps per taught step.
-    progress_gate: float = 1.0
+    #: the taught travel into it; 0 disables it (the paper's rule and the previous default). Dev houses
+    #: 910-924: off / 0.5 / 0.7 / 1.0: mean error 15.0 / 11.4 / 10.6 / 8.8 mm at 1.59 / 1.86 / 2.01 / 2.56
+    #: control steps per taught step (evaluation/README.md).
+    progress_gate: float = 0.5
     #: ... or after this many commands held back by the gate (a robot already at the subgoal).
     gate_patience: int = 3
     #: Keep moving between control steps instead of the paper's stop-and-go.

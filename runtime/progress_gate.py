@@ -8,8 +8,9 @@ steers to a subgoal 30 cm away, cuts the corner and drives the rest of the route
 Every robot knows what it was told to do: the gate sums the commanded travel since the current subgoal
 was set (|v| dt, and |w| dt for turns) and lets the controller switch past subgoal i only when that travel
 reaches ``fraction`` of the taught travel into i (from the taught poses i-1 -> i: the distance, the
-change of heading, or both on a curve). Travel beyond that carries over to the next subgoal, so
-the index follows the commanded travel along the route, not a fraction of it per subgoal. While the policy
+change of heading, or both on a curve). Travel beyond the gap carries over to the next subgoal and what
+fell short of it is owed, so the index follows the commanded travel along the route: with a fraction
+under 1 the controller may switch a little early, but the lag cannot grow from subgoal to subgoal. While the policy
 still drives toward i the gate holds; a robot that is already at i (it started there, or it overshot) gets
 near-zero commands and would wait forever, so after ``patience`` held commands that moved it less than
 ``IDLE`` of the gap the gate opens.
@@ -45,6 +46,7 @@ class ProgressGate:
         self.progress = 0.0  # commanded travel toward ``index``, in units of the taught travel into it
         self.held = 0  # commands the gate held back at this subgoal
         self.idle = 0  # of those, the ones that hardly moved the robot
+        self._resync = False
 
     def _share(self, i: int, distance: float, turn: float) -> float:
         """A move as a fraction of the taught travel into subgoal ``i`` (inf: nothing to wait for)."""
@@ -59,11 +61,14 @@ class ProgressGate:
         return min(ratios) if ratios else math.inf  # NaN poses compare False: no ratio, no gate
 
     def reset(self, index: int) -> None:
-        """Subgoal ``index`` was set. After a switch to the next subgoal the travel beyond the previous one
-        counts toward it (a jump or a new start counts none)."""
-        excess = self.progress - 1.0 if index == self.index + 1 and math.isfinite(self.progress) else 0.0
-        self.index, self.progress = index, max(0.0, excess)
+        """Subgoal ``index`` was set. After a switch to the next subgoal what the robot travelled beyond the
+        previous one counts toward it, and what it fell short is owed: the index follows the commanded
+        travel along the route. A jump, a new start, or a switch the patience let through count none."""
+        gated = self._share(self.index, 0.0, 0.0) != math.inf  # the previous subgoal had a gap to travel
+        carry = gated and index == self.index + 1 and math.isfinite(self.progress) and not self._resync
+        self.index, self.progress = index, self.progress - 1.0 if carry else 0.0
         self.held = self.idle = 0
+        self._resync = False
 
     def commanded(self, v: float, w: float, dt: float) -> None:
         """The robot was told to drive (v, w) for dt seconds."""
@@ -80,4 +85,5 @@ class ProgressGate:
         if nothing_to_wait_for or self.progress >= self.fraction:
             return True
         self.held += 1
-        return self.idle >= self.patience
+        self._resync = self.idle >= self.patience  # the robot is there whatever the commands say
+        return self._resync
