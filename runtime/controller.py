@@ -32,10 +32,12 @@ default of the release before the robust rules, kept for comparison):
   the subgoal) -- but with ``plateau_needs_motion`` only if the view changed since the last plateau
   acceptance by at least ``motion_fraction`` of a gap, so a robot that does not move never accepts more
   than one subgoal; else STALLED.
-- **Progress gate** (``progress_gate`` > 0, with the taught poses): switch past subgoal i (threshold or
-  relative rule) only once the travel commanded since i was set reaches that fraction of the taught
-  travel into i, or after ``gate_patience`` commands held (runtime.progress_gate): where the view barely
-  changes as the robot drives, the index otherwise runs ahead of the robot.
+- **Progress gate** (``progress_gate`` > 0, default 0.5, with the taught poses): switch past subgoal i
+  (threshold or relative rule) only once the travel commanded since i was set reaches that fraction of
+  the taught travel into i (what fell short is owed to the next subgoal), or after ``gate_patience``
+  commands that hardly moved the robot (runtime.progress_gate): where the view barely changes as the
+  robot drives, the index otherwise runs ahead of the robot, which then cuts the next curve and drives
+  beside the path. The repeat loop reports every command with :meth:`Controller.commanded`.
 - **Lost** (``lost_steps`` > 0): when the best match among subgoals i-2 .. i+20 stays above ``lost_factor``
   times the route's median gap (and LOST_FLOOR) for ``lost_steps`` commands, stop with LOST ("lost at
   subgoal i, best match error X"): the view cannot be matched and driving on is a guess.
@@ -48,6 +50,9 @@ default of the release before the robust rules, kept for comparison):
 Chosen on the tuning routes (sim2d/routes): median tiles (evaluation.matching_study), 3/4 of the gap, 1
 settling command (0, 1, 2: 1.06, 1.41, 1.82 control steps per taught step at 11.5, 8.9, 6.6 mm). The
 default threshold is the route's: per subgoal was faster but completed fewer held-out runs (evaluation/README).
+The stall guard's bound (``jump_factor`` 2.5, was 2) and the progress gate were chosen on the development
+routes and houses only (evaluation/README, "Switching in a changed room"); ``python -m
+vtr.evaluation.trace_run`` shows a run's decisions step by step against the true pose.
 """
 
 from __future__ import annotations

@@ -88,3 +88,18 @@ def test_on_by_default_off_without_poses_and_for_the_paper_and_before():
         assert c.decide(ROUTE[1]).action is Action.ADVANCE
     with pytest.raises(ValueError, match="progress_gate"):
         ControllerConfig(progress_gate=-0.1)
+
+
+def test_what_fell_short_is_owed_so_the_lag_cannot_grow():
+    g = ProgressGate(POSES, len(POSES), 0.5, 1)
+    g.reset(1)
+    g.commanded(0.3, 0.0, 0.1)  # 3 cm of 5: past the fraction, 2 cm short
+    assert g.passes(1)
+    g.reset(2)
+    assert g.progress == pytest.approx(-0.4)
+    g.commanded(0.3, 0.0, 0.1)  # 3 cm more: 6 of the 10 taught so far
+    assert g.progress == pytest.approx(0.2) and not g.passes(2)
+    g.commanded(0.0, 0.0, 0.1)  # idle: the patience (1) lets it through and forgets the debt
+    assert g.passes(2)
+    g.reset(3)
+    assert g.progress == 0.0
