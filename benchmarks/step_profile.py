@@ -39,7 +39,7 @@ STAGES: tuple[tuple[str, str, str], ...] = (
     ("predict.light_match.statistics", "light", "_stats_in_place"),
     ("predict.preprocess", "policy_module", "nchw_into"),
     ("predict.standardise", "policy_module", "normalise_planar"),
-    ("predict.inference", "session", "run"),
+    ("predict.inference", "onnx", "infer"),
     ("predict.postprocess", "onnx", "postprocess"),
 )
 TOP_LEVEL = ("link.step", "link.stop", "judge", "predict")
@@ -51,7 +51,7 @@ def _owners(rep: Any) -> dict[str, Any]:
     onnx = getattr(rep.policy, "policy", rep.policy)
     return {"robot": rep.robot, "protocol": protocol, "controller": rep.controller,
             "matcher": rep.controller.matcher, "matching": matching, "policy": rep.policy, "light": light,
-            "policy_module": policy, "session": onnx.session, "onnx": onnx}  # fmt: skip
+            "policy_module": policy, "onnx": onnx}  # fmt: skip
 
 
 def profile_stages(rep: Any, steps: int, warmup: int) -> dict[str, dict[str, float]]:
