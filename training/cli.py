@@ -73,6 +73,14 @@ def add_stage_parsers(sub: Any) -> None:
     p.add_argument(
         "--init", default=None, help="start from this VelocityNet checkpoint (model.pt) to fine-tune"
     )
+    p.add_argument(
+        "--recovery", default=None, metavar="DIR",
+        help="recovery views of --data (`vtr collect --recovery-for`): off-path views with corrective labels",
+    )  # fmt: skip
+    p.add_argument(
+        "--w-recovery", type=float, default=None,
+        help="weight of the recovery term (default: 0, or 0.5 when --recovery is given)",
+    )  # fmt: skip
     _add_common(p)
     from vtr.training.transfer import add_evaluate_arguments
 
@@ -117,7 +125,10 @@ def run_cli(args: argparse.Namespace) -> int:
 
         inherit_init_settings(args)  # a fine-tune keeps the base's preprocessing and augmentation
     preset = get_preset(args.preset)
-    preset.loss = override(preset.loss, w1=args.w1, w2=args.w2)
+    w_rec = getattr(args, "w_recovery", None)
+    if w_rec is None and getattr(args, "recovery", None):
+        w_rec = 0.5
+    preset.loss = override(preset.loss, w1=args.w1, w2=args.w2, w_recovery=w_rec)
     preset.velocitynet = override(preset.velocitynet, preprocessing=args.preprocessing)
     if args.stage == "viewnet":
         train_viewnet(
@@ -138,5 +149,6 @@ def run_cli(args: argparse.Namespace) -> int:
             train_cfg(preset.train_velocitynet, args),
             args.resume,
             init=args.init,
+            recovery=args.recovery,
         )
     return 0

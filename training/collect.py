@@ -252,6 +252,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     houses.add_argument(
         "--workers", type=int, default=0, help="worker processes (default 0: one per CPU core)"
     )
+    rec = parser.add_argument_group("recovery views of a simulator dataset (a folder as --out)")
+    rec.add_argument(
+        "--recovery-for", default=None, metavar="DATASET",
+        help="render off-path views with corrective labels for this dataset (training/recovery.py)",
+    )  # fmt: skip
+    rec.add_argument(
+        "--recovery-per-window", type=float, default=0.25,
+        help="recovery views per training window of the dataset (default: 0.25)",
+    )  # fmt: skip
     from vtr.training import collect_robot
 
     collect_robot.add_arguments(parser)
@@ -271,6 +280,20 @@ def run_cli(args: argparse.Namespace) -> int:
         except ValueError as err:
             print(f"vtr collect: {err}", file=sys.stderr)
             return 2
+    if args.recovery_for:
+        from vtr.training.dataset import DatasetError
+        from vtr.training.recovery import RecoveryConfig, render_recovery
+
+        try:
+            cfg_r = RecoveryConfig(per_window=args.recovery_per_window, seed=args.seed)
+            summary_r = render_recovery(
+                args.recovery_for, args.out, cfg_r, workers=args.workers, progress=not args.no_progress
+            )
+        except (ValueError, DatasetError) as err:
+            print(f"vtr collect: {err}", file=sys.stderr)
+            return 2
+        print(json.dumps(summary_r, indent=2))
+        return 0
     if args.sim is not None:  # a protocol robot instead of the in-process simulator
         from vtr.training import collect_robot
 

@@ -137,8 +137,12 @@ class MPCLossConfig:
     w1: float = 0.8  # weight of the image term
     w2: float = 0.3  # weight of the velocity term
     horizon: int = 2  # N; a training window holds N + 1 frames and N commands
+    # weight of the recovery term (training/recovery.py): off-path views against a tracking controller's labels
+    w_recovery: float = 0.0
 
     def __post_init__(self) -> None:
+        if not (math.isfinite(self.w_recovery) and self.w_recovery >= 0):
+            raise ValueError(f"MPCLossConfig.w_recovery must be >= 0, got {self.w_recovery!r}")
         if self.w1 < 0 or self.w2 < 0 or self.w1 + self.w2 <= 0:
             raise ValueError(f"MPC loss weights must be >= 0 and not both 0, got w1={self.w1}, w2={self.w2}")
         _check_positive(self, "horizon")

@@ -257,6 +257,64 @@ def train_viewnet(
     return report
 
 
+class _JointCall:
+    """VelocityNet on the MPC loss's pairs plus extra (view, goal) pairs in one batch; keeps the extra output."""
+
+    def __init__(self, policy: nn.Module, views: torch.Tensor, goals: torch.Tensor) -> None:
+        self.policy, self.views, self.goals = policy, views, goals
+        self.extra = torch.empty(0)
+
+    def __call__(self, current: torch.Tensor, subgoal: torch.Tensor) -> torch.Tensor:
+        b = current.shape[0]
+        u = self.policy(torch.cat([current, self.views]), torch.cat([subgoal, self.goals]))
+        self.extra = u[b:]
+        return u[:b]
+
+
+def _recovery_batches(
+    path: str | os.PathLike | None,
+    data: FrameData,
+    windows: Windows,
+    loss_cfg: MPCLossConfig,
+    cfg: TrainConfig,
+    extra: dict[str, Any],
+) -> Callable[[], tuple[torch.Tensor, torch.Tensor, torch.Tensor]] | None:
+    """A draw of recovery (views, goal frames, labels) per call, from training episodes only; None if off."""
+    if path is None or loss_cfg.w_recovery <= 0:
+        if path is not None:
+            raise ValueError(
+                "recovery views were given but the loss weight w_recovery is 0; pass --w-recovery"
+            )
+        return None
+    from vtr.training.recovery import load_recovery
+    from vtr.training.windows import images_to_float
+
+    rec = load_recovery(path, data)
+    usable = np.flatnonzero(np.isin(rec.starts, windows.train_starts))  # validation houses stay unseen
+    if rec.commands.shape[1] != loss_cfg.horizon or len(usable) == 0:
+        raise ValueError(
+            f"recovery views {path}: none usable for horizon {loss_cfg.horizon} in training episodes"
+        )
+    extra.update(recovery=str(path), recovery_views=int(len(usable)), recovery_config=rec.config)
+    size = max(1, cfg.batch_size // 2)
+    rng = np.random.default_rng([cfg.seed, 97])
+    labels = torch.from_numpy(rec.commands)
+
+    def draw() -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        pick = np.sort(rng.choice(usable, size=size, replace=len(usable) < size))
+        views = torch.from_numpy(np.asarray(rec.images[pick]))
+        goals = windows.images[rec.starts[pick] + loss_cfg.horizon]
+        goals = goals if isinstance(goals, torch.Tensor) else torch.from_numpy(goals)
+        dev = windows.device
+        return (
+            images_to_float(views.to(dev)),
+            images_to_float(goals.to(dev)),
+            labels[pick].transpose(1, 2).to(dev),  # (B, 2, N) as VelocityNet outputs
+        )
+
+    return draw
+
+
 def train_velocitynet(
     data_path: str | os.PathLike,
     viewnet_path: str | os.PathLike,
@@ -267,11 +325,13 @@ def train_velocitynet(
     resume: bool = False,
     data: FrameData | None = None,
     init: str | os.PathLike | None = None,
+    recovery: str | os.PathLike | None = None,
 ) -> dict[str, Any]:
     """Train VelocityNet with the offline MPC loss through a frozen ViewNet; returns the quality report.
 
     ``data``: the dataset at ``data_path`` already loaded (``vtr train all`` loads it once).
-    ``init``: start from the weights of this VelocityNet checkpoint (fine-tuning, training.transfer)."""
+    ``init``: start from the weights of this VelocityNet checkpoint (fine-tuning, training.transfer).
+    ``recovery``: recovery views of this dataset (training.recovery), weighted by ``loss_cfg.w_recovery``."""
     from vtr.training.report import velocitynet_report
 
     out = Path(out)
@@ -306,12 +366,21 @@ def train_velocitynet(
         extra.update(init_weights(model, "velocitynet", model_cfg, init))
     augment = AugmentConfig() if cfg.augment else None
     gen = torch.Generator().manual_seed(cfg.seed + 1)  # augmentation draws, apart from the batch order
+    rec = _recovery_batches(recovery, data, windows, loss_cfg, cfg, extra)
 
     def loss_fn(net: nn.Module, frames: torch.Tensor, commands: torch.Tensor):
         policy = InputPipeline(net, model_cfg.preprocessing, augment, gen)  # identity by default
-        loss, parts = mpc_loss(policy, viewnet, frames, commands, loss_cfg)
+        if rec is None or not net.training:
+            loss, parts = mpc_loss(policy, viewnet, frames, commands, loss_cfg)
+            parts.pop("u1")
+            return loss, parts
+        # Recovery pairs ride in the same VelocityNet call as the MPC pairs: one forward per step (DDP).
+        views, goals, labels = rec()
+        joint = _JointCall(policy, views, goals)
+        loss, parts = mpc_loss(joint, viewnet, frames, commands, loss_cfg)
         parts.pop("u1")
-        return loss, parts
+        parts["rec"] = (joint.extra - labels).pow(2).sum(dim=1).mean()
+        return loss + loss_cfg.w_recovery * parts["rec"], parts
 
     model = _fit("velocitynet", model, model_cfg, loss_fn, windows, cfg, dist, out, resume, extra)
     report: dict[str, Any] = {}
