@@ -122,7 +122,7 @@ def test_the_ab_script_steps_all_three_variants_on_a_saved_route(tiny_model: Pat
         "controller.judge",
         "matcher.features",
         "policy.match",
-        "onnx.infer",
+        "onnx._run",
         "robot.stop",
     } <= set(inside)
-    assert inside["step"] > inside["onnx.infer"] > 0
+    assert inside["step"] > inside["onnx._run"] > 0
