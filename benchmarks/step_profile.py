@@ -39,7 +39,8 @@ STAGES: tuple[tuple[str, str, str], ...] = (
     ("predict.light_match.statistics", "light", "_stats_in_place"),
     ("predict.preprocess", "policy_module", "nchw_into"),
     ("predict.standardise", "policy_module", "normalise_planar"),
-    ("predict.inference", "onnx", "_run"),
+    ("predict.inference", "onnx", "_run"),  # the network as predict runs it (IOBinding)
+    ("predict.inference", "onnx", "infer"),  # the same in checkouts before IOBinding (predict called infer)
     ("predict.postprocess", "onnx", "postprocess"),
 )
 TOP_LEVEL = ("link.step", "link.stop", "judge", "predict")
