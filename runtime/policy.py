@@ -173,13 +173,17 @@ class OnnxPolicy:
         """Run the network on float32 (1, 3, H, W) feeds; returns the raw (2, N) output of the first batch
         item, in a buffer the next call rewrites. The feeds are read where they lie (bound by address, an
         array bound again only when another object comes), so their values may change in place between
-        calls; a feed that is not a C-ordered float32 array is copied into one first."""
+        calls; a feed that is not a C-ordered float32 array is copied into one first, and a batch of more
+        than one goes through ``session.run``."""
         return self._run(self._given, feeds)
 
     def _run(self, bindings: tuple[Any, dict[str, np.ndarray]], feeds: dict[str, np.ndarray]) -> np.ndarray:
         binding, bound = bindings
         for name, array in feeds.items():
             if bound.get(name) is not array:
+                if array.ndim != 4 or array.shape[0] != 1:  # the output is bound for one batch item
+                    (out,) = self.session.run([OUTPUT_VELOCITIES], feeds)
+                    return np.asarray(out)[0]
                 if array.dtype != np.float32 or not array.flags.c_contiguous:
                     array = np.ascontiguousarray(array, dtype=np.float32)
                 binding.bind_cpu_input(name, array)

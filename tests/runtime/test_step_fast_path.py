@@ -90,3 +90,25 @@ def test_the_fast_step_path_equals_the_straightforward_one(tmp_path, preprocessi
     fast, plain = _run(model, route, True, light), _run(model, route, False, light)
     assert fast == plain
     assert fast[-1].endswith("<RepeatStatus.FINISHED: 'finished'>)") and len(fast) > 20  # followed, switching
+
+
+def test_infer_reads_feeds_changed_in_place_and_takes_any_feed_session_run_takes(tmp_path):
+    from vtr.benchmarks.standin import make_standin_velocitynet
+
+    meta = ModelMeta(image_height=32, image_width=32, horizon=2)
+    policy = OnnxPolicy(make_standin_velocitynet(tmp_path / "m.onnx", meta=meta, widths=(4, 8)))
+    rng = np.random.default_rng(0)
+    batch = rng.random((3, 3, 32, 32), dtype=np.float32)
+
+    def plain(feeds):
+        return policy.session.run([OUTPUT_VELOCITIES], feeds)[0][0]
+
+    feeds = {INPUT_CURRENT: batch[:1].copy(), INPUT_SUBGOAL: batch[1:2].copy()}
+    first = policy.infer(feeds).copy()
+    assert np.array_equal(first, plain(feeds))
+    feeds[INPUT_CURRENT][:] = batch[2:3]  # the same bound array, new values
+    assert np.array_equal(policy.infer(feeds), plain(feeds)) and not np.array_equal(plain(feeds), first)
+    odd = {INPUT_CURRENT: batch[2:3].transpose(0, 1, 3, 2), INPUT_SUBGOAL: batch[:1].astype(np.float64)}
+    assert np.array_equal(policy.infer(odd), plain({k: v.astype(np.float32) for k, v in odd.items()}))
+    two = {INPUT_CURRENT: batch[:2], INPUT_SUBGOAL: batch[1:]}
+    assert np.array_equal(policy.infer(two), plain(two))  # a batch: session.run, first item
