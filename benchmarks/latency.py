@@ -74,6 +74,10 @@ class LatencyConfig:
     memory: bool = opt(True, "measure the peak RSS of a runtime-only subprocess")
     sim_steps: int = opt(500, "simulator throughput steps (`vtr bench sim`) in the same run; 0 = skip")
     json_path: Path | None = opt(None, "write every number here", flag="--json")
+    also_models: tuple[Path, ...] = opt(
+        (), "more VelocityNet ONNX files whose whole step and inference are timed in the same run (e.g. "
+        "a paper-sized network: the step overhead depends on the network)"
+    )  # fmt: skip
 
     def __post_init__(self) -> None:
         from vtr.models import find_int8, find_model
@@ -99,6 +103,8 @@ class LatencyConfig:
         if self.matmul_size < 16:
             raise ValueError(f"matmul_size must be >= 16, got {self.matmul_size}")
         self.int8_model = find_int8(self.model, self.int8_model)
+        for other in self.also_models:
+            OnnxPolicy(other)
 
 
 def _model_io(path: Path) -> tuple[int, int, int]:
@@ -166,6 +172,20 @@ def bench_stages(cfg: LatencyConfig, current: np.ndarray, route: np.ndarray) -> 
     return {"threads": cfg.threads, "codec": "vtr.runtime.protocol", "step": step.name,
             "matching": {name: bench.matching for name, bench in variants.items()}, "stages": stages,
             "pairs": pairs}  # fmt: skip
+
+
+def step_overhead(cfg: LatencyConfig, model: Path) -> dict[str, Any]:
+    """``bench_stages`` for another network, on a sample route at its image size, and its overheads."""
+    from dataclasses import replace
+
+    from vtr.benchmarks.flops import count_flops
+    from vtr.benchmarks.step_bench import sample_route
+
+    stages = bench_stages(replace(cfg, model=model, also_models=()), *sample_route(*_model_io(model)[:2]))
+    pairs = stages["pairs"]
+    overhead = {key: pairs[v]["whole_step"]["p50_ms"] / pairs[v]["inference"]["p50_ms"] - 1.0
+                for key, v in STEP_VARIANTS.items()}  # fmt: skip
+    return {"gflop": count_flops(model)["gflop"], "stages": stages, "step_overhead": overhead}
 
 
 def bench_zmq(cfg: LatencyConfig) -> dict[str, Any]:
@@ -306,6 +326,15 @@ def format_report(result: dict[str, Any]) -> str:
         )
         mark = "n/a" if ok is None else ("MET" if ok else "missed")
         lines.append(f"  {desc:<50} {shown:>8}  target {op} {threshold:g}  {mark}")
+    for model, other in result.get("also_models", {}).items():
+        lines += [
+            "",
+            f"{model} ({other['gflop']:.3f} GFLOP), same run: whole step p50 / its inference p50 - 1",
+        ]
+        for key, variant in STEP_VARIANTS.items():
+            pair = other["stages"]["pairs"][variant]
+            lines.append(f"  {TARGETS[key][0]:<50} {other['step_overhead'][key]:>+8.1%}  ({pair['whole_step']['p50_ms']:.3f}"
+                         f" / {pair['inference']['p50_ms']:.3f} ms)")  # fmt: skip
     return "\n".join(lines)
 
 
@@ -333,6 +362,7 @@ def run(cfg: LatencyConfig) -> dict[str, Any]:
         "backends": bench_backends(cfg, x, y, flops["gflop"]),
         "memory": bench_memory(cfg) if cfg.memory else {"skipped": "disabled"},
         "sim": bench_sim(cfg, (h, w)) if cfg.sim_steps else {"skipped": "disabled"},
+        "also_models": {str(m): step_overhead(cfg, m) for m in cfg.also_models},
     }
     result["ratios"] = ratios(result)
     if cfg.json_path is not None:

@@ -26,6 +26,8 @@ STANDARDISED = "rgb8_hwc_to_float32_nchw_div255_channel_standardised"
 PREPROCESSINGS = (PREPROCESSING, STANDARDISED)
 #: Added to the variance: a flat channel (all one colour) stays finite.
 _EPS = 1e-4
+#: uint8 levels -> [0, 1], as float32 (the one factor every path multiplies by).
+_SCALE = np.float32(1.0 / 255.0)
 
 ArrayT = TypeVar("ArrayT", bound=Any)
 
@@ -75,7 +77,7 @@ def to_nchw(images: np.ndarray, preprocessing: str = PREPROCESSING) -> np.ndarra
         raise ValueError(f"expected (H, W, 3) or (B, H, W, 3) RGB images, got shape {images.shape}")
     # C order: onnxruntime copies a tensor that is not contiguous on every run (about 13 us at 128x128)
     out = images.transpose(0, 3, 1, 2).astype(np.float32, order="C")
-    out *= np.float32(1.0 / 255.0)
+    out *= _SCALE
     return normalise(out, preprocessing, in_place=True)
 
 
@@ -116,22 +118,23 @@ def _immutable(image: np.ndarray) -> bool:
 
 def nchw_into(image: np.ndarray, out: np.ndarray, preprocessing: str = PREPROCESSING) -> np.ndarray:
     """One uint8 (H, W, 3) frame -> the network's (1, 3, H, W) input, written into ``out`` (float32 (3, H, W))
-    and equal to ``to_nchw``'s: from the frame's planar levels when they were made already (the controller's
-    patch matching), else in one strided pass (the raw error never makes them)."""
+    and equal to ``to_nchw``'s: scaled from the frame's planar levels when they were made already (the
+    controller's patch matching), else cast from the frame in one strided copy (the raw error never makes
+    them) and scaled in place (~2 us faster than one mixed-type strided multiply; the cast is exact)."""
     last = _last_frame
-    if last is not None and last[0] is image:
-        np.copyto(out, last[1])
-        return normalise_planar(out, preprocessing)
+    if last is not None and last[0] is image:  # scaled straight into out: one pass, the same products
+        np.multiply(last[1], _SCALE, out=out)
+        return normalise(out[None], preprocessing, in_place=True)
     if image.dtype != np.uint8 or image.ndim != 3 or image.shape[-1] != 3:
         raise ValueError(f"expected a uint8 (H, W, 3) RGB image, got {image.dtype} {image.shape}")
-    np.multiply(image.transpose(2, 0, 1), np.float32(1.0 / 255.0), out=out)  # as to_nchw: cast, then scale
-    return normalise(out[None], preprocessing, in_place=True)
+    np.copyto(out, image.transpose(2, 0, 1))
+    return normalise_planar(out, preprocessing)
 
 
 def normalise_planar(levels: np.ndarray, preprocessing: str = PREPROCESSING) -> np.ndarray:
     """float32 (3, H, W) holding uint8 levels (0..255 integers) -> the network's (1, 3, H, W) input, equal
     to ``to_nchw`` of those levels as uint8 (H, W, 3). Scales ``levels`` in place."""
-    levels *= np.float32(1.0 / 255.0)
+    levels *= _SCALE
     return normalise(levels[None], preprocessing, in_place=True)
 
 

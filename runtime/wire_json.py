@@ -70,6 +70,7 @@ def _reject_constant(token: str) -> float:
 
 #: One decoder for every header (json.loads with hooks would build a new one per call).
 _DECODER = json.JSONDecoder(parse_int=_parse_int, parse_float=_parse_float, parse_constant=_reject_constant)
+_SCAN = _DECODER.scan_once
 
 
 def parse_json(raw: bytes, err: type[ProtocolError] = ProtocolError) -> Any:
@@ -82,7 +83,14 @@ def parse_json(raw: bytes, err: type[ProtocolError] = ProtocolError) -> Any:
         text = raw.decode("utf-8")
         if text.startswith("\ufeff"):  # as json.loads: a byte-order mark is not JSON
             raise ValueError("Unexpected UTF-8 BOM (decode using utf-8-sig)")
-        return _DECODER.decode(text)
+        # A text that is one value from its first character to its last (every header we send) is what
+        # decode() returns, without its whitespace scans (~1.3 us, twice a control step); anything else,
+        # and every malformed text, takes decode() for its result and its message.
+        try:
+            value, end = _SCAN(text, 0)
+        except StopIteration:
+            end = -1
+        return value if end == len(text) else _DECODER.decode(text)
     except (UnicodeDecodeError, ValueError, RecursionError) as exc:  # JSONDecodeError is a ValueError
         raise err(f"malformed JSON header: {exc}") from None
 

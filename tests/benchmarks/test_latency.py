@@ -97,10 +97,15 @@ def test_vtr_bench_latency_cli(tiny_model: Path, tmp_path: Path, capsys: pytest.
 
     argv = ["bench", "latency", "--model", str(tiny_model), "--steps", "3", "--warmup", "1", "--thread-counts", "1",
             "--backends", "ort_fp32", "--matmul-size", "32", "--no-zmq", "--no-memory", "--sim-steps", "0",
-            "--json", str(tmp_path / "l.json")]  # fmt: skip
+            "--json", str(tmp_path / "l.json"), "--also-models", str(tiny_model)]  # fmt: skip
     assert main(argv) == 0
-    assert "whole_step" in capsys.readouterr().out
-    assert json.loads((tmp_path / "l.json").read_text())["stages"]["stages"]["whole_step"]["n"] == 3
+    out = capsys.readouterr().out
+    assert "whole_step" in out and f"{tiny_model} (" in out and "same run" in out
+    written = json.loads((tmp_path / "l.json").read_text())
+    assert written["stages"]["stages"]["whole_step"]["n"] == 3
+    other = written["also_models"][str(tiny_model)]  # the other network's step and inference, paired
+    assert set(other["step_overhead"]) == set(latency.STEP_VARIANTS)
+    assert other["stages"]["pairs"]["whole_step_match_light"]["inference"]["n"] == 3
     assert main(["bench", "latency", "--model", str(tmp_path / "missing.onnx")]) == 2
 
 
@@ -117,7 +122,7 @@ def test_the_ab_script_steps_all_three_variants_on_a_saved_route(tiny_model: Pat
         "controller.judge",
         "matcher.features",
         "policy.match",
-        "onnx.infer",
+        "onnx._run",
         "robot.stop",
     } <= set(inside)
-    assert inside["step"] > inside["onnx.infer"] > 0
+    assert inside["step"] > inside["onnx._run"] > 0
