@@ -168,6 +168,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"extra commands at a subgoal while the error still falls (default: {default.settle_steps}; paper: 0)",
     )  # fmt: skip
     parser.add_argument(
+        "--progress-gate", type=float, default=None,
+        help=f"switch past a subgoal only after commanding this fraction of the taught travel into it; 0 disables (default: {default.progress_gate})",
+    )  # fmt: skip
+    parser.add_argument(
         "--paper",
         action="store_true",
         help="the paper's Algorithm 1 exactly: raw error, e_m 17, no settling, stall guard, lost or contact stop",
@@ -186,6 +190,7 @@ def controller_from_args(args: argparse.Namespace) -> ControllerConfig:
         settle_steps=args.settle if args.settle is not None else base.settle_steps,
         match=replace(base.match, method=args.match) if args.match is not None else base.match,
         lost_steps=args.lost_steps if args.lost_steps is not None else base.lost_steps,
+        progress_gate=args.progress_gate if args.progress_gate is not None else base.progress_gate,
         localise=args.localise,
         continuous=args.continuous,
     )
