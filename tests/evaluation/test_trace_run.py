@@ -1,0 +1,26 @@
+"""trace_run: one suite run, step by step, with the unchanged house's error at the same true pose."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from vtr.evaluation.trace_run import main, trace
+from vtr.sim2d.routes import ROUTES_DIR
+
+ROUTE = ROUTES_DIR / "translation.json"
+
+
+def test_rows_follow_the_run_and_the_clean_error_equals_the_error_in_the_unchanged_house(tmp_path: Path):
+    rows, end = trace(ROUTE, "noise_0.05", seed=0)
+    assert rows and end.startswith("finished")
+    assert rows[0]["dist_mm"] == 0.0 and rows[0]["i"] == 0  # starts on the first taught pose
+    # nothing changed but the actuation: the unchanged house at the true pose is the camera image
+    np.testing.assert_allclose([r["clean_error"] for r in rows], [r["error"] for r in rows], atol=1e-6)
+    assert max(r["i"] for r in rows) > 0
+    rows, end = trace(ROUTE, "bright_0.7", seed=0)  # changed light: the view differs from the clean one
+    assert any(abs(r["clean_error"] - r["error"]) > 1e-3 for r in rows)
+    out = tmp_path / "t.json"
+    assert main([str(ROUTE), "noise_0.05", "--every", "50", "--json", str(out)]) == 0 and out.is_file()
+    assert main([str(ROUTE), "no_such_condition"]) == 2
