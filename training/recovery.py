@@ -70,6 +70,10 @@ class RecoveryConfig:
     k_heading: float = 0.0  # 1/m
     k_turn: float = 5.0  # 1/s
     seed: int = 0
+    # Appearance variants (sim2d.appearance specs, "{seed}" replaced per house and variant): a view is rendered
+    # in one of them, picked at random, instead of the recorded house, so the current image comes from a
+    # changed world while the label is unchanged (teach and repeat in a room that changed in between).
+    variants: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if not 0 < self.per_window <= 4:
@@ -165,15 +169,23 @@ def _render_house(
 ) -> dict[str, Any]:
     from vtr.sim2d import CameraConfig, SimConfig, Simulator
 
-    sim = Simulator(SimConfig(house=house, camera=CameraConfig(width=image_size, height=image_size)))
+    camera = CameraConfig(width=image_size, height=image_size)
+    sim = Simulator(SimConfig(house=house, camera=camera))
     radius = sim.cfg.robot_radius + cfg.margin
     rng = np.random.default_rng([cfg.seed, seed])
     kept, views, offs, labels = sample_views(
         poses, commands, starts, lambda x, y: sim.house.is_free(float(x), float(y), radius), cfg, rng
     )
+    worlds = [sim.camera] + [
+        Simulator(
+            SimConfig(house=house, camera=camera, changes=(spec.format(seed=seed * 101 + v + 1),))
+        ).camera
+        for v, spec in enumerate(cfg.variants)
+    ]
+    pick = rng.integers(1, len(worlds), size=len(kept)) if cfg.variants else np.zeros(len(kept), int)
     images = np.empty((len(kept), image_size, image_size, 3), np.uint8)
     for k, (x, y, yaw) in enumerate(views):
-        images[k] = sim.camera.render(float(x), float(y), float(yaw))
+        images[k] = worlds[pick[k]].render(float(x), float(y), float(yaw))
     arrays = {"images": images, "starts": kept, "commands": labels, "offsets": offs}
     for key, arr in arrays.items():
         with atomic_path(Path(out) / f"{name}.{key}.npy") as tmp, open(tmp, "wb") as f:

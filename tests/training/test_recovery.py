@@ -99,6 +99,26 @@ def test_perturbed_views_differ_and_carry_their_offsets(houses: Path, tmp_path: 
         np.testing.assert_allclose(rec.commands[k], want, atol=1e-5)
 
 
+def test_variant_views_show_a_changed_world_with_the_taught_labels(houses: Path, tmp_path: Path) -> None:
+    """Appearance variants: the same poses rendered with a re-seeded floor, so the views differ from the
+    recorded frames while the labels stay the recorded commands."""
+    cfg = RecoveryConfig(
+        per_window=0.3,
+        sigma_along=0.0,
+        sigma_across=0.0,
+        sigma_yaw_deg=0.0,
+        variants=("retexture:floor={seed}",),
+    )
+    render_recovery(houses, tmp_path / "r", cfg, workers=1, progress=False)
+    data = load_dataset(houses)
+    rec = load_recovery(tmp_path / "r", data)
+    views = np.asarray(rec.images[np.arange(len(rec))]).astype(int)
+    changed = np.abs(views - data.images[rec.starts]).mean(axis=(1, 2, 3))
+    assert np.mean(changed > 1.0) > 0.8  # the floor fills the lower half of almost every view
+    taught = np.stack([data.commands[rec.starts], data.commands[rec.starts + 1]], axis=1)
+    np.testing.assert_allclose(rec.commands, taught, atol=1e-6)
+
+
 def test_recovery_views_of_another_dataset_are_refused(houses: Path, tmp_path: Path) -> None:
     render_recovery(houses, tmp_path / "r", RecoveryConfig(per_window=0.2), workers=1, progress=False)
     with pytest.raises(DatasetError, match="render them again"):
