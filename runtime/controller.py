@@ -134,11 +134,14 @@ class Controller:
         cfg: ControllerConfig | None = None,
         commands: np.ndarray | None = None,
         poses: np.ndarray | None = None,
+        travel_poses: np.ndarray | None = None,
     ) -> None:
         """``commands``: the taught (v, w) after each subgoal (``Route.commands``), for ``hold_turns``;
         ``poses``: the taught (x, y, yaw) (``Route.poses``), so that a subgoal the teach reached partly by
         translating is not held (a route keeps one subgoal every few control steps: the first command
-        after subgoal i-1 can be the end of a turn and the next one a drive)."""
+        after subgoal i-1 can be the end of a turn and the next one a drive); ``travel_poses``: what the
+        progress gate measures the taught travel by (default ``poses``; ``Route.travel_poses`` dead-reckons
+        them from the commands for a route taught without poses)."""
         if (
             subgoals.dtype != np.uint8
             or subgoals.ndim != 4
@@ -186,9 +189,10 @@ class Controller:
         self._lost_count = 0
         self._view_of: np.ndarray | None = None
         self._view = np.empty(0)
-        self.gate = None  # the progress gate: needs the taught poses
-        if self.cfg.progress_gate > 0 and poses is not None and len(poses) >= n:
-            self.gate = ProgressGate(poses, n, self.cfg.progress_gate, self.cfg.gate_patience)
+        self.gate = None  # the progress gate: needs the taught poses (or a path dead-reckoned from commands)
+        travel = poses if travel_poses is None else travel_poses
+        if self.cfg.progress_gate > 0 and travel is not None and len(travel) >= n:
+            self.gate = ProgressGate(travel, n, self.cfg.progress_gate, self.cfg.gate_patience)
         self._set_index(0)
 
     def __len__(self) -> int:

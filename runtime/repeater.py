@@ -117,7 +117,9 @@ class Repeater:
         self.controller = (
             controller
             if controller is not None
-            else Controller(route.images, self.config.controller, route.commands, route.poses)
+            else Controller(
+                route.images, self.config.controller, route.commands, route.poses, route.travel_poses()
+            )
         )
         # one view object per subgoal, passed again while it is steered to (OnnxPolicy keeps its tensor)
         self._views = list(self.controller.subgoals)

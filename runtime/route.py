@@ -65,6 +65,32 @@ class Route:
     def __len__(self) -> int:
         return int(self.images.shape[0])
 
+    def travel_poses(self) -> np.ndarray | None:
+        """Poses to measure the taught travel between subgoals by (the progress gate's input).
+
+        The taught poses where the robot reported them all. Where it did not (a bridge without odometry, a
+        bag without ``--odom-topic``) and subgoals are a fixed number of control steps apart (spacing
+        "steps"), the path the taught commands drive from the first subgoal, each held for its gap (the
+        route keeps one command per subgoal, so a gap whose commands changed is approximated). None when
+        neither is known (spacing by distance or by image change without poses)."""
+        if np.isfinite(self.poses).all():
+            return self.poses
+        every = self.spacing.get("every") if self.spacing.get("rule") == "steps" else None
+        if not isinstance(every, int) or every < 1:
+            return None
+        dt = float(self.spacing.get("dt", self.dt)) * every
+        out = np.zeros((len(self), 3))
+        for i in range(1, len(self)):
+            x, y, yaw = out[i - 1]
+            v, w = self.commands[i - 1]
+            if abs(w) < 1e-9:
+                out[i] = (x + v * dt * np.cos(yaw), y + v * dt * np.sin(yaw), yaw)
+            else:  # the exact arc of a unicycle holding (v, w)
+                r = v / w
+                out[i] = (x + r * (np.sin(yaw + w * dt) - np.sin(yaw)), y - r * (np.cos(yaw + w * dt) - np.cos(yaw)),
+                          yaw + w * dt)  # fmt: skip
+        return out
+
     @property
     def image_shape(self) -> tuple[int, int]:
         return (int(self.images.shape[1]), int(self.images.shape[2]))

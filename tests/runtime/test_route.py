@@ -150,3 +150,36 @@ def test_route_script_bad_json(tmp_path):
     path.write_text("{")
     with pytest.raises(RouteScriptError, match="not valid JSON"):
         load_route_script(path)
+
+
+def _poseless(spacing: dict) -> Route:
+    """Straight at 0.2 m/s for 4 gaps, then a turn in place at 0.5 rad/s for 3 gaps, then an arc."""
+    commands = np.array([[0.2, 0.0]] * 4 + [[0.0, 0.5]] * 3 + [[0.1, 0.25], [0.0, 0.0]])
+    n = len(commands)
+    images = np.zeros((n, 16, 16, 3), np.uint8)
+    return Route(images, np.full((n, 3), np.nan), commands, spacing=spacing)
+
+
+def test_travel_poses_dead_reckon_a_route_taught_without_poses():
+    route = _poseless({"rule": "steps", "every": 2, "dt": 0.1})
+    p = route.travel_poses()
+    gaps = np.hypot(*np.diff(p[:, :2], axis=0).T)
+    np.testing.assert_allclose(gaps[:4], 0.04)  # 0.2 m/s for 2 x 0.1 s
+    np.testing.assert_allclose(gaps[4:7], 0.0, atol=1e-12)
+    np.testing.assert_allclose(np.diff(p[:, 2])[4:7], 0.1)  # 0.5 rad/s for 0.2 s
+    # the arc: chord of a 0.02 m arc of radius 0.4 m, heading turned by 0.05 rad
+    assert gaps[7] == pytest.approx(2 * 0.4 * np.sin(0.025)) and np.diff(p[:, 2])[7] == pytest.approx(0.05)
+    assert _poseless({"rule": "image", "min_image_change": 5.0}).travel_poses() is None
+    known = corridor_route()
+    assert known.travel_poses() is known.poses
+
+
+def test_a_route_without_poses_is_still_gated():
+    from vtr.runtime.controller import Controller, ControllerConfig
+
+    route = _poseless({"rule": "steps", "every": 2, "dt": 0.1})
+    blind = Controller(route.images, ControllerConfig(), route.commands, route.poses).gate
+    assert blind is not None and np.isnan(blind.distance[1])  # NaN poses: the gate never holds a switch
+    gated = Controller(route.images, ControllerConfig(), route.commands, route.poses, route.travel_poses())
+    assert gated.gate is not None and gated.gate.distance[1] == pytest.approx(0.04)
+    assert gated.gate.turn[5] == pytest.approx(0.1)
