@@ -188,6 +188,7 @@ class Controller:
         self._plateau_view: np.ndarray | None = None  # features of the view at the last plateau acceptance
         self._lost_count = 0
         self._view_of: np.ndarray | None = None
+        self._view_index = -1
         self._view = np.empty(0)
         self.gate = None  # the progress gate: needs the taught poses (or a path dead-reckoned from commands)
         travel = poses if travel_poses is None else travel_poses
@@ -246,8 +247,14 @@ class Controller:
             return Decision(self.status, self.index, math.nan, note=f"{self.status.value} earlier")
         if collided and self.cfg.stop_on_contact:
             return self._stop(Action.COLLIDED, math.nan, f"contact reported at subgoal {self.index}")
-        if image is not self._view_of:  # judge() decides on one image several times: its features once
-            self._view, self._view_of = self.matcher.features(image), image
+        ramp = self.cfg.match_ramp and self.cfg.match.method == "patch"
+        if image is not self._view_of or (ramp and self._view_index != self.index):
+            seen = image
+            if ramp:  # the light ramp is evened out toward the subgoal being judged
+                from vtr.runtime.light import remove_side_ramp
+
+                seen = remove_side_ramp(image, self.subgoals[min(self.index, len(self) - 1)])
+            self._view, self._view_of, self._view_index = self.matcher.features(seen), image, self.index
         view = self._view
         if self._localise_pending:
             self._localise_pending = False

@@ -51,6 +51,9 @@ class ControllerConfig:
     lost_steps: int = 5
     #: Stop the repeat when an observation reports a contact.
     stop_on_contact: bool = True
+    #: Even out a left-to-right light gain toward the current subgoal before patch matching (runtime.light's
+    #: ramp): a gain that varies inside a tile survives the tile's normalisation (one side of the view darker).
+    match_ramp: bool = True
     #: Pick the starting subgoal by best match over the whole route (the paper starts at 0).
     localise: bool = False
     #: Localisation confidence floor: best-match error must be at most this; None means 3 * e_m.
@@ -75,7 +78,7 @@ class ControllerConfig:
         """Algorithm 1 exactly: raw error, fixed e_m = 17, switch at once, nothing else."""
         return cls(match=MatchConfig.paper(), e_m_mode="fixed", e_m=17.0, pass_ratio=0.0, stall_steps=0,
                    settle_steps=0, lost_steps=0, stop_on_contact=False, hold_turns=False,
-                   progress_gate=0.0)  # fmt: skip
+                   progress_gate=0.0, match_ramp=False)  # fmt: skip
 
     @classmethod
     def before(cls) -> ControllerConfig:
@@ -83,7 +86,7 @@ class ControllerConfig:
         return cls(match=MatchConfig.paper(), e_m_mode="calibrated", pass_ratio=0.0, settle_steps=2,
                    plateau_needs_motion=False, lost_steps=0, stop_on_contact=False, hold_turns=False,
                    stall_min_improvement=0.25, jump_factor=2.0,
-                   progress_gate=0.0)  # fmt: skip
+                   progress_gate=0.0, match_ramp=False)  # fmt: skip
 
     def __post_init__(self) -> None:
         if self.e_m_mode not in THRESHOLD_MODES:
