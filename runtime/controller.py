@@ -38,6 +38,8 @@ default of the release before the robust rules, kept for comparison):
   commands that hardly moved the robot (runtime.progress_gate): where the view barely changes as the
   robot drives, the index otherwise runs ahead of the robot, which then cuts the next curve and drives
   beside the path. The repeat loop reports every command with :meth:`Controller.commanded`.
+- **Light ramp** (``match_ramp``): before patch matching, the view's left-to-right gain is evened out toward
+  the subgoal judged (runtime.light): a gain varying inside a tile survives the tile's normalisation.
 - **Lost** (``lost_steps`` > 0): when the best match among subgoals i-2 .. i+20 stays above ``lost_factor``
   times the route's median gap (and LOST_FLOOR) for ``lost_steps`` commands, stop with LOST ("lost at
   subgoal i, best match error X"): the view cannot be matched and driving on is a guess.
@@ -50,9 +52,8 @@ default of the release before the robust rules, kept for comparison):
 Chosen on the tuning routes (sim2d/routes): median tiles (evaluation.matching_study), 3/4 of the gap, 1
 settling command (0, 1, 2: 1.06, 1.41, 1.82 control steps per taught step at 11.5, 8.9, 6.6 mm). The
 default threshold is the route's: per subgoal was faster but completed fewer held-out runs (evaluation/README).
-The stall guard's bound (``jump_factor`` 2.5, was 2) and the progress gate were chosen on the development
-routes and houses only (evaluation/README, "Switching in a changed room"); ``python -m
-vtr.evaluation.trace_run`` shows a run's decisions step by step against the true pose.
+The stall bound (2.5, was 2), the progress gate and the light ramp were chosen on the dev routes and houses
+only (evaluation/README); ``python -m vtr.evaluation.trace_run`` traces a run against the true pose.
 """
 
 from __future__ import annotations
@@ -64,6 +65,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from vtr.runtime.controller_config import ControllerConfig
+from vtr.runtime.light import remove_side_ramp
 from vtr.runtime.matching import MatchConfig, Matcher
 from vtr.runtime.progress_gate import ProgressGate
 from vtr.runtime.thresholds import (  # noqa: F401 - calibrate_e_m, consecutive_errors: part of this API
@@ -249,11 +251,7 @@ class Controller:
             return self._stop(Action.COLLIDED, math.nan, f"contact reported at subgoal {self.index}")
         ramp = self.cfg.match_ramp and self.cfg.match.method == "patch"
         if image is not self._view_of or (ramp and self._view_index != self.index):
-            seen = image
-            if ramp:  # the light ramp is evened out toward the subgoal being judged
-                from vtr.runtime.light import remove_side_ramp
-
-                seen = remove_side_ramp(image, self.subgoals[min(self.index, len(self) - 1)])
+            seen = remove_side_ramp(image, self.subgoal) if ramp else image  # toward the subgoal judged
             self._view, self._view_of, self._view_index = self.matcher.features(seen), image, self.index
         view = self._view
         if self._localise_pending:
