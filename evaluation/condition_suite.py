@@ -78,7 +78,7 @@ CONTROLLERS: dict[str, Method] = {
     "after_no_hold_turns": Method(replace(AFTER, hold_turns=False), match_light=True),
     "after_plateau_2x": Method(replace(AFTER, jump_factor=2.0), match_light=True),  # the previous bound
     "after_no_progress_gate": Method(replace(AFTER, progress_gate=0.0), match_light=True),
-    "after_no_match_ramp": Method(replace(AFTER, match_ramp=False), match_light=True),
+    "after_match_ramp": Method(replace(AFTER, match_ramp=True), match_light=True),
     "after_gate_0.7": Method(replace(AFTER, progress_gate=0.7), match_light=True),
     "after_gate_1.0": Method(replace(AFTER, progress_gate=1.0), match_light=True),
 }

@@ -38,8 +38,8 @@ default of the release before the robust rules, kept for comparison):
   commands that hardly moved the robot (runtime.progress_gate): where the view barely changes as the
   robot drives, the index otherwise runs ahead of the robot, which then cuts the next curve and drives
   beside the path. The repeat loop reports every command with :meth:`Controller.commanded`.
-- **Light ramp** (``match_ramp``): before patch matching, the view's left-to-right gain is evened out toward
-  the subgoal judged (runtime.light): a gain varying inside a tile survives the tile's normalisation.
+- **Light ramp** (``match_ramp``, off): before patch matching, even out the view's left-to-right gain toward
+  the subgoal judged (runtime.light); it helps one side darker and costs moved furniture (evaluation/README).
 - **Lost** (``lost_steps`` > 0): when the best match among subgoals i-2 .. i+20 stays above ``lost_factor``
   times the route's median gap (and LOST_FLOOR) for ``lost_steps`` commands, stop with LOST ("lost at
   subgoal i, best match error X"): the view cannot be matched and driving on is a guess.
@@ -52,8 +52,8 @@ default of the release before the robust rules, kept for comparison):
 Chosen on the tuning routes (sim2d/routes): median tiles (evaluation.matching_study), 3/4 of the gap, 1
 settling command (0, 1, 2: 1.06, 1.41, 1.82 control steps per taught step at 11.5, 8.9, 6.6 mm). The
 default threshold is the route's: per subgoal was faster but completed fewer held-out runs (evaluation/README).
-The stall bound (2.5, was 2), the progress gate and the light ramp were chosen on the dev routes and houses
-only (evaluation/README); ``python -m vtr.evaluation.trace_run`` traces a run against the true pose.
+The stall bound (2.5, was 2) and the progress gate were chosen on the dev routes and houses only
+(evaluation/README); ``python -m vtr.evaluation.trace_run`` traces a run against the true pose.
 """
 
 from __future__ import annotations

@@ -236,3 +236,19 @@ def test_a_subgoal_reached_partly_by_driving_is_not_held() -> None:
     assert Controller(images, robust(), commands)._held.tolist() == [False, False, True, True, False]
     nan = np.full_like(poses, np.nan)
     assert Controller(images, robust(), commands, nan)._held.tolist() == [False, False, True, True, False]
+
+
+def test_match_ramp_evens_out_one_side_darker_before_matching():
+    """A gain ramp across the view survives each tile's normalisation (it varies inside the tile); with
+    match_ramp the controller evens it out toward the subgoal first, and the error falls back toward 0."""
+    from texture_views import lit, view
+
+    from vtr.runtime.controller import Controller, ControllerConfig
+
+    subgoals = np.stack([view(0), view(40)])
+    ramp = np.linspace(0.45, 1.0, 64, dtype=np.float32)[None, :, None]  # left side darker
+    darker = lit(view(0), ramp)
+    off = Controller(subgoals, ControllerConfig(settle_steps=0)).decide(darker).error
+    on = Controller(subgoals, ControllerConfig(settle_steps=0, match_ramp=True)).decide(darker).error
+    assert on < 0.5 * off
+    assert not ControllerConfig().match_ramp and not ControllerConfig.paper().match_ramp
