@@ -28,6 +28,7 @@ import numpy as np
 
 from vtr.runtime.atomic import atomic_path
 from vtr.runtime.contracts import CONTROL_DT
+from vtr.runtime.kinematics import unicycle
 from vtr.runtime.npz_guard import MAX_EXPANSION, NpzTooLargeError, check_npz
 
 ROUTE_FORMAT_VERSION = 1
@@ -81,14 +82,7 @@ class Route:
         dt = float(self.spacing.get("dt", self.dt)) * every
         out = np.zeros((len(self), 3))
         for i in range(1, len(self)):
-            x, y, yaw = out[i - 1]
-            v, w = self.commands[i - 1]
-            if abs(w) < 1e-9:
-                out[i] = (x + v * dt * np.cos(yaw), y + v * dt * np.sin(yaw), yaw)
-            else:  # the exact arc of a unicycle holding (v, w)
-                r = v / w
-                out[i] = (x + r * (np.sin(yaw + w * dt) - np.sin(yaw)), y - r * (np.cos(yaw + w * dt) - np.cos(yaw)),
-                          yaw + w * dt)  # fmt: skip
+            out[i] = unicycle(*out[i - 1], *self.commands[i - 1], dt)
         return out
 
     @property

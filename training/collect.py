@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from vtr.runtime.kinematics import unicycle
 from vtr.training.config import CollectConfig
 
 _KINDS = ("translate", "rotate", "combined", "stop", "creep", "fast_arc")
@@ -35,20 +36,7 @@ MIXES = {
 
 def arc_points(x: float, y: float, yaw: float, v: float, w: float, horizon: float, samples: int = 4) -> list:
     """Unicycle positions along (v, w) at ``samples`` times in (0, horizon]."""
-    out = []
-    for k in range(1, samples + 1):
-        t = horizon * k / samples
-        if abs(w) < 1e-6:
-            out.append((x + v * t * math.cos(yaw), y + v * t * math.sin(yaw)))
-        else:
-            r = v / w
-            out.append(
-                (
-                    x + r * (math.sin(yaw + w * t) - math.sin(yaw)),
-                    y - r * (math.cos(yaw + w * t) - math.cos(yaw)),
-                )
-            )
-    return out
+    return [unicycle(x, y, yaw, v, w, horizon * k / samples)[:2] for k in range(1, samples + 1)]
 
 
 def sample_command(rng: np.random.Generator, cfg: CollectConfig) -> tuple[str, float, float]:

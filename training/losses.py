@@ -40,6 +40,11 @@ def viewnet_loss(viewnet: ViewFn, frames: torch.Tensor, commands: torch.Tensor) 
     return (viewnet(src, vel) - dst).abs().mean()
 
 
+def velocity_error(u: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """(B, 2, N) velocities against (B, 2, N) targets -> (B,): 1/N sum_n (dv^2 + dw^2), the paper's J_vel."""
+    return (target - u).pow(2).sum(dim=1).mean(dim=1)
+
+
 def mpc_loss(
     velocitynet: VelocityFn, viewnet: ViewFn, frames: torch.Tensor, commands: torch.Tensor, cfg: MPCLossConfig
 ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
@@ -84,7 +89,7 @@ def mpc_loss(
         image = viewnet(image, u[:, :, k])  # (2B, 3, H, W)
         img_err = img_err + (targets[k] - image).abs().flatten(1).mean(dim=1)  # (2B,)
     img_err = img_err / n
-    vel_err = (cmd - u).pow(2).sum(dim=1).mean(dim=1)  # (2B,): 1/N sum_n (dv^2 + dw^2)
+    vel_err = velocity_error(u, cmd)  # (2B,)
     img1, img2 = img_err[:b].mean(), img_err[b:].mean()
     vel1, vel2 = vel_err[:b].mean(), vel_err[b:].mean()
     j1 = cfg.w1 * img1 + cfg.w2 * vel1

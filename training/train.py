@@ -38,7 +38,7 @@ from vtr.training.checkpoint import (
 from vtr.training.config import MPCLossConfig, TrainConfig, VelocityNetConfig, ViewNetConfig, to_dict
 from vtr.training.dataset import FrameData, load_dataset
 from vtr.training.distributed import Dist, any_rank, barrier, setup_dist
-from vtr.training.losses import mpc_loss, viewnet_loss
+from vtr.training.losses import mpc_loss, velocity_error, viewnet_loss
 from vtr.training.models import VelocityNet, ViewNet
 from vtr.training.transfer import init_weights
 from vtr.training.windows import Windows
@@ -370,17 +370,15 @@ def train_velocitynet(
 
     def loss_fn(net: nn.Module, frames: torch.Tensor, commands: torch.Tensor):
         policy = InputPipeline(net, model_cfg.preprocessing, augment, gen)  # identity by default
-        if rec is None or not net.training:
-            loss, parts = mpc_loss(policy, viewnet, frames, commands, loss_cfg)
-            parts.pop("u1")
-            return loss, parts
+        batch = rec() if rec is not None and net.training else None
         # Recovery pairs ride in the same VelocityNet call as the MPC pairs: one forward per step (DDP).
-        views, goals, labels = rec()
-        joint = _JointCall(policy, views, goals)
+        joint = policy if batch is None else _JointCall(policy, batch[0], batch[1])
         loss, parts = mpc_loss(joint, viewnet, frames, commands, loss_cfg)
         parts.pop("u1")
-        parts["rec"] = (joint.extra - labels).pow(2).sum(dim=1).mean()
-        return loss + loss_cfg.w_recovery * parts["rec"], parts
+        if batch is not None:
+            parts["rec"] = velocity_error(joint.extra, batch[2]).mean()
+            loss = loss + loss_cfg.w_recovery * parts["rec"]
+        return loss, parts
 
     model = _fit("velocitynet", model, model_cfg, loss_fn, windows, cfg, dist, out, resume, extra)
     report: dict[str, Any] = {}
