@@ -81,6 +81,8 @@ CONTROLLERS: dict[str, Method] = {
     "after_match_ramp": Method(replace(AFTER, match_ramp=True), match_light=True),
     "after_gate_0.7": Method(replace(AFTER, progress_gate=0.7), match_light=True),
     "after_gate_1.0": Method(replace(AFTER, progress_gate=1.0), match_light=True),
+    "after_no_idle": Method(replace(AFTER, idle_steps=0), match_light=True),  # wait out the stall guard
+    "after_settle_0": Method(replace(AFTER, settle_steps=0), match_light=True),
 }
 
 

@@ -31,7 +31,10 @@ default of the release before the robust rules, kept for comparison):
   current one; else ADVANCE if the current error is within ``jump_factor`` thresholds (a plateau next to
   the subgoal) -- but with ``plateau_needs_motion`` only if the view changed since the last plateau
   acceptance by at least ``motion_fraction`` of a gap, so a robot that does not move never accepts more
-  than one subgoal; else STALLED.
+  than one subgoal; else STALLED. When the policy idles (``idle_steps`` commands in a row under
+  ``idle_speed`` and ``idle_turn``) the jump and the plateau are tried at once: with actuation noise the
+  error of a robot standing 8 mm from the subgoal flickers, each flicker counts as progress, and the
+  robot otherwise stood there for 20-30 commands (dev routes).
 - **Progress gate** (``progress_gate`` > 0, default 0.5, with the taught poses): switch past subgoal i
   (threshold or relative rule) only once the travel commanded since i was set reaches that fraction of
   the taught travel into i (what fell short is owed to the next subgoal), or after ``gate_patience``
@@ -219,6 +222,7 @@ class Controller:
         self.index = index
         self._best = math.inf
         self._no_progress = 0
+        self._idle = 0  # commands in a row in which the policy hardly moved the robot
         self._last_error = math.inf
         self._settled = 0
         if self.gate is not None:
@@ -228,7 +232,9 @@ class Controller:
         return self.gate is None or self.gate.passes(i)
 
     def commanded(self, v: float, w: float, dt: float) -> None:
-        """The repeat loop applied (v, w) for ``dt`` seconds (the progress gate counts it)."""
+        """The repeat loop applied (v, w) for ``dt`` seconds (the progress gate and the idle rule count it)."""
+        idle = abs(v) < self.cfg.idle_speed and abs(w) < self.cfg.idle_turn
+        self._idle = self._idle + 1 if idle else 0
         if self.gate is not None:
             self.gate.commanded(v, w, dt)
 
@@ -295,6 +301,10 @@ class Controller:
                 self._no_progress += 1
             if self._no_progress >= self.cfg.stall_steps:
                 return self._unstall(view, error)
+            if 0 < self.cfg.idle_steps <= self._idle:  # the policy is done here: do not wait for noise
+                decision = self._unstall(view, error, stop=False)
+                if decision is not None:
+                    return decision
         return self._command(i, error)
 
     @staticmethod
@@ -366,7 +376,8 @@ class Controller:
         self._set_index(best)
         return Decision(Action.JUMP, best, float(errors[best]), note=f"localised to subgoal {best}")
 
-    def _unstall(self, view: np.ndarray, error: float) -> Decision:
+    def _unstall(self, view: np.ndarray, error: float, stop: bool = True) -> Decision | None:
+        """JUMP ahead, accept a plateau, or (``stop``) STALLED; with ``stop`` False None when neither."""
         i = self.index
         bound = self.cfg.jump_factor * self.thresholds[i]
         ahead = range(i + 1, min(i + 1 + self.cfg.lookahead, len(self)))
@@ -391,6 +402,8 @@ class Controller:
             self._plateau_view = view
             self._set_index(i + 1)
             return Decision(Action.ADVANCE, self.index, error, note="accepted on plateau")
+        if not stop:
+            return None
         why = "the robot has not moved since the last plateau acceptance" if error <= bound else (
             f"none of the next {self.cfg.lookahead} subgoals is within {self.cfg.jump_factor} thresholds = {bound:.3f}")  # fmt: skip
         return self._stop(

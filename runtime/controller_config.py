@@ -41,6 +41,13 @@ class ControllerConfig:
     #: robot held 1-2 cm and 1-2 deg from the taught pose by the policy's dead zone scores 1.5-1.8
     #: thresholds in the unchanged room, and a moved table or a start offset adds the rest (dev routes).
     jump_factor: float = 2.5
+    #: The policy idles (every command under ``idle_speed`` m/s and ``idle_turn`` rad/s) for this many
+    #: commands in a row next to the subgoal: the stall guard acts at once instead of after ``stall_steps``
+    #: (the flicker of a noisy error kept "improving" by noise while the robot stood 8 mm from the subgoal
+    #: for 30 commands); 0 disables it.
+    idle_steps: int = 3
+    idle_speed: float = 0.01
+    idle_turn: float = 0.02
     #: A plateau acceptance needs the view to have changed since the previous one (the robot moved).
     plateau_needs_motion: bool = True
     #: "Changed" means a distance of at least this fraction of the current subgoal's incoming gap.
@@ -80,7 +87,7 @@ class ControllerConfig:
         """Algorithm 1 exactly: raw error, fixed e_m = 17, switch at once, nothing else."""
         return cls(match=MatchConfig.paper(), e_m_mode="fixed", e_m=17.0, pass_ratio=0.0, stall_steps=0,
                    settle_steps=0, lost_steps=0, stop_on_contact=False, hold_turns=False,
-                   progress_gate=0.0, match_ramp=False)  # fmt: skip
+                   progress_gate=0.0, match_ramp=False, idle_steps=0)  # fmt: skip
 
     @classmethod
     def before(cls) -> ControllerConfig:
@@ -88,7 +95,7 @@ class ControllerConfig:
         return cls(match=MatchConfig.paper(), e_m_mode="calibrated", pass_ratio=0.0, settle_steps=2,
                    plateau_needs_motion=False, lost_steps=0, stop_on_contact=False, hold_turns=False,
                    stall_min_improvement=0.25, jump_factor=2.0,
-                   progress_gate=0.0, match_ramp=False)  # fmt: skip
+                   progress_gate=0.0, match_ramp=False, idle_steps=0)  # fmt: skip
 
     def __post_init__(self) -> None:
         if self.e_m_mode not in THRESHOLD_MODES:
@@ -103,12 +110,12 @@ class ControllerConfig:
         lo, hi = self.bounds
         if not 0 < lo <= hi:
             raise ValueError(f"e_m_max={hi} must be >= e_m_min={lo} > 0")
-        for name in ("stall_steps", "settle_steps", "lost_steps", "gate_patience"):
+        for name in ("stall_steps", "settle_steps", "lost_steps", "gate_patience", "idle_steps"):
             if getattr(self, name) < 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if self.stall_min_improvement is not None and not self.stall_min_improvement >= 0:
             raise ValueError(f"stall_min_improvement must be >= 0, got {self.stall_min_improvement}")
-        for name in ("pass_ratio", "motion_fraction", "progress_gate"):
+        for name in ("pass_ratio", "motion_fraction", "progress_gate", "idle_speed", "idle_turn"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if self.lookahead < 1:

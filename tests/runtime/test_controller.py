@@ -93,6 +93,34 @@ def test_stall_guard_accepts_a_plateau_next_to_the_subgoal():
     assert c.decide(flat(11)).action is Action.STALLED
 
 
+def test_an_idle_policy_next_to_the_subgoal_is_accepted_at_once():
+    # a noisy error that keeps "improving" by a hair: the stall counter never fills
+    noisy = [9.0, 8.9, 8.8, 8.7, 8.6, 8.5, 8.4, 8.3]
+    cfg = old(e_m_mode="fixed", e_m=5.0, stall_steps=10, lookahead=2, jump_factor=2.0, idle_steps=3,
+              stall_min_improvement=0.05)  # fmt: skip
+    waits = Controller(subgoals(0, 60, 120), replace(cfg, idle_steps=0))
+    for value in noisy:
+        assert waits.decide(flat(int(round(value)))).action is Action.COMMAND
+        waits.commanded(0.001, 0.0, 0.1)
+    assert waits.index == 0  # without the idle rule the robot stands there
+    c = Controller(subgoals(0, 60, 120), cfg)
+    actions = []
+    for value in noisy[:4]:
+        actions.append(c.decide(flat(int(round(value)))).action)
+        c.commanded(0.001, 0.0, 0.1)  # the policy barely moves the robot
+    assert actions[:3] == [Action.COMMAND] * 3 and actions[3] is Action.ADVANCE
+    assert c.index == 1 and c.plateaus == 1
+    # a policy that still drives is not idle, and an idle one far from the subgoal is not accepted
+    moving = Controller(subgoals(0, 60, 120), cfg)
+    far = Controller(subgoals(0, 60, 120), cfg)
+    for _ in range(4):
+        assert moving.decide(flat(9)).action is Action.COMMAND
+        moving.commanded(0.05, 0.0, 0.1)
+        assert far.decide(flat(30)).action is Action.COMMAND
+        far.commanded(0.0, 0.0, 0.1)
+    assert moving.index == 0 and far.index == 0 and not far.stalled
+
+
 def test_settling_keeps_steering_while_the_error_falls_under_e_m():
     cfg = old(e_m_mode="fixed", e_m=10.0, stall_steps=0, settle_steps=2)
     c = Controller(subgoals(0, 100), cfg)
