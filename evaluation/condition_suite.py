@@ -83,6 +83,7 @@ CONTROLLERS: dict[str, Method] = {
     "after_gate_1.0": Method(replace(AFTER, progress_gate=1.0), match_light=True),
     "after_no_idle": Method(replace(AFTER, idle_steps=0), match_light=True),  # wait out the stall guard
     "after_settle_0": Method(replace(AFTER, settle_steps=0), match_light=True),
+    "after_prior_0.3": Method(replace(AFTER, taught_prior=0.3), match_light=True),
 }
 
 

@@ -77,6 +77,9 @@ class ControllerConfig:
     progress_gate: float = 0.5
     #: ... or after this many commands held back by the gate (a robot already at the subgoal).
     gate_patience: int = 3
+    #: Blend the taught command into subgoal i into each command toward it with this weight (0: the policy
+    #: alone; teach & repeat systems such as Bearnav replay the taught speeds and correct from vision).
+    taught_prior: float = 0.0
     #: Keep moving between control steps instead of the paper's stop-and-go.
     continuous: bool = False
     #: Extra commands at a subgoal while the error still falls under the threshold (0: switch at once).
@@ -115,7 +118,14 @@ class ControllerConfig:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if self.stall_min_improvement is not None and not self.stall_min_improvement >= 0:
             raise ValueError(f"stall_min_improvement must be >= 0, got {self.stall_min_improvement}")
-        for name in ("pass_ratio", "motion_fraction", "progress_gate", "idle_speed", "idle_turn"):
+        for name in (
+            "pass_ratio",
+            "motion_fraction",
+            "progress_gate",
+            "idle_speed",
+            "idle_turn",
+            "taught_prior",
+        ):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
         if self.lookahead < 1:

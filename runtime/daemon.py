@@ -172,6 +172,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"switch past a subgoal only after commanding this fraction of the taught travel into it; 0 disables (default: {default.progress_gate})",
     )  # fmt: skip
     parser.add_argument(
+        "--taught-prior", type=float, default=None,
+        help=f"blend the taught command into each subgoal with the policy's at this weight, 0..1 (default: {default.taught_prior})",
+    )  # fmt: skip
+    parser.add_argument(
         "--paper",
         action="store_true",
         help="the paper's Algorithm 1 exactly: raw error, e_m 17, no settling, stall guard, lost or contact stop",
@@ -191,6 +195,7 @@ def controller_from_args(args: argparse.Namespace) -> ControllerConfig:
         match=replace(base.match, method=args.match) if args.match is not None else base.match,
         lost_steps=args.lost_steps if args.lost_steps is not None else base.lost_steps,
         progress_gate=args.progress_gate if args.progress_gate is not None else base.progress_gate,
+        taught_prior=args.taught_prior if args.taught_prior is not None else base.taught_prior,
         localise=args.localise,
         continuous=args.continuous,
     )

@@ -260,6 +260,9 @@ class Repeater:
             return self._end(RepeatStatus.STEP_LIMIT, "", verdict)
         velocities = self.policy.predict(obs.image, self._views[min(self.controller.index, self._last)])
         v, w = float(velocities[0, 0]), float(velocities[1, 0])
+        if decision.prior is not None:  # the taught command into the subgoal, blended in
+            a, pv, pw = decision.prior
+            v, w = (1 - a) * v + a * pv, (1 - a) * w + a * pw
         v = max(-decision.v_limit, min(decision.v_limit, v))  # no translation in a taught turn in place
         t_policy = time.perf_counter()
         stage = dict(getattr(self.policy, "last_timing_ms", None) or {})

@@ -116,6 +116,27 @@ def test_a_controller_can_be_handed_in_and_is_the_one_used():
     assert rep.controller is controller and summary.completed and controller.finished and summary.steps == 2
 
 
+def test_the_taught_prior_blends_the_taught_command_into_the_policys():
+    n = 3
+    route = Route(images=np.stack([flat(v) for v in (0, 100, 200)]), poses=np.zeros((n, 3)),
+                  commands=np.array([[0.4, 0.6], [0.0, 0.0], [0.0, 0.0]]), dt=0.1)  # fmt: skip
+    cfg = replace(PAPER, taught_prior=0.25)
+    sent: list[StepRecord] = []
+    # frame 0 matches subgoal 0 (no command into it: the policy alone), then subgoal 1 is steered to
+    rep = Repeater(Frames([0, 5, 150]), Constant(), route, Controller(route.images, cfg, route.commands),
+                   config=RepeatConfig(cfg), on_step=sent.append)  # fmt: skip
+    rep.step()
+    first = sent[-1]
+    assert first.subgoal == 1 and first.commanded
+    # (1 - 0.25) * policy (0.2, 0.1) + 0.25 * taught (0.4, 0.6)
+    assert first.v == pytest.approx(0.75 * 0.2 + 0.25 * 0.4) and first.w == pytest.approx(
+        0.75 * 0.1 + 0.25 * 0.6
+    )
+    off = Repeater(Frames([0, 5, 150]), Constant(), route, config=RepeatConfig(PAPER), on_step=sent.append)
+    off.step()
+    assert (sent[-1].v, sent[-1].w) == pytest.approx((0.2, 0.1))
+
+
 def test_route_and_model_must_agree_on_dt_and_image_size():
     class WithMeta(Constant):
         class meta:  # noqa: N801 - stands in for ModelMeta
