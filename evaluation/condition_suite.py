@@ -84,6 +84,9 @@ CONTROLLERS: dict[str, Method] = {
     "after_no_idle": Method(replace(AFTER, idle_steps=0), match_light=True),  # wait out the stall guard
     "after_settle_0": Method(replace(AFTER, settle_steps=0), match_light=True),
     "after_prior_0.3": Method(replace(AFTER, taught_prior=0.3), match_light=True),
+    "after_per_subgoal_settle_0": Method(
+        replace(AFTER, e_m_mode="per_subgoal", pass_ratio=1.0, settle_steps=0), match_light=True
+    ),
 }
 
 
