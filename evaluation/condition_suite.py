@@ -27,6 +27,7 @@ import numpy as np
 
 from vtr.evaluation.condition_tables import markdown
 from vtr.evaluation.conditions import LIGHTING, PATH_SCENES, SCENES
+from vtr.evaluation.metrics import off_path
 from vtr.runtime.controller import ControllerConfig
 from vtr.runtime.matching import MatchConfig
 
@@ -288,7 +289,7 @@ def aggregate(runs: list[dict[str, Any]]) -> list[dict[str, Any]]:
         causes = Counter(r["cause"].split(":")[0] for r in ran if not r["completed"])
         rows.append({
             "controller": ctrl, "model": model, "condition": cond, "runs": len(ran),
-            "not_run": len(rs) - len(ran), "completed": len(done),
+            "not_run": len(rs) - len(ran), "completed": len(done), "completed_off_path": off_path(done),
             "completion_rate": len(done) / len(ran) if ran else None,
             "mean_position_error_m": mean("position_error_m"), "max_position_error_m": mean("max_position_error_m"),
             "mean_yaw_error_deg": mean("yaw_error_deg"), "cross_track_m": mean("cross_track_m"),

@@ -9,6 +9,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from vtr.evaluation.metrics import OFF_PATH_M
+
 
 def markdown(result: dict[str, Any]) -> str:
     def f(x: float | None, scale: float = 1.0, digits: int = 1) -> str:
@@ -17,7 +19,8 @@ def markdown(result: dict[str, Any]) -> str:
     cfg = result["config"]
     lines = [
         f"Condition suite: routes {', '.join(result['routes'])}; seeds {cfg['seeds']}; step limit "
-        f"{cfg['max_steps_factor']} x subgoals + 50. Completed = finished without touching anything; errors "
+        f"{cfg['max_steps_factor']} x subgoals + 50. Completed = finished without touching anything (those that passed "
+        f"a taught subgoal more than {OFF_PATH_M * 100:.0f} cm away are counted beside it); errors "
         "are means over completed runs (nearest-point position error per taught pose, the paper's metric).",
         "",
         "| controller | model | condition | completed | mean err (mm) | max err (mm) | yaw (deg) | cross-track (mm) "
@@ -27,6 +30,8 @@ def markdown(result: dict[str, Any]) -> str:
     for r in result["table"]:
         fails = ", ".join(f"{k} {v}" for k, v in sorted(r["failure_causes"].items())) or "-"
         blocked = f" ({r['not_run']} not run: start or scene blocked)" if r["not_run"] else ""
+        far = r.get("completed_off_path", 0)
+        blocked += f" ({far} > {OFF_PATH_M * 100:.0f} cm off the path)" if far else ""
         lines.append(
             f"| {r['controller']} | {r['model']} | {r['condition']} | {r['completed']}/{r['runs']}{blocked} "
             f"| {f(r['mean_position_error_m'], 1e3)} | {f(r['max_position_error_m'], 1e3)} | {f(r['mean_yaw_error_deg'], 1, 2)} "

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from vtr.evaluation.condition_suite import CONTROLLERS
+from vtr.evaluation.metrics import off_path
 
 MAX_HOUSES = 1000
 
@@ -164,6 +165,7 @@ def summarise(routes: list[dict[str, Any]], houses: tuple[str, ...]) -> dict[str
             "routes_not_generated": sum("error" in r for r in rs),
             "runs": len(runs),
             "completed": len(done),
+            "completed_off_path": off_path(done),
             "completion": len(done) / len(runs) if runs else None,
             "mean_error_mm": 1000 * float(np.mean([r["position_error_m"] for r in done])) if done else None,
             "median_error_mm": 1000 * float(np.median([r["position_error_m"] for r in done]))

@@ -7,6 +7,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from vtr.evaluation.metrics import OFF_PATH_M
+
 #: Issue 9's target for held-out houses (noise 0.05, the shipped model, no retraining).
 TARGET_COMPLETION = 0.90
 TARGET_ERROR_MM = 15.0
@@ -15,7 +17,9 @@ TARGET_ERROR_MM = 15.0
 def _pct(s: dict[str, Any]) -> str:
     if not s["runs"]:
         return "-"
-    return f"{s['completed']}/{s['runs']} ({100 * s['completion']:.0f}%)"
+    far = s.get("completed_off_path", 0)
+    off = f", {far} > {OFF_PATH_M * 100:.0f} cm off" if far else ""
+    return f"{s['completed']}/{s['runs']} ({100 * s['completion']:.0f}%{off})"
 
 
 def _num(value: float | None, fmt: str) -> str:

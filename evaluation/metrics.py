@@ -23,6 +23,20 @@ def _as_xy(points: np.ndarray | Sequence[Sequence[float]], what: str) -> np.ndar
     return arr[:, :2]
 
 
+#: A completed run that passed some taught subgoal farther than this (m) finished another path: the tables
+#: count such runs beside "completed" (a re-coloured floor "completes" routes 0.1-0.9 m beside the taught one).
+OFF_PATH_M = 0.10
+
+
+def off_path(runs: Sequence[dict]) -> int:
+    """How many of these completed runs' largest nearest-point error exceeds OFF_PATH_M."""
+    return sum(
+        1
+        for r in runs
+        if r.get("max_position_error_m") is not None and r["max_position_error_m"] > OFF_PATH_M
+    )
+
+
 def wrap_angle(angle: np.ndarray | float) -> np.ndarray:
     """Wrap angles (rad) to [-pi, pi)."""
     return (np.asarray(angle, dtype=np.float64) + math.pi) % (2.0 * math.pi) - math.pi

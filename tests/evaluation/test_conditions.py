@@ -186,3 +186,20 @@ def test_the_evaluation_loop_holds_taught_turns_in_place(tmp_path):
     ccfg = ControllerConfig(e_m_mode="per_subgoal", pass_ratio=1.0)  # switches on while the robot turns
     log = repeat_closed_loop(make_robot(0.0, (32, 32)), Forward(), route, (2.8, 3.0, 0.0), cfg, 0, ccfg)
     assert log.commands and all(v == 0.0 for v, _ in log.commands[1:])  # subgoal 0 has no taught turn into it
+
+
+def test_completed_runs_far_from_the_path_are_counted_beside_completion():
+    base = {"controller": "after", "model": "fp32", "condition": "floor_recoloured", "ran": True, "contacts": 0,
+            "position_error_m": 0.01, "yaw_error_deg": 0.1, "cross_track_m": 0.01, "final_position_m": 0.01,
+            "final_yaw_deg": 0.1, "steps_per_taught_step": 1.5, "cause": ""}  # fmt: skip
+    runs = [
+        {**base, "completed": True, "max_position_error_m": 0.05},
+        {**base, "completed": True, "max_position_error_m": 0.35},  # finished another path
+        {**base, "completed": False, "max_position_error_m": 0.90, "cause": "stalled: x"},
+    ]
+    (row,) = suite.aggregate(runs)
+    assert row["completed"] == 2 and row["completed_off_path"] == 1
+    table = suite.markdown(
+        {"config": {"seeds": [0], "max_steps_factor": 8.0}, "routes": ["r"], "table": [row]}
+    )
+    assert "| 2/3 (1 > 10 cm off the path) |" in table
