@@ -244,7 +244,7 @@ def evaluate_task(task: tuple[Path, str, SuiteConfig]) -> list[dict[str, Any]]:
     """All seeds, controllers and models of one (route, condition): a process-pool task."""
     import tempfile
 
-    from vtr.evaluation.conditions import write_scene_house
+    from vtr.evaluation.conditions import PathBlocked, write_scene_house
     from vtr.evaluation.harness import teach
 
     path, cond_name, cfg = task
@@ -256,8 +256,9 @@ def evaluate_task(task: tuple[Path, str, SuiteConfig]) -> list[dict[str, Any]]:
     with tempfile.TemporaryDirectory() as tmp:
         try:
             house = str(write_scene_house(cond.scene, Path(tmp), path=route.poses)) if cond.scene else "house"
-        except ValueError as err:  # e.g. no free floor for a box beside this path
-            blocked = {"status": "scene_not_placeable", "cause": str(err), "completed": False, "ran": False}
+        except ValueError as err:  # no free floor for a box beside this path, or the change blocks the path
+            status = "path_blocked" if isinstance(err, PathBlocked) else "scene_not_placeable"
+            blocked = {"status": status, "cause": str(err), "completed": False, "ran": False}
             return [{"route": path.stem, "condition": cond_name, "model": m, "controller": c, "seed": s, **blocked}
                     for m in cfg.models for c in cfg.controllers for s in cfg.seeds]  # fmt: skip
         for model in cfg.models:

@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from vtr.runtime.robot import Observation
+from vtr.sim2d.config import SimConfig
 
 ImageFn = Callable[[np.ndarray], np.ndarray]
 
@@ -122,7 +123,28 @@ def _recolour_floor(house: dict[str, Any]) -> None:
 
 
 #: Box placed beside the path: side (m), and the gap between its edge and the robot's body on the path.
-BOX_SIDE, BOX_GAP, ROBOT_RADIUS = 0.3, 0.12, 0.17
+BOX_SIDE, BOX_GAP = 0.3, 0.12
+ROBOT_RADIUS = SimConfig().robot_radius
+
+
+class PathBlocked(ValueError):
+    """The changed house leaves no room for the robot on the taught path: no repeat can pass untouched."""
+
+
+def path_clearance(house: dict[str, Any], path: np.ndarray, per_gap: int = 4) -> tuple[float, int]:
+    """The least distance (m) from the taught path (x, y, yaw poses, with ``per_gap`` points between
+    consecutive ones) to a wall or piece of furniture of ``house``, and the pose index where it is."""
+    from vtr.sim2d.house import House
+
+    xy = np.asarray(path, dtype=np.float64)[:, :2]
+    t = np.arange(per_gap) / per_gap
+    dense = (
+        (xy[:-1, None] * (1 - t)[:, None] + xy[1:, None] * t[:, None]).reshape(-1, 2) if len(xy) > 1 else xy
+    )
+    dense = np.vstack([dense, xy[-1:]])
+    c = House(house, "changed").clearances(dense)
+    k = int(np.argmin(c))
+    return float(c[k]), min(k // per_gap, len(xy) - 1)
 
 
 def _obstacle_beside_path(house: dict[str, Any], path: np.ndarray | None) -> None:
@@ -166,10 +188,17 @@ PATH_SCENES: dict[str, Callable[[dict[str, Any], np.ndarray | None], None]] = {
 }
 
 
-def write_scene_house(scene: str, out_dir: Path, base: str = "house", path: np.ndarray | None = None) -> Path:
+def write_scene_house(
+    scene: str,
+    out_dir: Path,
+    base: str = "house",
+    path: np.ndarray | None = None,
+    allow_blocked: bool = False,
+) -> Path:
     """A copy of the house JSON with ``scene`` applied, written into ``out_dir``; returns its path.
 
-    ``path``: the taught (x, y, yaw) poses, for the scenes in PATH_SCENES."""
+    ``path``: the taught (x, y, yaw) poses, for the scenes in PATH_SCENES and for the check that the change
+    leaves the path passable (:class:`PathBlocked` otherwise, unless ``allow_blocked``)."""
     from vtr.runtime.atomic import write_text_atomic
     from vtr.sim2d.house import resolve_house_path
 
@@ -180,6 +209,13 @@ def write_scene_house(scene: str, out_dir: Path, base: str = "house", path: np.n
         SCENES[scene](data)
     else:
         PATH_SCENES[scene](data, None if path is None else np.asarray(path, dtype=np.float64))
+    if path is not None and not allow_blocked and len(path):
+        # moving every piece of furniture 30 cm can put one on the taught path: a repeat cannot pass it
+        # untouched, so such a run would score the scene, not the robot
+        gap, k = path_clearance(data, np.asarray(path, dtype=np.float64))
+        if gap < ROBOT_RADIUS:
+            raise PathBlocked(f"the {scene} house blocks the taught path: {gap:.3f} m of clearance near subgoal "
+                              f"{k}, under the robot's radius {ROBOT_RADIUS} m")  # fmt: skip
     path = Path(out_dir) / f"house_{scene}.json"
     write_text_atomic(path, json.dumps(data))
     return path

@@ -43,7 +43,11 @@ def trace(route_path: Path | Any, cond_name: str, seed: int, controller: str = "
     taught = np.asarray(route.poses, dtype=np.float64)
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp:
-        house = str(write_scene_house(cond.scene, Path(tmp), base, route.poses)) if cond.scene else base
+        house = (
+            str(write_scene_house(cond.scene, Path(tmp), base, route.poses, allow_blocked=True))
+            if cond.scene
+            else base
+        )
         h, w = route.images.shape[1:3]
         sim = Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=cond.noise, house=house))
         robot: Any = LocalRobot(sim)

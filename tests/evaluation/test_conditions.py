@@ -203,3 +203,19 @@ def test_completed_runs_far_from_the_path_are_counted_beside_completion():
         {"config": {"seeds": [0], "max_steps_factor": 8.0}, "routes": ["r"], "table": [row]}
     )
     assert "| 2/3 (1 > 10 cm off the path) |" in table
+
+
+def test_a_change_that_blocks_the_taught_path_is_refused_not_scored(tmp_path):
+    import json
+
+    from vtr.evaluation.conditions import ROBOT_RADIUS, PathBlocked, path_clearance
+    from vtr.sim2d.house import resolve_house_path
+
+    # along y = 1.9 just east of the coffee table (x 0.8-1.8): free now, inside it once it moves 30 cm east
+    path = np.array([[2.1 + 0.05 * k, 1.9, 0.0] for k in range(6)])
+    unchanged = json.loads(resolve_house_path("house").read_text())
+    assert path_clearance(unchanged, path)[0] >= ROBOT_RADIUS
+    with pytest.raises(PathBlocked, match="blocks the taught path"):
+        write_scene_house("furniture_moved", tmp_path, path=path)
+    assert write_scene_house("furniture_moved", tmp_path, path=path, allow_blocked=True).exists()
+    assert write_scene_house("wall_retextured", tmp_path, path=path).exists()  # walls moved nowhere
