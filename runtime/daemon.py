@@ -172,6 +172,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"switch past a subgoal only after commanding this fraction of the taught travel into it; 0 disables (default: {default.progress_gate})",
     )  # fmt: skip
     parser.add_argument(
+        "--thresholds", choices=("calibrated", "per_subgoal"), default=None,
+        help="one switch threshold for the route, or one per subgoal with the relative switch "
+             f"(default: {default.e_m_mode})",
+    )  # fmt: skip
+    parser.add_argument(
         "--taught-prior", type=float, default=None,
         help=f"blend the taught command into each subgoal with the policy's at this weight, 0..1 (default: {default.taught_prior})",
     )  # fmt: skip
@@ -186,6 +191,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def controller_from_args(args: argparse.Namespace) -> ControllerConfig:
     base = ControllerConfig.paper() if args.paper else ControllerConfig()
+    if (
+        args.thresholds is not None and args.e_m is None
+    ):  # the relative switch goes with per-subgoal thresholds
+        base = replace(
+            base, e_m_mode=args.thresholds, pass_ratio=1.0 if args.thresholds == "per_subgoal" else 0.0
+        )
     return replace(
         base,
         e_m_mode="fixed" if args.e_m is not None else base.e_m_mode,
