@@ -355,3 +355,22 @@ def test_teach_against_nothing_gives_up_after_one_round_of_tries():
     with SimClient("tcp://127.0.0.1:9", timeout_s=0.05, retries=2, setup_timeout_s=0.05) as client:
         with pytest.raises(RobotError, match="no reply .* to 'hello'"):
             teach(client, script)  # hello's tries only: reset is not tried again against nobody
+
+
+def test_threshold_choice_on_the_command_line():
+    import argparse
+
+    from vtr.runtime.daemon import add_arguments, controller_from_args
+
+    parser = argparse.ArgumentParser()
+    add_arguments(parser)
+    common = ["--sim", "tcp://127.0.0.1:5555", "--model", "m.onnx", "--route", "r.npz"]
+    per = controller_from_args(parser.parse_args([*common, "--thresholds", "per_subgoal", "--settle", "0"]))
+    assert (per.e_m_mode, per.pass_ratio, per.settle_steps) == ("per_subgoal", 1.0, 0)
+    default = controller_from_args(parser.parse_args(common))
+    assert (default.e_m_mode, default.pass_ratio) == (
+        ControllerConfig().e_m_mode,
+        ControllerConfig().pass_ratio,
+    )
+    fixed = controller_from_args(parser.parse_args([*common, "--thresholds", "per_subgoal", "--e-m", "20"]))
+    assert (fixed.e_m_mode, fixed.e_m) == ("fixed", 20.0)  # an explicit e_m wins
