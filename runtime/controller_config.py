@@ -128,6 +128,8 @@ class ControllerConfig:
         ):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)}")
+        if self.taught_prior > 1:
+            raise ValueError(f"taught_prior is a weight in [0, 1], got {self.taught_prior}")
         if self.lookahead < 1:
             raise ValueError(f"lookahead must be >= 1, got {self.lookahead}")
         if self.localise_max_error is not None and not self.localise_max_error > 0:
