@@ -81,6 +81,10 @@ def add_stage_parsers(sub: Any) -> None:
         "--w-recovery", type=float, default=None,
         help="weight of the recovery term (default: 0, or 0.5 when --recovery is given)",
     )  # fmt: skip
+    p.add_argument(
+        "--w-stop", type=float, default=None,
+        help="weight of the stop term, VelocityNet(I, I) -> 0: stand still on the subgoal (default: 0)",
+    )  # fmt: skip
     _add_common(p)
     from vtr.training.transfer import add_evaluate_arguments
 
@@ -128,7 +132,9 @@ def run_cli(args: argparse.Namespace) -> int:
     w_rec = getattr(args, "w_recovery", None)
     if w_rec is None and getattr(args, "recovery", None):
         w_rec = 0.5
-    preset.loss = override(preset.loss, w1=args.w1, w2=args.w2, w_recovery=w_rec)
+    preset.loss = override(
+        preset.loss, w1=args.w1, w2=args.w2, w_recovery=w_rec, w_stop=getattr(args, "w_stop", None)
+    )
     preset.velocitynet = override(preset.velocitynet, preprocessing=args.preprocessing)
     if args.stage == "viewnet":
         train_viewnet(

@@ -139,10 +139,15 @@ class MPCLossConfig:
     horizon: int = 2  # N; a training window holds N + 1 frames and N commands
     # weight of the recovery term (training/recovery.py): off-path views against a tracking controller's labels
     w_recovery: float = 0.0
+    # weight of the stop term: VelocityNet(I, I) -> 0. The MPC pairs are always N frames apart, so a robot
+    # standing on its subgoal shows the network a pair it never saw (in the example room it drove off the
+    # first subgoal at error 0)
+    w_stop: float = 0.0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.w_recovery) and self.w_recovery >= 0):
-            raise ValueError(f"MPCLossConfig.w_recovery must be >= 0, got {self.w_recovery!r}")
+        for name in ("w_recovery", "w_stop"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise ValueError(f"MPCLossConfig.{name} must be >= 0, got {getattr(self, name)!r}")
         if self.w1 < 0 or self.w2 < 0 or self.w1 + self.w2 <= 0:
             raise ValueError(f"MPC loss weights must be >= 0 and not both 0, got w1={self.w1}, w2={self.w2}")
         _check_positive(self, "horizon")

@@ -38,6 +38,7 @@ from vtr.training.checkpoint import (
 from vtr.training.config import MPCLossConfig, TrainConfig, VelocityNetConfig, ViewNetConfig, to_dict
 from vtr.training.dataset import FrameData, load_dataset
 from vtr.training.distributed import Dist, any_rank, barrier, setup_dist
+from vtr.training.extra_pairs import JointCall, recovery_batches
 from vtr.training.losses import mpc_loss, velocity_error, viewnet_loss
 from vtr.training.models import VelocityNet, ViewNet
 from vtr.training.transfer import init_weights
@@ -238,6 +239,7 @@ def train_viewnet(
         "val_episodes": windows.val_ids.tolist(),
         "train_config": to_dict(cfg),  # kept in model.pt too: export writes the recipe into the ONNX
     }
+    torch.manual_seed(cfg.seed)  # the initial weights come from --seed, not from whatever ran before
     model = ViewNet(model_cfg)
     if init is not None:
         extra.update(init_weights(model, "viewnet", model_cfg, init))
@@ -255,64 +257,6 @@ def train_viewnet(
         _write_report(out, report)
     barrier(dist)
     return report
-
-
-class _JointCall:
-    """VelocityNet on the MPC loss's pairs plus extra (view, goal) pairs in one batch; keeps the extra output."""
-
-    def __init__(self, policy: nn.Module, views: torch.Tensor, goals: torch.Tensor) -> None:
-        self.policy, self.views, self.goals = policy, views, goals
-        self.extra = torch.empty(0)
-
-    def __call__(self, current: torch.Tensor, subgoal: torch.Tensor) -> torch.Tensor:
-        b = current.shape[0]
-        u = self.policy(torch.cat([current, self.views]), torch.cat([subgoal, self.goals]))
-        self.extra = u[b:]
-        return u[:b]
-
-
-def _recovery_batches(
-    path: str | os.PathLike | None,
-    data: FrameData,
-    windows: Windows,
-    loss_cfg: MPCLossConfig,
-    cfg: TrainConfig,
-    extra: dict[str, Any],
-) -> Callable[[], tuple[torch.Tensor, torch.Tensor, torch.Tensor]] | None:
-    """A draw of recovery (views, goal frames, labels) per call, from training episodes only; None if off."""
-    if path is None or loss_cfg.w_recovery <= 0:
-        if path is not None:
-            raise ValueError(
-                "recovery views were given but the loss weight w_recovery is 0; pass --w-recovery"
-            )
-        return None
-    from vtr.training.recovery import load_recovery
-    from vtr.training.windows import images_to_float
-
-    rec = load_recovery(path, data)
-    usable = np.flatnonzero(np.isin(rec.starts, windows.train_starts))  # validation houses stay unseen
-    if rec.commands.shape[1] != loss_cfg.horizon or len(usable) == 0:
-        raise ValueError(
-            f"recovery views {path}: none usable for horizon {loss_cfg.horizon} in training episodes"
-        )
-    extra.update(recovery=str(path), recovery_views=int(len(usable)), recovery_config=rec.config)
-    size = max(1, cfg.batch_size // 2)
-    rng = np.random.default_rng([cfg.seed, 97])
-    labels = torch.from_numpy(rec.commands)
-
-    def draw() -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        pick = np.sort(rng.choice(usable, size=size, replace=len(usable) < size))
-        views = torch.from_numpy(np.asarray(rec.images[pick]))
-        goals = windows.images[rec.starts[pick] + loss_cfg.horizon]
-        goals = goals if isinstance(goals, torch.Tensor) else torch.from_numpy(goals)
-        dev = windows.device
-        return (
-            images_to_float(views.to(dev)),
-            images_to_float(goals.to(dev)),
-            labels[pick].transpose(1, 2).to(dev),  # (B, 2, N) as VelocityNet outputs
-        )
-
-    return draw
 
 
 def train_velocitynet(
@@ -361,23 +305,35 @@ def train_velocitynet(
         "augment": cfg.augment,
         "train_config": to_dict(cfg),
     }
+    torch.manual_seed(cfg.seed)  # the initial weights come from --seed, not from whatever ran before
     model = VelocityNet(model_cfg)
     if init is not None:
         extra.update(init_weights(model, "velocitynet", model_cfg, init))
     augment = AugmentConfig() if cfg.augment else None
     gen = torch.Generator().manual_seed(cfg.seed + 1)  # augmentation draws, apart from the batch order
-    rec = _recovery_batches(recovery, data, windows, loss_cfg, cfg, extra)
+    rec = recovery_batches(recovery, data, windows, loss_cfg, cfg, extra)
 
     def loss_fn(net: nn.Module, frames: torch.Tensor, commands: torch.Tensor):
         policy = InputPipeline(net, model_cfg.preprocessing, augment, gen)  # identity by default
         batch = rec() if rec is not None and net.training else None
-        # Recovery pairs ride in the same VelocityNet call as the MPC pairs: one forward per step (DDP).
-        joint = policy if batch is None else _JointCall(policy, batch[0], batch[1])
+        views, goals = ([batch[0]], [batch[1]]) if batch is not None else ([], [])
+        stops = max(1, frames.shape[0] // 4) if loss_cfg.w_stop > 0 and net.training else 0
+        if (
+            stops
+        ):  # a quarter of the batch's first frames paired with themselves (augmented apart: other light)
+            views.append(frames[:stops, 0])
+            goals.append(frames[:stops, 0])
+        # Extra pairs ride in the same VelocityNet call as the MPC pairs: one forward per step (DDP).
+        joint = JointCall(policy, torch.cat(views), torch.cat(goals)) if views else policy
         loss, parts = mpc_loss(joint, viewnet, frames, commands, loss_cfg)
         parts.pop("u1")
         if batch is not None:
-            parts["rec"] = velocity_error(joint.extra, batch[2]).mean()
+            parts["rec"] = velocity_error(joint.extra[: len(batch[0])], batch[2]).mean()
             loss = loss + loss_cfg.w_recovery * parts["rec"]
+        if stops:
+            u = joint.extra[joint.extra.shape[0] - stops :]
+            parts["stop"] = velocity_error(u, torch.zeros_like(u)).mean()
+            loss = loss + loss_cfg.w_stop * parts["stop"]
         return loss, parts
 
     model = _fit("velocitynet", model, model_cfg, loss_fn, windows, cfg, dist, out, resume, extra)

@@ -13,8 +13,9 @@ from vtr.runtime.contracts import V_MAX, W_MAX
 from vtr.training.collect_houses import HousesConfig, run_houses
 from vtr.training.config import CollectConfig, get_preset, override
 from vtr.training.dataset import DatasetError, load_dataset, synthetic_dataset
+from vtr.training.extra_pairs import JointCall
 from vtr.training.recovery import RecoveryConfig, load_recovery, perturb, recovery_commands, render_recovery
-from vtr.training.train import _JointCall, train_velocitynet, train_viewnet
+from vtr.training.train import train_velocitynet, train_viewnet
 
 CFG = RecoveryConfig()
 FORWARD = np.array([[0.2, 0.0], [0.2, 0.0]])
@@ -134,7 +135,7 @@ def test_joint_call_splits_one_forward() -> None:
         calls.append(a.shape[0])
         return (a.mean(dim=(1, 2, 3)) - b.mean(dim=(1, 2, 3)))[:, None, None].expand(-1, 2, 2)
 
-    joint = _JointCall(policy, torch.ones(3, 3, 8, 8), torch.zeros(3, 3, 8, 8))
+    joint = JointCall(policy, torch.ones(3, 3, 8, 8), torch.zeros(3, 3, 8, 8))
     out = joint(torch.zeros(5, 3, 8, 8), torch.zeros(5, 3, 8, 8))
     assert calls == [8] and out.shape == (5, 2, 2) and torch.all(out == 0) and torch.all(joint.extra == 1)
 

@@ -117,10 +117,39 @@ def test_same_seed_same_weights(data: Path, tmp_path: Path) -> None:
     for name in ("a", "b"):
         out = tmp_path / name
         cli.main(
-            ["train", "viewnet", "--preset", "tiny", "--data", str(data), "--out", str(out), "--steps", "2"]
+            [
+                "train",
+                "viewnet",
+                "--preset",
+                "tiny",
+                "--data",
+                str(data),
+                "--out",
+                str(out),
+                "--steps",
+                "2",
+                "--threads",
+                "1",
+            ]  # one thread: a loaded machine may hand OpenMP fewer, which reorders sums
         )
         states.append(torch.load(out / "model.pt", weights_only=True)["state_dict"])
     assert all(torch.equal(states[0][k], states[1][k]) for k in states[0])
+
+
+def test_the_stop_term_is_recorded_and_changes_the_training(
+    data: Path, viewnet: Path, tmp_path: Path
+) -> None:
+    states = []
+    for name, w in (("plain", "0"), ("stop", "2.0")):
+        out = tmp_path / name
+        args = ["train", "velocitynet", "--preset", "tiny", "--data", str(data), "--viewnet", str(viewnet),
+                "--out", str(out), "--steps", "2", "--w-stop", w, "--threads", "1"]  # fmt: skip
+        assert cli.main(args) == 0
+        ckpt = torch.load(out / "model.pt", weights_only=False)
+        assert ckpt["loss_config"]["w_stop"] == float(w)
+        states.append(ckpt["state_dict"])
+    # same seed and batches: only the stop term's gradient can make the weights differ
+    assert any(not torch.equal(states[0][k], states[1][k]) for k in states[0])
 
 
 def test_bad_dataset_is_a_message_not_a_traceback(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
