@@ -106,7 +106,7 @@ def repeat_closed_loop(
     ccfg = ControllerConfig() if cfg.e_m is None else ControllerConfig(e_m_mode="fixed", e_m=cfg.e_m)
     ccfg = controller_cfg if controller_cfg is not None else ccfg
     rcfg = RepeatConfig(controller=ccfg, dt=cfg.dt, max_steps=int(cfg.max_steps_factor * len(route) + 50))
-    controller = Controller(route.images, ccfg, route.commands, route.poses, route.travel_poses())
+    controller = Controller.for_route(route, ccfg)
     if isinstance(policy, PoseOracle):
         policy.bind(robot, controller, route)
 

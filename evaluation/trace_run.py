@@ -57,7 +57,7 @@ def trace(route_path: Path | Any, cond_name: str, seed: int, controller: str = "
             robot = LitRobot(robot, LIGHTING[cond.light])
         if method.match_light:
             policy = LightMatchedPolicy(policy, side_ramp=method.side_ramp)
-        ctrl = Controller(route.images, method.controller, route.commands, route.poses)
+        ctrl = Controller.for_route(route, method.controller)
         robot.reset(pose=_start(route.poses[0], cond.offset, seed), seed=seed)
 
         def on_step(rec: StepRecord) -> None:

@@ -67,6 +67,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -88,6 +89,9 @@ from vtr.runtime.thresholds import (  # noqa: F401 - calibrate_e_m, consecutive_
 
 #: A taught step that moved the robot less than this (m) is a turn in place (``hold_turns``).
 HOLD_TOLERANCE_M = 0.005
+
+if TYPE_CHECKING:
+    from vtr.runtime.route import Route
 
 
 class Controller:
@@ -160,6 +164,12 @@ class Controller:
         if self.cfg.progress_gate > 0 and travel is not None and len(travel) >= n:
             self.gate = ProgressGate(travel, n, self.cfg.progress_gate, self.cfg.gate_patience)
         self._set_index(0)
+
+    @classmethod
+    def for_route(cls, route: Route, cfg: ControllerConfig | None = None) -> Controller:
+        """The controller of a taught route: its subgoals, commands, poses and the travel the progress gate
+        measures (``Route.travel_poses``, dead-reckoned where the route has no poses)."""
+        return cls(route.images, cfg, route.commands, route.poses, route.travel_poses())
 
     def __len__(self) -> int:
         return int(self.subgoals.shape[0])

@@ -191,12 +191,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def controller_from_args(args: argparse.Namespace) -> ControllerConfig:
     base = ControllerConfig.paper() if args.paper else ControllerConfig()
-    if (
-        args.thresholds is not None and args.e_m is None
-    ):  # the relative switch goes with per-subgoal thresholds
-        base = replace(
-            base, e_m_mode=args.thresholds, pass_ratio=1.0 if args.thresholds == "per_subgoal" else 0.0
-        )
+    if args.thresholds is not None and args.e_m is None:  # the relative switch goes with per-subgoal ones
+        per_subgoal = args.thresholds == "per_subgoal"
+        base = replace(base, e_m_mode=args.thresholds, pass_ratio=1.0 if per_subgoal else 0.0)
     return replace(
         base,
         e_m_mode="fixed" if args.e_m is not None else base.e_m_mode,

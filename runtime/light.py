@@ -26,13 +26,11 @@ from typing import Any
 
 import numpy as np
 
-from vtr.runtime.preprocess import planar_levels
+from vtr.runtime.preprocess import clip_ufunc, planar_levels
 
 #: Floor on a channel's standard deviation (0..255): a flat channel is shifted, not stretched.
 _STD_FLOOR = 2.0
 _HALF, _LOW, _HIGH = np.float32(0.5), np.float32(0.0), np.float32(255.0)
-#: numpy's clip ufunc itself: ``np.clip`` reaches it through three Python wrappers (~1.3 us a call).
-_clip = getattr(getattr(np, "_core", None), "umath", np).clip
 
 
 @functools.cache
@@ -83,7 +81,7 @@ def _column_means(image: np.ndarray) -> np.ndarray:
 
 def _clip_floor(p: np.ndarray) -> np.ndarray:
     """In place: clipped to 0..255 and floored, i.e. the uint8 conversion (after a + 0.5), kept in float32."""
-    _clip(p, _LOW, _HIGH, out=p)
+    clip_ufunc(p, _LOW, _HIGH, out=p)
     return np.floor(p, out=p)
 
 

@@ -14,13 +14,11 @@ import numpy as np
 import onnxruntime as ort
 
 from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
-from vtr.runtime.preprocess import PREPROCESSINGS, nchw_into, normalise_planar, to_nchw
+from vtr.runtime.preprocess import PREPROCESSINGS, clip_ufunc, nchw_into, normalise_planar, to_nchw
 
 if TYPE_CHECKING:
     from vtr.runtime.route import Route
 
-#: numpy's clip ufunc itself: ``np.clip`` and ``ndarray.clip`` reach it through Python wrappers.
-_clip = getattr(getattr(np, "_core", None), "umath", np).clip
 #: A VelocityNet is a few MB; a file past this is refused before onnxruntime reads it.
 MAX_MODEL_BYTES = 256 * 1024 * 1024
 
@@ -197,7 +195,7 @@ class OnnxPolicy:
         if not np.isfinite(raw).all():
             self.nonfinite_count += 1
             return np.zeros((2, self.meta.horizon), dtype=np.float32)
-        return _clip(raw, self._low, self._high)
+        return clip_ufunc(raw, self._low, self._high)
 
     def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
         """(H, W, 3) uint8 current and subgoal images -> (2, N): row 0 v (m/s), row 1 w (rad/s)."""

@@ -82,7 +82,7 @@ STEPS_PER_SUBGOAL = 8
 class Repeater:
     """Follow ``route`` with ``policy`` on ``robot`` (see the module docstring).
 
-    ``controller`` defaults to a fresh ``Controller(route.images, config.controller)``. ``on_step`` is
+    ``controller`` defaults to a fresh ``Controller.for_route(route, config.controller)``. ``on_step`` is
     called with every record :meth:`step` returns, the terminal one included. ``stop_event`` set from
     another thread (a signal handler) ends the run at the next step with a zero command.
     """
@@ -115,11 +115,7 @@ class Repeater:
             )
         self.dt = float(self.config.dt if self.config.dt is not None else (model_dt or CONTROL_DT))
         self.controller = (
-            controller
-            if controller is not None
-            else Controller(
-                route.images, self.config.controller, route.commands, route.poses, route.travel_poses()
-            )
+            controller if controller is not None else Controller.for_route(route, self.config.controller)
         )
         # one view object per subgoal, passed again while it is steered to (OnnxPolicy keeps its tensor)
         self._views = list(self.controller.subgoals)

@@ -318,9 +318,8 @@ def train_velocitynet(
         batch = rec() if rec is not None and net.training else None
         views, goals = ([batch[0]], [batch[1]]) if batch is not None else ([], [])
         stops = max(1, frames.shape[0] // 4) if loss_cfg.w_stop > 0 and net.training else 0
-        if (
-            stops
-        ):  # a quarter of the batch's first frames paired with themselves (augmented apart: other light)
+        # a quarter of the batch's first frames paired with themselves (augmented apart: other light)
+        if stops:
             views.append(frames[:stops, 0])
             goals.append(frames[:stops, 0])
         # Extra pairs ride in the same VelocityNet call as the MPC pairs: one forward per step (DDP).
