@@ -65,7 +65,7 @@ class Method:
     side_ramp: bool = True  # with match_light: also even out a left-to-right gain
 
 
-AFTER = ControllerConfig()  # patch matching, one threshold per route, lost and contact stops, turns held
+AFTER = ControllerConfig()  # patch matching, hybrid thresholds, zero bias, lost and contact stops, turns held
 CONTROLLERS: dict[str, Method] = {
     "paper": Method(ControllerConfig.paper()),  # Algorithm 1: raw error, e_m = 17
     "before": Method(ControllerConfig.before()),  # the previous default: raw error, one e_m per route
@@ -85,6 +85,8 @@ CONTROLLERS: dict[str, Method] = {
     "after_no_idle": Method(replace(AFTER, idle_steps=0), match_light=True),  # wait out the stall guard
     "after_settle_0": Method(replace(AFTER, settle_steps=0), match_light=True),
     "after_prior_0.3": Method(replace(AFTER, taught_prior=0.3), match_light=True),
+    "after_no_zero_bias": Method(replace(AFTER, zero_bias=0.0), match_light=True),
+    "after_gate_0.5": Method(replace(AFTER, progress_gate=0.5), match_light=True),  # the previous gate
     "after_per_subgoal_settle_0": Method(
         replace(AFTER, e_m_mode="per_subgoal", pass_ratio=1.0, settle_steps=0), match_light=True
     ),

@@ -19,7 +19,9 @@ default of the release before the robust rules, kept for comparison):
   calib_fraction * quantile(d, calib_quantile), e_m_min, e_m_max)`` with d_k the distance between taught
   subgoals k and k+1. ``per_subgoal``: subgoal i gets ``calib_fraction * d_{i-1}``, the change
   the robot sees when it drives the gap into i, so creeping and fast segments of one route each get their
-  own (a route-wide threshold set by many creeping gaps stalled the robot on the fast ones).
+  own (a route-wide threshold set by many creeping gaps stalled the robot on the fast ones). ``hybrid``:
+  the route's threshold, raised to ``calib_fraction * min(d_{i-1}, d_i)`` where both gaps around subgoal i
+  are wider (a fast stretch or a turn: there a 1-2 degree miss scores several median gaps).
 - **Relative switch** (``pass_ratio`` > 0): ADVANCE when subgoal i+1 matches at least as well as i
   (``d(I, i+1) <= pass_ratio * d(I, i)``, and i+1 under the lost bound, so that two unrelated views
   cannot pass for a match): the robot is past i, whatever the light does to both errors.
@@ -44,12 +46,17 @@ default of the release before the robust rules, kept for comparison):
 - **Light ramp** (``match_ramp``, off): before patch matching, even out the view's left-to-right gain toward
   the subgoal judged (runtime.light); it helps one side darker and costs moved furniture (evaluation/README).
 - **Taught prior** (``taught_prior`` > 0, off): each command toward subgoal i is blended with the taught
-  command into i, while the commanded travel is short of the taught gap (``Decision.prior``; the repeat
-  loop blends). Dev routes at 0.3: mean error under noise 10.5 -> 5.7 mm, but more stalls, 1.96x the
-  taught steps, and fewer finished routes in the example room (evaluation/README).
-- **Lost** (``lost_steps`` > 0): when the best match among subgoals i-2 .. i+20 stays above ``lost_factor``
-  times the route's median gap (and LOST_FLOOR) for ``lost_steps`` commands, stop with LOST ("lost at
-  subgoal i, best match error X"): the view cannot be matched and driving on is a guess.
+  command into i while the commanded travel is short of the taught gap (``Decision.prior``; the repeat
+  loop blends). Lower error, more stalls and steps on dev (evaluation/README).
+- **Lost** (``lost_steps`` > 0): when the best match among subgoals i-2 .. i+20 stays above the lost bound
+  for ``lost_steps`` commands that bring no new best error at subgoal i, stop with LOST ("lost at subgoal i,
+  best match error X"): the view cannot be matched and driving on is a guess. The bound is ``lost_factor``
+  times the route's median gap (and LOST_FLOOR), or times the wider gap next to subgoal i where that is
+  more (``thresholds.lost_bounds``); a robot still closing in on its subgoal is not lost.
+- **Zero bias** (``zero_bias`` > 0; applied by the repeat loop): the policy's command on the subgoal image
+  itself, policy(S, S), is taken off every command toward S (in that fraction). A robot on the subgoal
+  should be told to stand still; in the example room the network said 0.1-0.2 rad/s of turn there and
+  drove the robot off its first subgoal.
 - **Turns in place** (``hold_turns``): where the taught robot turned on the spot, |v| is limited to 0.
 - **Plain routes**: when consecutive taught views differ by under ``PLAIN_ROUTE_GAP`` in patch distance
   (plain walls and floor: no texture to normalise), the controller uses the raw error (``fallback`` says so).
@@ -84,6 +91,7 @@ from vtr.runtime.thresholds import (  # noqa: F401 - calibrate_e_m, consecutive_
     calibrate_e_m,
     consecutive_errors,
     gaps_between,
+    lost_bounds,
     thresholds,
 )
 
@@ -146,6 +154,7 @@ class Controller:
         self.lost_bound = max(self.cfg.lost_factor * self.median_gap, LOST_FLOOR[self.cfg.match.method])
         if n < 2 or self.gaps.max() < DEFAULT_BOUNDS[self.cfg.match.method][0] / 10:
             self.lost_bound = math.inf  # a route whose views barely change cannot tell being lost
+        self._lost_bounds = lost_bounds(self.gaps, n, self.cfg, self.lost_bound)
         self.index = 0
         self.stalled = False
         self.status: Action | None = None  # the terminal action once the run stopped
@@ -191,6 +200,7 @@ class Controller:
     def _set_index(self, index: int) -> None:
         self.index = index
         self._best = math.inf
+        self._lost_best = math.inf
         self._no_progress = 0
         self._idle = 0  # commands in a row in which the policy hardly moved the robot
         self._last_error = math.inf
@@ -259,7 +269,7 @@ class Controller:
             self._set_index(i + 1)
             return Decision(Action.ADVANCE, self.index, error)
         if self.cfg.lost_steps > 0:
-            lost = self._lost(view, error)
+            lost = self._lost(view, error, min_step)
             if lost is not None:
                 return lost
         if self.cfg.stall_steps > 0:
@@ -317,15 +327,18 @@ class Controller:
         """Search the whole route for the best-matching subgoal on the next image (after a robot restart)."""
         self._localise_pending = True
 
-    def _lost(self, view: np.ndarray, error: float) -> Decision | None:
-        if error <= self.lost_bound:  # the window holds the current subgoal: its best is no worse
+    def _lost(self, view: np.ndarray, error: float, min_step: float) -> Decision | None:
+        bound = float(self._lost_bounds[self.index])
+        if error <= bound:  # the window holds the current subgoal: its best is no worse
             self._lost_count = 0
+            return None
+        if error < self._lost_best - min_step:  # a new best at this subgoal: closing in, not lost (yet)
+            self._lost_best = error
             return None
         ahead = max(self.cfg.lookahead, LOST_WINDOW)
         window = range(max(0, self.index - 2), min(len(self), self.index + 1 + ahead))
         errors = self.matcher.distances(view, self._feats[window.start : window.stop])
         best = int(np.argmin(errors))
-        bound = self.lost_bound
         if errors[best] <= bound:
             self._lost_count = 0
             return None

@@ -172,13 +172,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help=f"switch past a subgoal only after commanding this fraction of the taught travel into it; 0 disables (default: {default.progress_gate})",
     )  # fmt: skip
     parser.add_argument(
-        "--thresholds", choices=("calibrated", "per_subgoal"), default=None,
+        "--thresholds", choices=("calibrated", "per_subgoal", "hybrid"), default=None,
         help="one switch threshold for the route, or one per subgoal with the relative switch "
              f"(default: {default.e_m_mode})",
     )  # fmt: skip
     parser.add_argument(
         "--taught-prior", type=float, default=None,
         help=f"blend the taught command into each subgoal with the policy's at this weight, 0..1 (default: {default.taught_prior})",
+    )  # fmt: skip
+    parser.add_argument(
+        "--zero-bias", type=float, default=None,
+        help="subtract this fraction (0..1) of the policy's command on the subgoal image itself from each command "
+             f"toward it (default: {default.zero_bias})",
     )  # fmt: skip
     parser.add_argument(
         "--paper",
@@ -204,6 +209,7 @@ def controller_from_args(args: argparse.Namespace) -> ControllerConfig:
         lost_steps=args.lost_steps if args.lost_steps is not None else base.lost_steps,
         progress_gate=args.progress_gate if args.progress_gate is not None else base.progress_gate,
         taught_prior=args.taught_prior if args.taught_prior is not None else base.taught_prior,
+        zero_bias=args.zero_bias if args.zero_bias is not None else base.zero_bias,
         localise=args.localise,
         continuous=args.continuous,
     )

@@ -120,6 +120,7 @@ class Repeater:
         # one view object per subgoal, passed again while it is steered to (OnnxPolicy keeps its tensor)
         self._views = list(self.controller.subgoals)
         self._last = len(self._views) - 1
+        self._bias = self._self_bias(self.controller.cfg.zero_bias)
         self.on_step = on_step
         self.stop_event = stop_event or threading.Event()
         # a lost robot must stop; a long route must not be cut short
@@ -139,6 +140,19 @@ class Repeater:
         self._crashed = False
         #: Robot restarts survived by re-localising (``localise`` only).
         self.robot_restarts = 0
+
+    def _self_bias(self, weight: float) -> np.ndarray | None:
+        """(L, 2) ``weight * policy(S, S)`` per subgoal S, or None when off: what the network commands with the
+        robot already on the subgoal, taken off every command toward it (ControllerConfig.zero_bias)."""
+        if weight <= 0:
+            return None
+        images = self.route.images
+        return weight * np.array(
+            [
+                np.asarray(self.policy.predict(images[k], view), np.float64)[:2, 0]
+                for k, view in enumerate(self._views)
+            ]
+        )
 
     @property
     def done(self) -> bool:
@@ -254,8 +268,11 @@ class Repeater:
             return self._end(status, decision.note if status is not RepeatStatus.FINISHED else "", verdict)
         if self.steps >= self.max_steps:
             return self._end(RepeatStatus.STEP_LIMIT, "", verdict)
-        velocities = self.policy.predict(obs.image, self._views[min(self.controller.index, self._last)])
+        target = min(self.controller.index, self._last)
+        velocities = self.policy.predict(obs.image, self._views[target])
         v, w = float(velocities[0, 0]), float(velocities[1, 0])
+        if self._bias is not None:
+            v, w = v - float(self._bias[target, 0]), w - float(self._bias[target, 1])
         if decision.prior is not None:  # the taught command into the subgoal, blended in
             a, pv, pw = decision.prior
             v, w = (1 - a) * v + a * pv, (1 - a) * w + a * pw

@@ -11,7 +11,7 @@ from vtr.runtime.matching import MatchConfig, Matcher
 if TYPE_CHECKING:
     from vtr.runtime.controller import ControllerConfig
 
-THRESHOLD_MODES = ("fixed", "calibrated", "per_subgoal")
+THRESHOLD_MODES = ("fixed", "calibrated", "per_subgoal", "hybrid")
 #: Default bounds of a derived threshold, per matching method, in that method's units. The patch floor is
 #: what 1-2 cm or 1 degree away from a subgoal scores: finer than the policy steers, and it keeps creeping
 #: segments (subgoals 1 cm apart) switchable.
@@ -56,4 +56,19 @@ def thresholds(gaps: np.ndarray, n: int, cfg: ControllerConfig) -> np.ndarray:
     if cfg.e_m_mode == "calibrated":
         return np.full(n, _route_threshold(gaps, cfg))
     incoming = np.concatenate([gaps[:1], gaps])  # subgoal 0 has no incoming gap: use its outgoing one
+    if cfg.e_m_mode == "hybrid":  # the route's threshold, raised where both neighbouring gaps are wide
+        outgoing = np.concatenate([gaps, gaps[-1:]])
+        local = cfg.calib_fraction * np.minimum(incoming, outgoing)
+        return np.clip(np.maximum(_route_threshold(gaps, cfg), local), *cfg.bounds)
     return np.clip(cfg.calib_fraction * incoming, *cfg.bounds)
+
+
+def lost_bounds(gaps: np.ndarray, n: int, cfg: ControllerConfig, route_bound: float) -> np.ndarray:
+    """(n,) per subgoal: ``route_bound``, or ``lost_factor`` times the wider of its two neighbouring gaps where
+    that is more (a view 2 degrees off a subgoal inside a fast turn differs from it by more than two of the
+    route's median gaps and is not lost)."""
+    if n < 2:
+        return np.full(n, route_bound)
+    incoming = np.concatenate([gaps[:1], gaps])
+    outgoing = np.concatenate([gaps, gaps[-1:]])
+    return np.maximum(route_bound, cfg.lost_factor * np.maximum(incoming, outgoing))

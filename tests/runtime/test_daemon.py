@@ -100,7 +100,8 @@ class SpyPolicy:
 
     def predict(self, current, subgoal):
         assert current.shape == (16, 16, 3) and current.dtype == np.uint8
-        self.seen += 1
+        if not np.shares_memory(current, subgoal):  # a camera frame, not the zero bias's subgoal on itself
+            self.seen += 1
         return self.inner.predict(current, subgoal)
 
 
@@ -140,7 +141,9 @@ def test_an_exception_commands_zero_velocity_and_propagates(policy_path):
         nonfinite_count = 0
 
         def predict(self, current, subgoal):
-            raise RuntimeError("onnxruntime exploded")
+            if not np.shares_memory(current, subgoal):  # the zero bias's pass over the route goes through
+                raise RuntimeError("onnxruntime exploded")
+            return np.zeros((2, 1), np.float32)
 
     robot = LocalRobot(FakeSim())
     with pytest.raises(RuntimeError, match="exploded"):

@@ -137,6 +137,35 @@ def test_the_taught_prior_blends_the_taught_command_into_the_policys():
     assert (sent[-1].v, sent[-1].w) == pytest.approx((0.2, 0.1))
 
 
+class Biased:
+    """Like a network in a world unlike its training houses: on the subgoal itself it still says "turn"."""
+
+    image_shape = (4, 4)
+
+    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+        gap = float(subgoal[0, 0, 0]) - float(current[0, 0, 0])  # steer toward the subgoal's grey level
+        return np.array([[0.001 * gap + 0.03], [0.15]], dtype=np.float32)
+
+
+def test_zero_bias_takes_the_policys_command_on_the_subgoal_itself_off_every_command_toward_it():
+    route = flat_route(0, 100, 200)
+    sent: list[StepRecord] = []
+    cfg = replace(PAPER, zero_bias=1.0)
+    rep = Repeater(Frames([40, 60, 250]), Biased(), route, config=RepeatConfig(cfg), on_step=sent.append)
+    rep.step()  # grey 40 is 40 from subgoal 0, above e_m = 17: steer toward it
+    assert sent[-1].subgoal == 0
+    assert sent[-1].v == pytest.approx(0.001 * -40) and sent[-1].w == pytest.approx(0.0, abs=1e-7)
+    half = Repeater(Frames([40, 40]), Biased(), route, config=RepeatConfig(replace(cfg, zero_bias=0.5)),
+                    on_step=sent.append)  # fmt: skip
+    half.step()
+    assert sent[-1].v == pytest.approx(0.001 * -40 + 0.015) and sent[-1].w == pytest.approx(0.075)
+    off = Repeater(Frames([40, 40]), Biased(), route, config=RepeatConfig(PAPER), on_step=sent.append)
+    off.step()
+    assert sent[-1].w == pytest.approx(0.15)  # the drift that drove the robot off its first subgoal
+    with pytest.raises(ValueError, match="zero_bias is a weight"):
+        ControllerConfig(zero_bias=1.5)
+
+
 def test_route_and_model_must_agree_on_dt_and_image_size():
     class WithMeta(Constant):
         class meta:  # noqa: N801 - stands in for ModelMeta
