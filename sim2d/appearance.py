@@ -209,7 +209,7 @@ def _fits(data: dict[str, Any], index: int) -> bool:
         return False  # a start pose is no longer free
     f = house.furniture[index]
     pts = np.concatenate([f.vertices, (f.vertices + np.roll(f.vertices, -1, axis=0)) / 2])
-    a, ab, inv_len2, poly_id, _ = house._edges
+    a, ab, inv_len2, poly_id, _, _ = house._edges
     wall_edges = poly_id < len(house.wall_boxes)
     for x, y in pts:
         if house.room_at(x, y) is None:

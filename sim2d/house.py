@@ -188,13 +188,12 @@ class House:
 
     def clearance(self, x: float, y: float) -> float:
         """Distance from (x, y) to the nearest wall or furniture surface (0 inside one)."""
-        a, ab, inv_len2, poly_id, n_poly = self._edges
+        a, ab, inv_len2, poly_id, n_poly, b_y = self._edges
         ap = np.array([x, y]) - a  # (E, 2)
         t = np.clip(np.einsum("ij,ij->i", ap, ab) * inv_len2, 0.0, 1.0)
         d = ap - ab * t[:, None]
         best = float(np.sqrt(np.min(d[:, 0] ** 2 + d[:, 1] ** 2)))
         # Even-odd rule per polygon: count edges crossed by a ray from (x, y) towards +x.
-        b_y = a[:, 1] + ab[:, 1]
         straddle = (a[:, 1] > y) != (b_y > y)
         with np.errstate(divide="ignore", invalid="ignore"):
             x_cross = a[:, 0] + (y - a[:, 1]) * ab[:, 0] / ab[:, 1]
@@ -209,12 +208,11 @@ class House:
     def clearances(self, xy: np.ndarray) -> np.ndarray:
         """clearance() of many points (N, 2) at once; 0 outside every room too (so > r means is_free)."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        a, ab, inv_len2, poly_id, n_poly = self._edges
+        a, ab, inv_len2, poly_id, n_poly, b_y = self._edges
         ap = xy[:, None, :] - a[None]  # (N, E, 2)
         t = np.clip(np.einsum("nij,ij->ni", ap, ab) * inv_len2, 0.0, 1.0)
         d = ap - ab[None] * t[..., None]
         best = np.sqrt(np.min(d[..., 0] ** 2 + d[..., 1] ** 2, axis=1))
-        b_y = a[:, 1] + ab[:, 1]
         y = xy[:, 1:2]
         straddle = (a[None, :, 1] > y) != (b_y[None] > y)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -237,7 +235,11 @@ class House:
         b = np.concatenate([np.roll(p, -1, axis=0) for p in polys])
         ab = b - a
         poly_id = np.concatenate([np.full(len(p), i) for i, p in enumerate(polys)])
-        self._edges = (a, ab, 1.0 / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), poly_id, len(polys))
+        # b's y as stored, not a + ab: the even-odd test must see a shared vertex at one height from both of
+        # its edges (a + ab can differ by an ulp, and a ray through that vertex then counted one edge: house
+        # random:5501's start pose tested as inside a wall box it was 0.8 m from)
+        inv_len2 = 1.0 / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12)
+        self._edges = (a, ab, inv_len2, poly_id, len(polys), b[:, 1].copy())
         circles = [f for f in self.furniture if f.shape == "circle"]
         self._circles = (
             np.array([f.center for f in circles], dtype=np.float64).reshape(-1, 2),

@@ -109,3 +109,18 @@ def test_default_house_is_unchanged():
     assert house.name == "house" and house.lighting.is_uniform and house.lighting.level == 1.0
     with pytest.raises(HouseError):
         load_house("no_such_house")
+
+
+def test_a_point_level_with_a_wall_box_corner_is_not_taken_for_inside_the_box():
+    """House 5501's first start lies exactly level with a wall box's top corners, 4.5 m to their left. The
+    even-odd test had built that corner's height two ways (a and a + ab, an ulp apart), counted one crossing
+    and called the point inside a wall, so the house could not be loaded (`vtr eval --houses 5500:5510`)."""
+    house = load_house("random:5501")
+    start = house.start_poses[0]
+    assert (start.x, start.y) == (1.75, 0.95) and house.is_free(start.x, start.y, 0.25)
+    exact = min(
+        float(_poly_distance(poly, np.array([start.x]), np.array([start.y]))[0])
+        for poly in list(house.wall_boxes) + [f.vertices for f in house.furniture]
+    )
+    assert house.clearance(start.x, start.y) == pytest.approx(exact, abs=1e-3)  # circles: a polygon here
+    assert house.clearances(np.array([[start.x, start.y]]))[0] == pytest.approx(exact, abs=1e-3)
