@@ -113,7 +113,7 @@ def evaluate_route(task: tuple[str, int, HouseSuiteConfig]) -> dict[str, Any]:
     from vtr.evaluation.condition_suite import Condition, cached_policy, run_once
     from vtr.evaluation.harness import teach
     from vtr.evaluation.runs import PoseOracle
-    from vtr.sim2d.house import load_house
+    from vtr.sim2d.house import HouseError, load_house
     from vtr.sim2d.route_gen import generate_route, route_json
 
     house, k, cfg = task
@@ -122,7 +122,10 @@ def evaluate_route(task: tuple[str, int, HouseSuiteConfig]) -> dict[str, Any]:
     out: dict[str, Any] = {"house": house, "route_seed": k, "runs": []}
     try:
         script = generate_route(house, k)
-    except RuntimeError as err:  # a house where no valid route could be drawn: say so, do not crash
+    except (
+        RuntimeError,
+        HouseError,
+    ) as err:  # no valid route, or a house that cannot be built: say so, go on
         return {**out, "error": str(err), "wall_s": time.perf_counter() - t0}
     policy = cached_policy(Path(cfg.model), cfg.threads)
     route, _ = teach(script, tuple(policy.image_shape), cfg.dt, house)

@@ -115,3 +115,11 @@ def test_an_interrupted_run_keeps_the_finished_routes(
     saved = json.loads((tmp_path / "h.json").read_text())
     assert saved["partial"] == "1 of 2 routes finished" and saved["summary"]["overall"]["completed"] == 1
     assert "Partial result" in (tmp_path / "h.md").read_text()
+
+
+def test_a_house_that_cannot_be_built_is_reported_not_raised(small_model: Path, tmp_path: Path) -> None:
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"rooms": []}))  # not a house: sim2d refuses it (HouseError)
+    cfg = house_suite.HouseSuiteConfig(houses=(str(bad),), model=small_model, seeds=(0,))
+    out = house_suite.evaluate_route((str(bad), 0, cfg))
+    assert out["runs"] == [] and out["error"].startswith(f"{bad}: name: missing required field")
