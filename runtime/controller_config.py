@@ -24,7 +24,8 @@ class ControllerConfig:
     e_m: float = 17.0
     #: Quantile of the consecutive-subgoal distances used by "calibrated" (0.5 = median).
     calib_quantile: float = 0.5
-    #: Fraction of that distance (of the incoming gap, for "per_subgoal") taken as the threshold.
+    #: Fraction of that distance (of the incoming gap for "per_subgoal", of the smaller neighbouring gap for
+    #: "hybrid") taken as the threshold.
     calib_fraction: float = 0.75
     #: Bounds on a derived threshold; None takes DEFAULT_BOUNDS for the matching method.
     e_m_min: float | None = None

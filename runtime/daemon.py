@@ -173,7 +173,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     parser.add_argument(
         "--thresholds", choices=("calibrated", "per_subgoal", "hybrid"), default=None,
-        help="one switch threshold for the route, or one per subgoal with the relative switch "
+        help="calibrated: one switch threshold for the route; per_subgoal: one per subgoal, with the relative "
+             "switch; hybrid: the route's, raised where both gaps around a subgoal are wide "
              f"(default: {default.e_m_mode})",
     )  # fmt: skip
     parser.add_argument(
