@@ -121,6 +121,13 @@ class Repeater:
         self._views = list(self.controller.subgoals)
         self._last = len(self._views) - 1
         self._bias = self._self_bias(self.controller.cfg.zero_bias)
+        # the tightest bounds of the model and of what the robot announced: the zero bias and the taught prior
+        # can take a command past the network's own (a command past the robot's is refused, ending the run)
+        bounds = [
+            b for b in (getattr(policy, "meta", None), getattr(robot, "limits", None)) if hasattr(b, "v_max")
+        ]
+        self._v_max = min([math.inf, *(float(b.v_max) for b in bounds)])
+        self._w_max = min([math.inf, *(float(b.w_max) for b in bounds)])
         self.on_step = on_step
         self.stop_event = stop_event or threading.Event()
         # a lost robot must stop; a long route must not be cut short
@@ -276,7 +283,8 @@ class Repeater:
         if decision.prior is not None:  # the taught command into the subgoal, blended in
             a, pv, pw = decision.prior
             v, w = (1 - a) * v + a * pv, (1 - a) * w + a * pw
-        v = max(-decision.v_limit, min(decision.v_limit, v))  # no translation in a taught turn in place
+        v_max = min(decision.v_limit, self._v_max)  # v_limit 0: no translation in a taught turn in place
+        v, w = max(-v_max, min(v_max, v)), max(-self._w_max, min(self._w_max, w))
         t_policy = time.perf_counter()
         stage = dict(getattr(self.policy, "last_timing_ms", None) or {})
         stage["error"] = (t_error - t0) * 1e3

@@ -377,7 +377,9 @@ def test_threshold_choice_on_the_command_line():
     )
     fixed = controller_from_args(parser.parse_args([*common, "--thresholds", "per_subgoal", "--e-m", "20"]))
     assert (fixed.e_m_mode, fixed.e_m) == ("fixed", 20.0)  # an explicit e_m wins
-    hybrid = controller_from_args(parser.parse_args([*common, "--thresholds", "hybrid", "--zero-bias", "0.5"]))
+    hybrid = controller_from_args(
+        parser.parse_args([*common, "--thresholds", "hybrid", "--zero-bias", "0.5"])
+    )
     assert (hybrid.e_m_mode, hybrid.pass_ratio, hybrid.zero_bias) == ("hybrid", 0.0, 0.5)
     paper = controller_from_args(parser.parse_args([*common, "--paper"]))
     assert (paper.e_m_mode, paper.zero_bias, paper.progress_gate) == ("fixed", 0.0, 0.0)  # Algorithm 1

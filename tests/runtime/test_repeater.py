@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from vtr.runtime.contracts import Observation, Policy, Robot
+from vtr.runtime.contracts import Observation, Policy, Robot, RobotLimits
 from vtr.runtime.controller import Action, Controller, ControllerConfig
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus, StepRecord
 from vtr.runtime.robot import RobotError
@@ -164,6 +164,29 @@ def test_zero_bias_takes_the_policys_command_on_the_subgoal_itself_off_every_com
     assert sent[-1].w == pytest.approx(0.15)  # the drift that drove the robot off its first subgoal
     with pytest.raises(ValueError, match="zero_bias is a weight"):
         ControllerConfig(zero_bias=1.5)
+
+
+def test_commands_stay_within_the_models_and_the_robots_limits_after_the_zero_bias():
+    """The example room: the network at +0.5 m/s (its bound), its zero at -0.03, so the corrected command asked for
+    0.53 m/s, the link refused it and the run ended with an error. It is clipped to the tighter bounds now."""
+
+    class AtLimit(Biased):
+        class meta:  # noqa: N801 - stands in for ModelMeta
+            v_max, w_max, dt = 0.5, 1.0, 0.1
+
+        def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+            same = np.shares_memory(current, subgoal)
+            return np.array([[-0.03 if same else 0.5], [-0.2 if same else 0.95]], dtype=np.float32)
+
+    class Announcing(Frames):
+        limits = RobotLimits(v_max=0.4, w_max=2.0)
+
+    sent: list[StepRecord] = []
+    cfg = RepeatConfig(replace(PAPER, zero_bias=1.0))
+    Repeater(Frames([40, 40]), AtLimit(), flat_route(0, 100), config=cfg, on_step=sent.append).step()
+    assert (sent[-1].v, sent[-1].w) == pytest.approx((0.5, 1.0))  # not 0.53 and 1.15
+    Repeater(Announcing([40, 40]), AtLimit(), flat_route(0, 100), config=cfg, on_step=sent.append).step()
+    assert (sent[-1].v, sent[-1].w) == pytest.approx((0.4, 1.0))  # the robot's v bound is the tighter
 
 
 def test_route_and_model_must_agree_on_dt_and_image_size():
