@@ -83,6 +83,7 @@ class SimServer:
         self.cfg = cfg or ServerConfig()
         self.clock = clock
         self._wall = clock()  # realtime: wall-clock instant the simulator has been advanced to
+        self._contact = False  # realtime: a contact while advancing, not yet reported
         #: Changes at every server start, so a client can tell a restarted server from a stale reply.
         self.session = uuid.uuid4().hex[:12]
         self.requests = 0
@@ -127,6 +128,8 @@ class SimServer:
                 advance(self.twist[0], self.twist[1], chunk)
             else:
                 self.sim.step(self.twist[0], self.twist[1], chunk)
+            # a contact in any chunk is reported with the next image: the simulator's flag is the last chunk's
+            self._contact = self._contact or bool(self.sim.collided)
             remaining -= chunk
 
     def handle(self, frames: list[bytes]) -> list[bytes]:
@@ -199,14 +202,9 @@ class SimServer:
             return self._error(f"simulator error on {req.cmd!r}: {exc}", req.cmd, req.seq, "robot_error")
 
     def _image_reply(self, req: protocol.Request, image: Any) -> list[bytes]:
+        collided, self._contact = bool(self.sim.collided) or self._contact, False
         return protocol.encode_image_reply(
-            req.cmd,
-            req.seq,
-            self.session,
-            float(self.sim.time),
-            image,
-            self.sim.pose,
-            bool(self.sim.collided),
+            req.cmd, req.seq, self.session, float(self.sim.time), image, self.sim.pose, collided
         )
 
     def _dispatch(self, req: protocol.Request) -> list[bytes]:
@@ -216,7 +214,7 @@ class SimServer:
         if req.cmd == "reset":
             pose = req.fields.get("pose")
             image = sim.reset(pose=None if pose is None else make_pose(*pose), seed=req.fields.get("seed"))
-            self.twist, self.twist_deadline = (0.0, 0.0), None
+            self.twist, self.twist_deadline, self._contact = (0.0, 0.0), None, False
             self._wall = self.clock()
             return self._image_reply(req, image)
         if req.cmd == "observe":

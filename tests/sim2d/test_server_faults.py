@@ -121,3 +121,27 @@ def test_a_peer_sending_more_than_the_hard_cap_is_cut_off_and_others_are_served(
             hostile.close()
             good.close()
             ctx.term()
+
+
+def test_a_contact_while_coasting_between_requests_is_reported_in_realtime():
+    """In realtime the twist drives on between requests, and the next request advances the robot first. A
+    contact in that coasting (the robot brushing a wall, then clear of it) was overwritten by the later
+    advances, and the runtime's stop on contact never heard of it."""
+
+    class Brushing(TinySim):
+        def step(self, v: float, w: float, duration: float) -> np.ndarray:
+            image = super().step(v, w, duration)
+            self.collided = 0.1 < self.pose.x < 0.2  # touching the wall only along this stretch
+            return image
+
+    sim, clock = Brushing(), FakeClock()
+    server = SimServer(
+        sim, ServerConfig(mode="realtime", cmd_vel_timeout=0.0, max_step_duration=0.1), clock=clock
+    )
+    step_at(server, clock, 0.5, 0.1)  # x = 0.05 at the reply: no contact yet
+    clock.t = 100.7  # coasting at 0.5 m/s: through the touching stretch and out of it (x = 0.35)
+    reply = protocol.decode_reply(server.handle(protocol.encode_request("observe", 2)))
+    assert reply.pose[0] == pytest.approx(0.35) and not sim.collided  # the last chunk is clear ...
+    assert reply.collided  # ... but the robot touched the wall on its way
+    clock.t = 100.8
+    assert not protocol.decode_reply(server.handle(protocol.encode_request("observe", 3))).collided  # once
