@@ -140,6 +140,21 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
         return summary
 
 
+#: ControllerConfig fields a flag sets as given (flag, field, type, help; the help gets the default appended).
+_OVERRIDES: tuple[tuple[str, str, type, str], ...] = (
+    ("--lost-steps", "lost_steps", int,
+     "stop as lost after this many steps with no nearby subgoal matching; 0 disables"),
+    ("--stall-steps", "stall_steps", int, "stall guard patience; 0 disables it"),
+    ("--settle", "settle_steps", int, "extra commands at a subgoal while the error still falls (paper: 0)"),
+    ("--progress-gate", "progress_gate", float,
+     "switch past a subgoal only after commanding this fraction of the taught travel into it; 0 disables"),
+    ("--taught-prior", "taught_prior", float,
+     "blend the taught command into each subgoal with the policy's at this weight, 0..1"),
+    ("--zero-bias", "zero_bias", float,
+     "subtract this fraction (0..1) of the policy's command on the subgoal image itself from each command toward it"),
+)  # fmt: skip
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_config_arguments(parser, RepeatRunConfig)
     add_config_arguments(parser, RepeatConfig)
@@ -155,36 +170,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--match", choices=("patch", "raw"), default=None,
         help=f"image comparison: patch-normalised median or the paper's raw mean abs error (default: {default.match.method})",
     )  # fmt: skip
-    parser.add_argument(
-        "--lost-steps", type=int, default=None,
-        help=f"stop as lost after this many steps with no nearby subgoal matching; 0 disables (default: {default.lost_steps})",
-    )  # fmt: skip
-    parser.add_argument(
-        "--stall-steps", type=int, default=None,
-        help=f"stall guard patience; 0 disables it (default: {default.stall_steps})",
-    )  # fmt: skip
-    parser.add_argument(
-        "--settle", type=int, default=None,
-        help=f"extra commands at a subgoal while the error still falls (default: {default.settle_steps}; paper: 0)",
-    )  # fmt: skip
-    parser.add_argument(
-        "--progress-gate", type=float, default=None,
-        help=f"switch past a subgoal only after commanding this fraction of the taught travel into it; 0 disables (default: {default.progress_gate})",
-    )  # fmt: skip
+    for flag, field_name, kind, text in _OVERRIDES:
+        parser.add_argument(flag, type=kind, default=None, dest=field_name, metavar=flag[2:].upper().replace("-", "_"),
+                            help=f"{text} (default: {getattr(default, field_name)})")  # fmt: skip
     parser.add_argument(
         "--thresholds", choices=("calibrated", "per_subgoal", "hybrid"), default=None,
         help="calibrated: one switch threshold for the route; per_subgoal: one per subgoal, with the relative "
              "switch; hybrid: the route's, raised where both gaps around a subgoal are wide "
              f"(default: {default.e_m_mode})",
-    )  # fmt: skip
-    parser.add_argument(
-        "--taught-prior", type=float, default=None,
-        help=f"blend the taught command into each subgoal with the policy's at this weight, 0..1 (default: {default.taught_prior})",
-    )  # fmt: skip
-    parser.add_argument(
-        "--zero-bias", type=float, default=None,
-        help="subtract this fraction (0..1) of the policy's command on the subgoal image itself from each command "
-             f"toward it (default: {default.zero_bias})",
     )  # fmt: skip
     parser.add_argument(
         "--paper",
@@ -204,13 +197,8 @@ def controller_from_args(args: argparse.Namespace) -> ControllerConfig:
         base,
         e_m_mode="fixed" if args.e_m is not None else base.e_m_mode,
         e_m=args.e_m if args.e_m is not None else base.e_m,
-        stall_steps=args.stall_steps if args.stall_steps is not None else base.stall_steps,
-        settle_steps=args.settle if args.settle is not None else base.settle_steps,
         match=replace(base.match, method=args.match) if args.match is not None else base.match,
-        lost_steps=args.lost_steps if args.lost_steps is not None else base.lost_steps,
-        progress_gate=args.progress_gate if args.progress_gate is not None else base.progress_gate,
-        taught_prior=args.taught_prior if args.taught_prior is not None else base.taught_prior,
-        zero_bias=args.zero_bias if args.zero_bias is not None else base.zero_bias,
+        **{f: getattr(args, f) for _, f, _, _ in _OVERRIDES if getattr(args, f) is not None},
         localise=args.localise,
         continuous=args.continuous,
     )

@@ -5,7 +5,8 @@ they differ only in the robot they hand it and in what they do with each :class:
 One :meth:`Repeater.step`: validate the frame, let the controller judge it (it applies its own subgoal
 switches and reports them as events), run the policy, take off its command on the subgoal itself (the zero
 bias, computed once per subgoal when the route is loaded), clip to the model's and the robot's limits, apply
-that (v, w) for dt, command zero unless continuous. The decisions are the controller's (``runtime.controller``), the velocities the policy's.
+that (v, w) for dt, command zero unless continuous. The decisions are the controller's
+(``runtime.controller``), the velocities the policy's.
 
 Safety rules, in order of precedence:
 

@@ -49,15 +49,20 @@ def calibrate_e_m(images: np.ndarray, cfg: ControllerConfig) -> float:
     return cfg.e_m if d.size == 0 else _route_threshold(d, cfg)
 
 
+def _neighbour_gaps(gaps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per subgoal, the gap into it and the gap out of it (the first has no incoming gap and the last no
+    outgoing one: each takes its other neighbour's)."""
+    return np.concatenate([gaps[:1], gaps]), np.concatenate([gaps, gaps[-1:]])
+
+
 def thresholds(gaps: np.ndarray, n: int, cfg: ControllerConfig) -> np.ndarray:
     """(n,) switch threshold of every subgoal from the (n-1,) consecutive distances ``gaps``."""
     if cfg.e_m_mode == "fixed" or n < 2:
         return np.full(n, cfg.e_m)
     if cfg.e_m_mode == "calibrated":
         return np.full(n, _route_threshold(gaps, cfg))
-    incoming = np.concatenate([gaps[:1], gaps])  # subgoal 0 has no incoming gap: use its outgoing one
+    incoming, outgoing = _neighbour_gaps(gaps)
     if cfg.e_m_mode == "hybrid":  # the route's threshold, raised where both neighbouring gaps are wide
-        outgoing = np.concatenate([gaps, gaps[-1:]])
         local = cfg.calib_fraction * np.minimum(incoming, outgoing)
         return np.clip(np.maximum(_route_threshold(gaps, cfg), local), *cfg.bounds)
     return np.clip(cfg.calib_fraction * incoming, *cfg.bounds)
@@ -69,6 +74,5 @@ def lost_bounds(gaps: np.ndarray, n: int, cfg: ControllerConfig, route_bound: fl
     route's median gaps and is not lost)."""
     if n < 2:
         return np.full(n, route_bound)
-    incoming = np.concatenate([gaps[:1], gaps])
-    outgoing = np.concatenate([gaps, gaps[-1:]])
+    incoming, outgoing = _neighbour_gaps(gaps)
     return np.maximum(route_bound, cfg.lost_factor * np.maximum(incoming, outgoing))
