@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from vtr.benchmarks.latency import TARGETS
+from vtr.benchmarks.latency_report import TARGETS
 from vtr.runtime.atomic import write_text_atomic
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from vtr.benchmarks import latency
+from vtr.benchmarks import latency, latency_report
 from vtr.benchmarks.backends import velocitynet_like
 from vtr.benchmarks.flops import count_flops
 from vtr.benchmarks.standin import make_standin_velocitynet
@@ -61,8 +61,17 @@ def test_latency_smoke_run(tiny_model: Path, tmp_path: Path) -> None:
     )
     result = latency.run(cfg)
     stages = result["stages"]["stages"]
-    names = ("frame_decode", "preprocess", "inference", "image_error", "light_matching", "whole_step_raw",
-             "whole_step", "whole_step_continuous", "whole_step_match_light")  # fmt: skip
+    names = (
+        "frame_decode",
+        "preprocess",
+        "inference",
+        "image_error",
+        "light_matching",
+        "whole_step_raw",
+        "whole_step",
+        "whole_step_continuous",
+        "whole_step_match_light",
+    )
     for name in names:
         assert stages[name]["n"] == 3 and stages[name]["p99_ms"] >= stages[name]["p50_ms"] > 0
     b = result["backends"]["threads"]["1"]["backends"]
@@ -70,13 +79,17 @@ def test_latency_smoke_run(tiny_model: Path, tmp_path: Path) -> None:
     assert "skipped" in b["ort_int8"]  # no int8 twin beside the tiny model
     assert result["memory"]["heavy_modules_loaded"] == []
     assert result["memory"]["peak_rss_mb"] > 0
-    assert all(result["ratios"][key] is not None for key in latency.STEP_VARIANTS)
+    assert all(result["ratios"][key] is not None for key in latency_report.STEP_VARIANTS)
     # the route's views differ, so the whole step times patch matching, not the plain-route fallback
-    assert result["stages"]["matching"] == {"whole_step_raw": "raw", "whole_step": "patch",
-                                            "whole_step_continuous": "patch", "whole_step_match_light": "patch"}  # fmt: skip
+    assert result["stages"]["matching"] == {
+        "whole_step_raw": "raw",
+        "whole_step": "patch",
+        "whole_step_continuous": "patch",
+        "whole_step_match_light": "patch",
+    }
     on_disk = json.loads((tmp_path / "lat.json").read_text())
     assert on_disk["gflop"] == pytest.approx(result["gflop"])
-    assert "targets (issues 5 and 11)" in latency.format_report(result)
+    assert "targets (issues 5 and 11)" in latency_report.format_report(result)
     from vtr.evaluation import report
 
     md = report.build(on_disk, [])
@@ -95,16 +108,16 @@ def test_config_rejects_bad_values(tiny_model: Path) -> None:
 def test_vtr_bench_latency_cli(tiny_model: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from vtr.cli import main
 
-    argv = ["bench", "latency", "--model", str(tiny_model), "--steps", "3", "--warmup", "1", "--thread-counts", "1",
-            "--backends", "ort_fp32", "--matmul-size", "32", "--no-zmq", "--no-memory", "--sim-steps", "0",
-            "--json", str(tmp_path / "l.json"), "--also-models", str(tiny_model)]  # fmt: skip
+    quick = "--steps 3 --warmup 1 --thread-counts 1 --backends ort_fp32 --matmul-size 32 --no-zmq --no-memory"
+    argv = ["bench", "latency", "--model", str(tiny_model), *quick.split(), "--sim-steps", "0"]
+    argv += ["--json", str(tmp_path / "l.json"), "--also-models", str(tiny_model)]
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert "whole_step" in out and f"{tiny_model} (" in out and "same run" in out
     written = json.loads((tmp_path / "l.json").read_text())
     assert written["stages"]["stages"]["whole_step"]["n"] == 3
     other = written["also_models"][str(tiny_model)]  # the other network's step and inference, paired
-    assert set(other["step_overhead"]) == set(latency.STEP_VARIANTS)
+    assert set(other["step_overhead"]) == set(latency_report.STEP_VARIANTS)
     assert other["stages"]["pairs"]["whole_step_match_light"]["inference"]["n"] == 3
     assert main(["bench", "latency", "--model", str(tmp_path / "missing.onnx")]) == 2
 

@@ -1,0 +1,132 @@
+"""The summary of a `vtr bench latency` result (benchmarks.latency): the target ratios of issues 5 and 11,
+and the text report it prints."""
+
+from __future__ import annotations
+
+from typing import Any
+
+#: Targets from issues 5 and 11, as ratios (name -> (description, comparison, threshold)).
+TARGETS = {
+    "ort_fp32_vs_torch_eager": ("torch eager p50 / onnxruntime fp32 p50", ">=", 3.0),
+    "int8_vs_fp32": ("onnxruntime fp32 p50 / int8 p50", ">=", 2.5),
+    "step_overhead_raw": ("whole step p50 / inference p50 - 1, raw error", "<=", 0.15),
+    "step_overhead": ("same, patch matching (the controller's default)", "<=", 0.15),
+    "step_overhead_continuous": ("same, no zero command between steps", "<=", 0.15),
+    "step_overhead_match_light": ("same, + light matching (vtr repeat's default)", "<=", 0.15),
+    "fp32_vs_matmul": ("fp32 achieved GFLOP/s / matmul GFLOP/s", ">=", 0.60),
+}
+#: The whole-step variant behind each step_overhead ratio.
+STEP_VARIANTS = {
+    "step_overhead_raw": "whole_step_raw",
+    "step_overhead": "whole_step",
+    "step_overhead_continuous": "whole_step_continuous",
+    "step_overhead_match_light": "whole_step_match_light",
+}
+
+
+def ratios(result: dict[str, Any]) -> dict[str, Any]:
+    """The issue's target ratios from a result dict (None where an input is missing)."""
+    one = result["backends"]["threads"].get("1") or next(iter(result["backends"]["threads"].values()))
+    b = one["backends"]
+
+    def p50(name: str) -> float | None:
+        return b.get(name, {}).get("p50_ms")
+
+    out: dict[str, Any] = {}
+    fp32, torch_eager, int8 = p50("ort_fp32"), p50("torch_eager"), p50("ort_int8")
+    out["ort_fp32_vs_torch_eager"] = torch_eager / fp32 if fp32 and torch_eager else None
+    out["int8_vs_fp32"] = fp32 / int8 if fp32 and int8 else None
+    st = result["stages"]["stages"]
+    pairs = result["stages"].get("pairs", {})  # results written before the paired timing: the stage loop's
+    for key, variant in STEP_VARIANTS.items():
+        whole = st.get(variant)
+        inference = pairs.get(variant, {}).get("inference", st["inference"])
+        out[key] = whole["p50_ms"] / inference["p50_ms"] - 1.0 if whole else None
+    out["fp32_vs_matmul"] = b.get("ort_fp32", {}).get("fraction_of_matmul")
+    verdict = {}
+    for key, (_, op, threshold) in TARGETS.items():
+        value = out[key]
+        verdict[key] = None if value is None else (value >= threshold if op == ">=" else value <= threshold)
+    out["meets_target"] = verdict
+    return out
+
+
+def format_report(result: dict[str, Any]) -> str:
+    lines = [f"model: {result['model']}  ({result['gflop']:.3f} GFLOP per step, 1 MAC = 2 FLOP)"]
+    lines.append(f"machine: {result['machine']['cores']} cores, {result['machine']['processor']}")
+    st = result["stages"]
+    lines += ["", f"runtime stages at {st['threads']} thread(s)  [codec: {st['codec']}; step: {st['step']}]"]
+    lines.append(f"  {'stage':<24}{'p50 ms':>10}{'p99 ms':>10}")
+    pairs = st.get("pairs", {})
+    for name, t in st["stages"].items():
+        paired = f"   inference {pairs[name]['inference']['p50_ms']:.3f} in its loop" if name in pairs else ""
+        lines.append(f"  {name:<24}{t['p50_ms']:>10.3f}{t['p99_ms']:>10.3f}{paired}")
+    if "matching" in st:
+        lines.append(
+            "  image comparison in force: " + ", ".join(f"{k} {v}" for k, v in st["matching"].items())
+        )
+    z = result["zmq"]
+    if "skipped" in z:
+        lines.append(f"  {'zmq_round_trip':<16}   skipped: {z['skipped']}")
+    else:
+        for name, t in z["calls"].items():
+            label = "zmq " + name if name != "render_in_process" else "(sim render)"
+            lines.append(f"  {label:<16}{t['p50_ms']:>10.3f}{t['p99_ms']:>10.3f}")
+        lines.append(f"  {'zmq transport':<16}{z['transport_p50_ms']:>10.3f}  (observe round trip - render)")
+    for threads, entry in result["backends"]["threads"].items():
+        mm = entry["matmul"]
+        np_rate = "n/a" if mm["numpy_gflops"] is None else f"{mm['numpy_gflops']:.1f}"
+        lines += [
+            "",
+            f"backends at {threads} thread(s); float32 matmul {mm['n']}^3: onnxruntime {mm['ort_gflops']:.1f}, "
+            f"numpy {np_rate} GFLOP/s",
+            f"  {'backend':<12}{'p50 ms':>10}{'p99 ms':>10}{'GFLOP/s':>10}{'of matmul':>11}",
+        ]
+        for name, b in entry["backends"].items():
+            if "skipped" in b:
+                lines.append(f"  {name:<12}   skipped: {b['skipped'][:90]}")
+            else:
+                lines.append(
+                    f"  {name:<12}{b['p50_ms']:>10.3f}{b['p99_ms']:>10.3f}{b['achieved_gflops']:>10.2f}"
+                    f"{b['fraction_of_matmul']:>10.0%}"
+                )
+    mem = result["memory"]
+    lines.append("")
+    if "skipped" in mem:
+        lines.append(f"runtime-only process peak RSS: skipped ({mem['skipped']})")
+    elif mem:
+        lines.append(
+            f"runtime-only process peak RSS: {mem['peak_rss_mb']:.1f} MB over {mem['steps']} steps "
+            f"(heavy modules loaded: {', '.join(mem['heavy_modules_loaded']) or 'none'})"
+        )
+    sim = result.get("sim", {})
+    if "skipped" in sim:
+        lines.append(f"simulator throughput: skipped ({sim['skipped']})")
+    elif sim:
+        lines.append(
+            f"simulator throughput (`vtr bench sim`): {sim['steps_per_s']:.0f} steps/s "
+            f"(render {sim['render_ms_median']:.2f} ms, physics {sim['physics_ms_median']:.2f} ms median)"
+        )
+    r = result["ratios"]
+    lines += ["", "targets (issues 5 and 11), at 1 thread:"]
+    for key, (desc, op, threshold) in TARGETS.items():
+        value, ok = r[key], r["meets_target"][key]
+        shown = (
+            "n/a"
+            if value is None
+            else (f"{value:+.1%}" if key.startswith("step_overhead") else f"{value:.2f}")
+        )
+        mark = "n/a" if ok is None else ("MET" if ok else "missed")
+        lines.append(f"  {desc:<50} {shown:>8}  target {op} {threshold:g}  {mark}")
+    for model, other in result.get("also_models", {}).items():
+        lines += [
+            "",
+            f"{model} ({other['gflop']:.3f} GFLOP), same run: whole step p50 / its inference p50 - 1",
+        ]
+        for key, variant in STEP_VARIANTS.items():
+            pair = other["stages"]["pairs"][variant]
+            lines.append(
+                f"  {TARGETS[key][0]:<50} {other['step_overhead'][key]:>+8.1%}  ({pair['whole_step']['p50_ms']:.3f}"
+                f" / {pair['inference']['p50_ms']:.3f} ms)"
+            )
+    return "\n".join(lines)
