@@ -3,7 +3,7 @@
 For each house and route index k < ``routes_per_house``, sim2d.route_gen makes the route a user would teach
 there (route seed k); it is taught once noise-free (evaluation.harness.teach), then repeated with actuation
 noise ``noise`` under each seed, by the runtime's default repeat (the condition suite's ``after`` method:
-evaluation.condition_suite.run_once over evaluation.runs, the Repeater). A run counts as completed only when
+evaluation.condition_run.run_once over evaluation.runs, the Repeater). A run counts as completed only when
 the repeat finished and the robot touched nothing. Reported per house and overall (house_tables): completion,
 the paper's mean nearest-point error over completed runs, and control steps per taught step.
 
@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from vtr.evaluation.condition_suite import CONTROLLERS
+from vtr.evaluation.condition_run import CONTROLLERS
 from vtr.evaluation.metrics import off_path
 
 MAX_HOUSES = 1000
@@ -110,7 +110,7 @@ class HouseSuiteConfig:
 
 def evaluate_route(task: tuple[str, int, HouseSuiteConfig]) -> dict[str, Any]:
     """Generate, teach and repeat (every seed) route ``k`` of ``house``: a process-pool task."""
-    from vtr.evaluation.condition_suite import Condition, cached_policy, run_once
+    from vtr.evaluation.condition_run import Condition, cached_policy, run_once
     from vtr.evaluation.harness import teach
     from vtr.evaluation.runs import PoseOracle
     from vtr.sim2d.house import HouseError, load_house
@@ -199,9 +199,13 @@ def _progress(done: int, total: int, routes: list[dict[str, Any]], t0: float) ->
     elapsed = time.perf_counter() - t0
     eta = elapsed / done * (total - done)
     bar = "#" * int(30 * done / total)
-    print(f"\rhouses [{bar:<30}] {done}/{total} routes, {sum(r['completed'] for r in runs)}/{len(runs)} "
-          f"runs completed, {elapsed:.0f} s, ~{eta:.0f} s left", end="\n" if done == total else "",
-          file=sys.stderr, flush=True)  # fmt: skip
+    print(
+        f"\rhouses [{bar:<30}] {done}/{total} routes, {sum(r['completed'] for r in runs)}/{len(runs)} "
+        f"runs completed, {elapsed:.0f} s, ~{eta:.0f} s left",
+        end="\n" if done == total else "",
+        file=sys.stderr,
+        flush=True,
+    )
 
 
 def _result(cfg: HouseSuiteConfig, routes: list[dict[str, Any]], total: int, t0: float) -> dict[str, Any]:
@@ -271,12 +275,20 @@ def run(cfg: HouseSuiteConfig, progress: bool = True) -> dict[str, Any]:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The options of --houses, added to `vtr eval` (which owns --model, --noise, --seeds, --json, ...)."""
     g = parser.add_argument_group("held-out houses (--houses): generated routes in procedural houses")
-    g.add_argument("--houses", default=None, metavar="A:B",
-                   help="evaluate in procedural houses random:A .. random:B-1 (or a list A,B,house of seeds and "
-                        "map names) instead; uses --noise, --seeds, --model, --controllers (one), --oracle, --workers, "
-                        "--max-steps-factor; --json also writes .md and .png beside it (default: off; held-out houses are 5000..5099, tune on 900..999)")  # fmt: skip
-    g.add_argument("--routes-per-house", type=int, default=3,
-                   help="generated routes per house, route seeds 0..N-1 (default: %(default)s)")  # fmt: skip
+    g.add_argument(
+        "--houses",
+        default=None,
+        metavar="A:B",
+        help="evaluate in procedural houses random:A .. random:B-1 (or a list A,B,house of seeds and "
+        "map names) instead; uses --noise, --seeds, --model, --controllers (one), --oracle, --workers, "
+        "--max-steps-factor; --json also writes .md and .png beside it (default: off; held-out houses are 5000..5099, tune on 900..999)",
+    )
+    g.add_argument(
+        "--routes-per-house",
+        type=int,
+        default=3,
+        help="generated routes per house, route seeds 0..N-1 (default: %(default)s)",
+    )
 
 
 def run_cli(args: argparse.Namespace) -> int:
@@ -285,10 +297,19 @@ def run_cli(args: argparse.Namespace) -> int:
     controllers = args.controllers or ["after"]
     if len(controllers) != 1:
         raise ValueError(f"--houses runs one controller; got --controllers {' '.join(controllers)}")
-    cfg = HouseSuiteConfig(controller=controllers[0], houses=parse_houses(args.houses), routes_per_house=args.routes_per_house,
-                           noise=args.noise, seeds=tuple(args.seeds), model=args.model,
-                           max_steps_factor=args.max_steps_factor, threads=args.threads, workers=args.workers,
-                           oracle=args.oracle, json_path=args.json_path)  # fmt: skip
+    cfg = HouseSuiteConfig(
+        controller=controllers[0],
+        houses=parse_houses(args.houses),
+        routes_per_house=args.routes_per_house,
+        noise=args.noise,
+        seeds=tuple(args.seeds),
+        model=args.model,
+        max_steps_factor=args.max_steps_factor,
+        threads=args.threads,
+        workers=args.workers,
+        oracle=args.oracle,
+        json_path=args.json_path,
+    )
     result = run(cfg)
     print(markdown(result))
     if cfg.json_path is not None:

@@ -1,7 +1,7 @@
 """Why did a repeat stop? One condition-suite run, traced step by step.
 
 ``python -m vtr.evaluation.trace_run ROUTE CONDITION --seed S`` repeats ``ROUTE`` under ``CONDITION``
-(evaluation.condition_suite) exactly as the suite does, and prints, for every judged image: the subgoal
+(evaluation.condition_run) exactly as the suite does, and prints, for every judged image: the subgoal
 i steered to, the error to i against its threshold, the error to i+1, and where the robot truly is
 against subgoal i's taught pose (distance, yaw difference and the nearest point of the taught path), and
 the error the unchanged house would give at that same pose (``clean``: the camera without the change).
@@ -21,13 +21,20 @@ from typing import Any
 import numpy as np
 
 
-def trace(route_path: Path | Any, cond_name: str, seed: int, controller: str = "after", model: Path | None = None,
-          max_steps_factor: float = 8.0, base: str = "house") -> tuple[list[dict[str, Any]], str]:  # fmt: skip
+def trace(
+    route_path: Path | Any,
+    cond_name: str,
+    seed: int,
+    controller: str = "after",
+    model: Path | None = None,
+    max_steps_factor: float = 8.0,
+    base: str = "house",
+) -> tuple[list[dict[str, Any]], str]:
     """Rows (one per judged image) and the run's final status and detail. ``route_path``: a ROUTE.json or
     a RouteScript; ``base``: the house it is taught in (a scene condition changes a copy of it)."""
     import tempfile
 
-    from vtr.evaluation.condition_suite import CONDITIONS, CONTROLLERS, _start, cached_policy
+    from vtr.evaluation.condition_run import CONDITIONS, CONTROLLERS, cached_policy, start_pose
     from vtr.evaluation.conditions import LIGHTING, LitRobot, write_scene_house
     from vtr.evaluation.harness import teach
     from vtr.models import find_model
@@ -58,7 +65,7 @@ def trace(route_path: Path | Any, cond_name: str, seed: int, controller: str = "
         if method.match_light:
             policy = LightMatchedPolicy(policy, side_ramp=method.side_ramp)
         ctrl = Controller.for_route(route, method.controller)
-        robot.reset(pose=_start(route.poses[0], cond.offset, seed), seed=seed)
+        robot.reset(pose=start_pose(route.poses[0], cond.offset, seed), seed=seed)
 
         def on_step(rec: StepRecord) -> None:
             if rec.image is None or rec.pose is None:
@@ -75,14 +82,27 @@ def trace(route_path: Path | Any, cond_name: str, seed: int, controller: str = "
                 e_clean = math.nan
             gx, gy, gyaw = taught[i]
             d = np.hypot(taught[:, 0] - x, taught[:, 1] - y)
-            rows.append({
-                "step": rec.step, "from": rec.from_subgoal, "i": i, "action": rec.action.value if rec.action else "",
-                "error": e_here, "decided_error": rec.error, "clean_error": e_clean, "threshold": float(ctrl.thresholds[i]), "error_next": e_next,
-                "dist_mm": 1000 * math.hypot(gx - x, gy - y),
-                "dyaw_deg": math.degrees(math.remainder(yaw - gyaw, math.tau)),
-                "nearest_mm": 1000 * float(d.min()), "nearest_k": int(d.argmin()), "v": rec.v, "w": rec.w,
-                "status": rec.status.value if rec.status else "", "detail": rec.detail,
-            })  # fmt: skip
+            rows.append(
+                {
+                    "step": rec.step,
+                    "from": rec.from_subgoal,
+                    "i": i,
+                    "action": rec.action.value if rec.action else "",
+                    "error": e_here,
+                    "decided_error": rec.error,
+                    "clean_error": e_clean,
+                    "threshold": float(ctrl.thresholds[i]),
+                    "error_next": e_next,
+                    "dist_mm": 1000 * math.hypot(gx - x, gy - y),
+                    "dyaw_deg": math.degrees(math.remainder(yaw - gyaw, math.tau)),
+                    "nearest_mm": 1000 * float(d.min()),
+                    "nearest_k": int(d.argmin()),
+                    "v": rec.v,
+                    "w": rec.w,
+                    "status": rec.status.value if rec.status else "",
+                    "detail": rec.detail,
+                }
+            )
 
         rcfg = RepeatConfig(
             controller=method.controller, dt=0.1, max_steps=int(max_steps_factor * len(route) + 50)
@@ -95,14 +115,14 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m vtr.evaluation.trace_run", description=__doc__.split("\n")[0])
     p.add_argument("route", help="ROUTE.json, or with --house the generated route's index (sim2d.route_gen)")
     p.add_argument("--house", default=None, help="a procedural house (random:SEED) the route is generated in")
-    p.add_argument("condition", help="a condition of the suite (evaluation.condition_suite.CONDITIONS)")
+    p.add_argument("condition", help="a condition of the suite (evaluation.condition_run.CONDITIONS)")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
     p.add_argument("--controller", default="after", help="a suite controller (default: %(default)s)")
     p.add_argument("--model", type=Path, default=None, help="VelocityNet ONNX (default: the shipped one)")
     p.add_argument("--every", type=int, default=1, help="print every n-th row (default: %(default)s)")
     p.add_argument("--json", type=Path, default=None, help="write the rows here")
     args = p.parse_args(argv)
-    from vtr.evaluation.condition_suite import CONDITIONS, CONTROLLERS
+    from vtr.evaluation.condition_run import CONDITIONS, CONTROLLERS
 
     route: Any = Path(args.route)
     if args.house is not None:
@@ -114,8 +134,11 @@ def main(argv: list[str] | None = None) -> int:
         or args.controller not in CONTROLLERS
         or not (args.house or route.is_file())
     ):
-        print(f"trace_run: unknown condition/controller or no route file: {args.condition} {args.controller} "
-              f"{args.route}", file=sys.stderr)  # fmt: skip
+        print(
+            f"trace_run: unknown condition/controller or no route file: {args.condition} {args.controller} "
+            f"{args.route}",
+            file=sys.stderr,
+        )
         return 2
     rows, end = trace(
         route, args.condition, args.seed, args.controller, args.model, base=args.house or "house"
@@ -123,9 +146,11 @@ def main(argv: list[str] | None = None) -> int:
     print(" step    i  action    error  clean  thresh  err_i+1  dist_mm  dyaw  near_mm near_k")
     for k, r in enumerate(rows):
         if k % args.every == 0 or r["status"] or k == len(rows) - 1:
-            print(f"{r['step']:5d} {r['i']:4d}  {r['action'][:8]:8s} {r['error']:6.3f} {r['clean_error']:6.3f}  {r['threshold']:6.3f}  "
-                  f"{r['error_next']:6.3f}  {r['dist_mm']:7.1f} {r['dyaw_deg']:5.1f}  {r['nearest_mm']:7.1f} "
-                  f"{r['nearest_k']:5d}")  # fmt: skip
+            print(
+                f"{r['step']:5d} {r['i']:4d}  {r['action'][:8]:8s} {r['error']:6.3f} {r['clean_error']:6.3f}  {r['threshold']:6.3f}  "
+                f"{r['error_next']:6.3f}  {r['dist_mm']:7.1f} {r['dyaw_deg']:5.1f}  {r['nearest_mm']:7.1f} "
+                f"{r['nearest_k']:5d}"
+            )
     print(end)
     if args.json is not None:
         import json

@@ -11,6 +11,7 @@ import pytest
 
 from vtr.benchmarks.standin import make_standin_velocitynet
 from vtr.evaluation import condition_suite as suite
+from vtr.evaluation.condition_run import start_pose
 from vtr.evaluation.conditions import LIGHTING, SCENES, LitRobot, brightness, side_darker, write_scene_house
 from vtr.runtime.model_meta import ModelMeta
 from vtr.runtime.robot import Observation
@@ -69,9 +70,9 @@ def test_scene_houses_load_and_differ(scene, tmp_path):
 
 def test_start_offsets_are_lateral_and_flip_with_the_seed():
     pose = np.array([1.0, 2.0, math.pi / 2])
-    x, y, yaw = suite._start(pose, (0.1, 10.0), seed=0)
+    x, y, yaw = start_pose(pose, (0.1, 10.0), seed=0)
     assert (x, y) == pytest.approx((0.9, 2.0)) and yaw == pytest.approx(math.pi / 2 + math.radians(10))
-    x, y, yaw = suite._start(pose, (0.1, 10.0), seed=1)
+    x, y, yaw = start_pose(pose, (0.1, 10.0), seed=1)
     assert (x, y) == pytest.approx((1.1, 2.0)) and yaw == pytest.approx(math.pi / 2 - math.radians(10))
 
 
@@ -82,9 +83,17 @@ def small_model(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_suite_runs_every_combination_and_reports_per_condition(small_model, tmp_path):
-    cfg = suite.SuiteConfig(model=small_model, routes=("ho_study_arc",), conditions=("noise_0.05", "bright_0.6"),
-                            seeds=(0, 1), controllers=("paper", "after"), models=("fp32",), workers=1,
-                            max_steps_factor=0.5, json_path=tmp_path / "suite.json")  # fmt: skip
+    cfg = suite.SuiteConfig(
+        model=small_model,
+        routes=("ho_study_arc",),
+        conditions=("noise_0.05", "bright_0.6"),
+        seeds=(0, 1),
+        controllers=("paper", "after"),
+        models=("fp32",),
+        workers=1,
+        max_steps_factor=0.5,
+        json_path=tmp_path / "suite.json",
+    )
     result = suite.run(cfg)
     assert len(result["runs"]) == 2 * 2 * 2 and len(result["table"]) == 2 * 2
     for run in result["runs"]:
@@ -134,8 +143,15 @@ def test_a_box_is_placed_beside_the_path_clear_of_the_robot(tmp_path):
 def test_comparison_table_puts_methods_side_by_side(tmp_path, capsys):
     from vtr.evaluation.condition_tables import main
 
-    row = {"controller": "after", "model": "fp32", "condition": "bright_0.6", "completed": 2, "runs": 3,
-           "mean_position_error_m": 0.0081, "steps_per_taught_step": 1.42}  # fmt: skip
+    row = {
+        "controller": "after",
+        "model": "fp32",
+        "condition": "bright_0.6",
+        "completed": 2,
+        "runs": 3,
+        "mean_position_error_m": 0.0081,
+        "steps_per_taught_step": 1.42,
+    }
     other = dict(row, controller="paper", completed=0, mean_position_error_m=None, steps_per_taught_step=None)
     for name, r in (("a", row), ("b", other)):
         (tmp_path / f"{name}.json").write_text(json.dumps({"table": [r]}))
@@ -189,9 +205,20 @@ def test_the_evaluation_loop_holds_taught_turns_in_place(tmp_path):
 
 
 def test_completed_runs_far_from_the_path_are_counted_beside_completion():
-    base = {"controller": "after", "model": "fp32", "condition": "floor_recoloured", "ran": True, "contacts": 0,
-            "position_error_m": 0.01, "yaw_error_deg": 0.1, "cross_track_m": 0.01, "final_position_m": 0.01,
-            "final_yaw_deg": 0.1, "steps_per_taught_step": 1.5, "cause": ""}  # fmt: skip
+    base = {
+        "controller": "after",
+        "model": "fp32",
+        "condition": "floor_recoloured",
+        "ran": True,
+        "contacts": 0,
+        "position_error_m": 0.01,
+        "yaw_error_deg": 0.1,
+        "cross_track_m": 0.01,
+        "final_position_m": 0.01,
+        "final_yaw_deg": 0.1,
+        "steps_per_taught_step": 1.5,
+        "cause": "",
+    }
     runs = [
         {**base, "completed": True, "max_position_error_m": 0.05},
         {**base, "completed": True, "max_position_error_m": 0.35},  # finished another path

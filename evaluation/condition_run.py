@@ -1,0 +1,173 @@
+"""One repeat of a taught route under a changed condition, with one controller: what the condition-suite
+(evaluation.condition_suite), the held-out houses (evaluation.house_suite) and evaluation.trace_run run.
+
+``CONDITIONS`` names what differs at repeat time (actuation noise, a start offset, repeat-time lighting, a
+changed room); ``CONTROLLERS`` names how the runtime repeats (the paper's Algorithm 1, the previous default,
+the current one and its ablations). ``run_once`` repeats once and scores the run.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from vtr.evaluation.conditions import LIGHTING, PATH_SCENES, SCENES
+from vtr.runtime.controller import ControllerConfig
+from vtr.runtime.matching import MatchConfig
+
+
+@dataclass(frozen=True)
+class Condition:
+    """What differs at repeat time: actuation noise, start offset (lateral m, yaw deg; its sign flips
+    with odd seeds), the light on the camera image (a LIGHTING key) and the house (a SCENES key)."""
+
+    noise: float = 0.05
+    offset: tuple[float, float] = (0.0, 0.0)
+    light: str | None = None
+    scene: str | None = None
+
+
+CONDITIONS: dict[str, Condition] = {
+    "noise_0.05": Condition(),
+    "noise_0.10": Condition(noise=0.10),
+    "offset_5cm_5deg": Condition(offset=(0.05, 5.0)),
+    "offset_10cm_10deg": Condition(offset=(0.10, 10.0)),
+    **{name: Condition(light=name) for name in LIGHTING},
+    **{name: Condition(scene=name) for name in (*SCENES, *PATH_SCENES)},
+}
+
+
+@dataclass(frozen=True)
+class Method:
+    """How the runtime repeats: the controller's settings, and whether the current image is recoloured to
+    the subgoal's light before the policy sees it (runtime.light)."""
+
+    controller: ControllerConfig
+    match_light: bool = False
+    side_ramp: bool = True  # with match_light: also even out a left-to-right gain
+
+
+AFTER = ControllerConfig()  # patch matching, hybrid thresholds, zero bias, lost and contact stops, turns held
+CONTROLLERS: dict[str, Method] = {
+    "paper": Method(ControllerConfig.paper()),  # Algorithm 1: raw error, e_m = 17
+    "before": Method(ControllerConfig.before()),  # the previous default: raw error, one e_m per route
+    "after": Method(AFTER, match_light=True),
+    # ablations of "after", one part off each
+    "after_no_light_matching": Method(AFTER),
+    "after_no_side_ramp": Method(AFTER, match_light=True, side_ramp=False),
+    "after_raw_matching": Method(replace(AFTER, match=MatchConfig.paper()), match_light=True),
+    "after_route_threshold": Method(replace(AFTER, e_m_mode="calibrated", pass_ratio=0.0), match_light=True),
+    "after_per_subgoal": Method(replace(AFTER, e_m_mode="per_subgoal", pass_ratio=1.0), match_light=True),
+    "after_no_hold_turns": Method(replace(AFTER, hold_turns=False), match_light=True),
+    "after_plateau_2x": Method(replace(AFTER, jump_factor=2.0), match_light=True),  # the previous bound
+    "after_no_progress_gate": Method(replace(AFTER, progress_gate=0.0), match_light=True),
+    "after_match_ramp": Method(replace(AFTER, match_ramp=True), match_light=True),
+    "after_gate_0.7": Method(replace(AFTER, progress_gate=0.7), match_light=True),
+    "after_gate_1.0": Method(replace(AFTER, progress_gate=1.0), match_light=True),
+    "after_no_idle": Method(replace(AFTER, idle_steps=0), match_light=True),  # wait out the stall guard
+    "after_settle_0": Method(replace(AFTER, settle_steps=0), match_light=True),
+    "after_prior_0.3": Method(replace(AFTER, taught_prior=0.3), match_light=True),
+    "after_no_zero_bias": Method(replace(AFTER, zero_bias=0.0), match_light=True),
+    "after_gate_0.5": Method(replace(AFTER, progress_gate=0.5), match_light=True),  # the previous gate
+    "after_per_subgoal_settle_0": Method(
+        replace(AFTER, e_m_mode="per_subgoal", pass_ratio=1.0, settle_steps=0), match_light=True
+    ),
+}
+
+
+_POLICIES: dict[tuple[str, int], Any] = {}  # per worker process: ONNX sessions by (path, threads)
+
+
+def cached_policy(path: Path, threads: int) -> Any:
+    """One OnnxPolicy per (model, threads) in this process."""
+    from vtr.runtime.policy import OnnxPolicy
+
+    key = (str(path), threads)
+    if key not in _POLICIES:
+        _POLICIES[key] = OnnxPolicy(path, threads=threads)
+    return _POLICIES[key]
+
+
+def start_pose(pose: np.ndarray, offset: tuple[float, float], seed: int) -> tuple[float, float, float]:
+    x, y, yaw = (float(v) for v in pose)
+    sign = 1.0 if seed % 2 == 0 else -1.0
+    lateral, dyaw = sign * offset[0], sign * math.radians(offset[1])
+    return (x - math.sin(yaw) * lateral, y + math.cos(yaw) * lateral, yaw + dyaw)
+
+
+def switch_lag(taught: np.ndarray, switch_poses: dict[int, tuple[float, float, float]]) -> float | None:
+    """Mean along-track offset (m) of the robot from each subgoal's taught pose when the controller
+    switched past it: negative = the robot was still short of the subgoal (the index ran ahead)."""
+    if not switch_poses:
+        return None
+    k = np.fromiter(switch_poses, dtype=int)
+    at = np.asarray([switch_poses[i] for i in k], dtype=np.float64)
+    p = np.asarray(taught, dtype=np.float64)[k]
+    return float(np.mean((at[:, 0] - p[:, 0]) * np.cos(p[:, 2]) + (at[:, 1] - p[:, 1]) * np.sin(p[:, 2])))
+
+
+def run_once(
+    route: Any,
+    script: Any,
+    cond: Condition,
+    house: str,
+    seed: int,
+    method: Method,
+    policy: Any,
+    cfg: Any,
+    keep_path: bool = False,
+) -> dict[str, Any]:
+    """One repeat under ``cond`` (evaluation.runs, the `vtr eval` harness's loop); its scores plus the
+    status, the failure's cause and the control steps per taught control step (``keep_path``: and the
+    repeated x, y in mm precision). ``cfg`` needs dt, e_m and max_steps_factor (a SuiteConfig)."""
+    from vtr.evaluation.conditions import LitRobot
+    from vtr.evaluation.runs import repeat_closed_loop
+    from vtr.evaluation.scoring import score
+    from vtr.runtime.light import LightMatchedPolicy
+    from vtr.sim2d import CameraConfig, SimConfig, Simulator
+    from vtr.sim2d.local_robot import LocalRobot
+
+    h, w = route.images.shape[1:3]
+    robot: Any = LocalRobot(
+        Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=cond.noise, house=house))
+    )
+    if cond.light:
+        robot = LitRobot(robot, LIGHTING[cond.light])
+    if method.match_light:
+        policy = LightMatchedPolicy(policy, side_ramp=method.side_ramp)
+    start = start_pose(route.poses[0], cond.offset, seed)
+    try:
+        log = repeat_closed_loop(robot, policy, route, start, cfg, seed, controller_cfg=method.controller)
+    except ValueError as err:
+        if "not free space" not in str(err):
+            raise
+        return {"status": "start_blocked", "cause": str(err), "completed": False, "ran": False}
+    s = score(route, log)
+    touched = log.collisions > 0
+    if log.outcome == "finished":
+        cause = "finished but touched furniture" if touched else ""
+    else:
+        cause = f"{log.outcome}: {log.detail}" if log.detail else log.outcome
+    return {
+        "ran": True,
+        "status": log.outcome,
+        "completed": bool(log.outcome == "finished" and not touched),
+        "cause": cause,
+        "contacts": log.collisions,
+        "subgoals_reached": log.subgoals_reached,
+        "subgoals": len(route),
+        "steps": log.steps,
+        "steps_per_taught_step": log.steps / max(1, round(script.duration / cfg.dt)),
+        "position_error_m": s["position_error_m"]["mean"],
+        "max_position_error_m": s["position_error_m"]["max"],
+        "yaw_error_deg": s["yaw_error_deg"]["mean"],
+        "cross_track_m": s["mean_cross_track_error_m"],
+        "final_position_m": s["final_pose_error"]["position_m"],
+        "final_yaw_deg": abs(s["final_pose_error"]["yaw_deg"]),
+        "switch_lag_m": switch_lag(route.poses, log.switch_poses),
+        **({"path": np.round(np.asarray(log.poses)[:, :2], 3).tolist()} if keep_path else {}),
+    }
