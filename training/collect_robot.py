@@ -25,7 +25,7 @@ import dataclasses
 import math
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -35,8 +35,8 @@ from vtr.runtime.address import check_endpoint
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT
 from vtr.runtime.hello import Hello
-from vtr.runtime.robot import Observation
-from vtr.training.dataset import DatasetError, FrameData, load_dataset, save_dataset
+from vtr.training.dataset import DatasetError, save_dataset
+from vtr.training.robot_recording import Recording, check_resumable, load_existing
 
 # (kind, probability): the driving mix repeat meets
 COMMAND_MIX = (
@@ -153,76 +153,6 @@ class ExplorationDriver:
         self.plan = back + [("escape", 0.0, w)] * max(1, round(turn / (abs(w) * self.cfg.dt)))
 
 
-@dataclass
-class Recording:
-    """Frames so far (those already in the file first) and what happened while driving."""
-
-    images: list[np.ndarray] = field(default_factory=list)
-    commands: list[tuple[float, float]] = field(default_factory=list)
-    poses: list[tuple[float, float, float]] = field(default_factory=list)
-    episodes: list[int] = field(default_factory=list)
-    meta: dict[str, Any] = field(default_factory=dict)
-    episode: int = 0
-    counts: dict[str, int] = field(default_factory=dict)
-
-    def add(self, obs: Observation) -> None:
-        self.images.append(np.array(obs.image, dtype=np.uint8, copy=True))
-        self.commands.append((0.0, 0.0))  # set when the next frame of the same episode arrives
-        self.poses.append(obs.pose if obs.pose is not None else (0.0, 0.0, 0.0))
-        self.episodes.append(self.episode)
-        if obs.pose is None:
-            self.meta["poses_known"] = False
-
-    def end_episode(self) -> None:
-        if self.episodes and self.episodes[-1] == self.episode:
-            self.episode += 1
-
-    def count(self, key: str) -> None:
-        self.counts[key] = self.counts.get(key, 0) + 1
-
-    def to_frame_data(self) -> FrameData:
-        return FrameData(
-            np.stack(self.images),
-            np.array(self.commands, np.float32),
-            np.array(self.poses, np.float32),
-            np.array(self.episodes, np.int32),
-            dict(self.meta),
-        )
-
-
-def load_existing(path: str) -> Recording:
-    """The dataset already at ``path`` as a Recording to extend, or an empty one."""
-    try:
-        data = load_dataset(path)
-    except DatasetError:
-        import os
-
-        if os.path.exists(path):
-            raise
-        return Recording()
-    rec = Recording(
-        images=list(data.images),
-        commands=[tuple(c) for c in data.commands],
-        poses=[tuple(p) for p in data.poses],
-        episodes=[int(e) for e in data.episodes],
-        meta=dict(data.meta),
-    )
-    rec.episode = int(data.episodes.max()) + 1
-    return rec
-
-
-def _check_resumable(rec: Recording, camera: dict[str, Any], dt: float, out: str) -> None:
-    if not rec.images:
-        return
-    if rec.meta.get("dt") != dt:
-        raise DatasetError(f"{out} was recorded with dt={rec.meta.get('dt')}, this run uses dt={dt}")
-    size = camera.get("width"), camera.get("height")
-    if rec.images[0].shape[:2] != (size[1], size[0]) and None not in size:
-        raise DatasetError(
-            f"{out} holds {rec.images[0].shape[1]}x{rec.images[0].shape[0]} images, the robot's are {size[0]}x{size[1]}"
-        )
-
-
 def collect(cfg: RobotCollectConfig, client: Any, log: Any = sys.stdout) -> dict[str, Any]:
     """Drive ``client`` (a SimClient, or any Robot with handshake/reset) and write ``cfg.out``; returns a summary."""
     hello: Hello = client.handshake()  # validated (runtime.hello); the client then holds steps to its limits
@@ -230,7 +160,7 @@ def collect(cfg: RobotCollectConfig, client: Any, log: Any = sys.stdout) -> dict
     # the robot's limits capped at the model's: VelocityNet cannot output more, so such pairs would be useless
     v_max, w_max = min(hello.limits.v_max, protocol.V_MAX), min(hello.limits.w_max, protocol.W_MAX)
     rec = load_existing(cfg.out)
-    _check_resumable(rec, camera, cfg.dt, cfg.out)
+    check_resumable(rec, camera, cfg.dt, cfg.out)
     start_frames = len(rec.images)
     if start_frames >= cfg.frames:
         print(
