@@ -154,9 +154,13 @@ class BenchStep:
             dt=self.policy.meta.dt,
         )
         controller = ControllerConfig(
-            match=match or MatchConfig(), e_m_mode="fixed", e_m=1e-3, stall_steps=0, settle_steps=0,
+            match=match or MatchConfig(),
+            e_m_mode="fixed",
+            e_m=1e-3,
+            stall_steps=0,
+            settle_steps=0,
             continuous=continuous,
-        )  # fmt: skip
+        )
         self.repeater = Repeater(
             self.robot, policy, taught, config=RepeatConfig(controller=controller, max_steps=10**12)
         )

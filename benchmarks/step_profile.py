@@ -50,9 +50,17 @@ def _owners(rep: Any) -> dict[str, Any]:
     from vtr.runtime import light, matching, policy, protocol
 
     onnx = getattr(rep.policy, "policy", rep.policy)
-    return {"robot": rep.robot, "protocol": protocol, "controller": rep.controller,
-            "matcher": rep.controller.matcher, "matching": matching, "policy": rep.policy, "light": light,
-            "policy_module": policy, "onnx": onnx}  # fmt: skip
+    return {
+        "robot": rep.robot,
+        "protocol": protocol,
+        "controller": rep.controller,
+        "matcher": rep.controller.matcher,
+        "matching": matching,
+        "policy": rep.policy,
+        "light": light,
+        "policy_module": policy,
+        "onnx": onnx,
+    }
 
 
 def profile_stages(rep: Any, steps: int, warmup: int) -> dict[str, dict[str, float]]:
@@ -106,11 +114,13 @@ def profile_stages(rep: Any, steps: int, warmup: int) -> dict[str, dict[str, flo
     order = ["step", "step.own"] + [label for label, _, _ in STAGES]
     # a stage absent from some steps counts 0 there: the medians are per step, not per call
     return {
-        k: {"median_us": float(np.median(samples[k] + [0] * (steps - len(samples[k])))) / 1e3,
-            "calls_per_step": calls.get(k, steps) / steps}
+        k: {
+            "median_us": float(np.median(samples[k] + [0] * (steps - len(samples[k])))) / 1e3,
+            "calls_per_step": calls.get(k, steps) / steps,
+        }
         for k in order
         if k in samples
-    }  # fmt: skip
+    }
 
 
 def cprofile_top(rep: Any, steps: int, warmup: int, top: int) -> str:
@@ -148,8 +158,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("model", help="VelocityNet ONNX")
     parser.add_argument("--route", help="ROUTE.npz from step_bench_ab --write (default: made now)")
-    parser.add_argument("--variant", choices=("raw", "patch", "light"), default="light",
-                        help="the step's image comparison (default: light)")  # fmt: skip
+    parser.add_argument(
+        "--variant",
+        choices=("raw", "patch", "light"),
+        default="light",
+        help="the step's image comparison (default: light)",
+    )
     parser.add_argument("--steps", type=int, default=3000, help="timed steps (default: 3000)")
     parser.add_argument("--warmup", type=int, default=300, help="untimed steps first (default: 300)")
     parser.add_argument("--cprofile", type=int, metavar="N", help="print cProfile's top N functions instead")
@@ -167,8 +181,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         from vtr.benchmarks.results import write_json
 
-        write_json(args.json, {"model": args.model, "variant": args.variant, "steps": args.steps,
-                               "stages_us": result})  # fmt: skip
+        write_json(
+            args.json,
+            {"model": args.model, "variant": args.variant, "steps": args.steps, "stages_us": result},
+        )
     return 0
 
 

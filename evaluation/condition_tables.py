@@ -37,7 +37,7 @@ def markdown(result: dict[str, Any]) -> str:
             f"| {f(r['mean_position_error_m'], 1e3)} | {f(r['max_position_error_m'], 1e3)} | {f(r['mean_yaw_error_deg'], 1, 2)} "
             f"| {f(r['cross_track_m'], 1e3)} | {f(r['final_position_m'], 1e3)} / {f(r['final_yaw_deg'], 1, 1)} "
             f"| {r['runs_with_contact']} | {f(r['steps_per_taught_step'], 1, 2)} | {fails} |"
-        )  # fmt: skip
+        )
     return "\n".join(lines) + "\n"
 
 
@@ -47,8 +47,10 @@ def comparison(results: list[dict[str, Any]]) -> str:
     rows = [r for res in results for r in res["table"]]
     columns = list(dict.fromkeys((r["controller"], r["model"]) for r in rows))
     cell = {(r["controller"], r["model"], r["condition"]): r for r in rows}
-    lines = ["| condition | " + " | ".join(f"{c} {m}" for c, m in columns) + " |",
-             "|---|" + "---|" * len(columns)]  # fmt: skip
+    lines = [
+        "| condition | " + " | ".join(f"{c} {m}" for c, m in columns) + " |",
+        "|---|" + "---|" * len(columns),
+    ]
     for cond in dict.fromkeys(r["condition"] for r in rows):
         cells = []
         for c, m in columns:

@@ -166,8 +166,15 @@ def _obstacle_beside_path(house: dict[str, Any], path: np.ndarray | None) -> Non
                 or before.clearance(cx, cy) < BOX_SIDE
             ):
                 continue  # on the path, or in (or against) furniture already there
-            box = {"name": "box", "shape": "box", "center": [cx, cy], "size": [BOX_SIDE] * 2, "height": 0.4,
-                   "texture": "metal_blue", "angle_deg": math.degrees(yaw)}  # fmt: skip
+            box = {
+                "name": "box",
+                "shape": "box",
+                "center": [cx, cy],
+                "size": [BOX_SIDE] * 2,
+                "height": 0.4,
+                "texture": "metal_blue",
+                "angle_deg": math.degrees(yaw),
+            }
             try:
                 House({**house, "furniture": [*house["furniture"], box]}, "obstacle_beside_path")
             except ValueError:
@@ -214,8 +221,10 @@ def write_scene_house(
         # untouched, so such a run would score the scene, not the robot
         gap, k = path_clearance(data, np.asarray(path, dtype=np.float64))
         if gap < ROBOT_RADIUS:
-            raise PathBlocked(f"the {scene} house blocks the taught path: {gap:.3f} m of clearance near subgoal "
-                              f"{k}, under the robot's radius {ROBOT_RADIUS} m")  # fmt: skip
+            raise PathBlocked(
+                f"the {scene} house blocks the taught path: {gap:.3f} m of clearance near subgoal "
+                f"{k}, under the robot's radius {ROBOT_RADIUS} m"
+            )
     path = Path(out_dir) / f"house_{scene}.json"
     write_text_atomic(path, json.dumps(data))
     return path

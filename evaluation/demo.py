@@ -130,8 +130,9 @@ def run(cfg: DemoConfig) -> dict[str, Any]:
     cfg.out.mkdir(parents=True, exist_ok=True)  # only now: a failed demo leaves no empty folder
     route.save(route_file)
 
-    run_metrics = metrics.route_metrics(route.poses, np.asarray(poses), np.asarray(commands).reshape(-1, 2),
-                                        summary.subgoals_reached)  # fmt: skip
+    run_metrics = metrics.route_metrics(
+        route.poses, np.asarray(poses), np.asarray(commands).reshape(-1, 2), summary.subgoals_reached
+    )
     result: dict[str, Any] = {
         "model": str(model),
         "route": script.name,

@@ -53,9 +53,10 @@ class EvalConfig:
     )
     noise: float = opt(0.05, "actuation noise level of the repeat runs (SimConfig.noise)")
     offset: tuple[float, float, float] = opt(
-        (0.03, 0.03, 3.0), "start offset of the offset scenario: dx, dy (m, robot frame), dyaw (deg)",
+        (0.03, 0.03, 3.0),
+        "start offset of the offset scenario: dx, dy (m, robot frame), dyaw (deg)",
         metavar=("DX", "DY", "DYAW"),
-    )  # fmt: skip
+    )
     int8_model: Path | None = opt(
         None, "int8 twin (default: <model stem>-int8.onnx beside the model, if present)"
     )
@@ -93,8 +94,10 @@ class EvalConfig:
                 raise ValueError(f"{name} not found: {value}")
         self.int8_model = find_int8(self.model, self.int8_model)
         if self.mpc_samples < 2 or self.mpc_iterations < 1:
-            raise ValueError(f"mpc_samples must be >= 2 and mpc_iterations >= 1, got {self.mpc_samples}, "
-                             f"{self.mpc_iterations}")  # fmt: skip
+            raise ValueError(
+                f"mpc_samples must be >= 2 and mpc_iterations >= 1, got {self.mpc_samples}, "
+                f"{self.mpc_iterations}"
+            )
         if self.e_m is not None and not self.e_m > 0:
             raise ValueError(f"e_m must be positive, got {self.e_m}")
         if not self.dt > 0 or not self.max_steps_factor > 0:
@@ -119,16 +122,24 @@ def route_files(names: tuple[str, ...]) -> list[Path]:
         if not files:
             raise ValueError(f"no routes in {ROUTES_DIR}")
         # The paper's scenarios first, in the paper's order.
-        return sorted(files, key=lambda p: (p.stem not in PAPER_ROUTES, PAPER_ROUTES.index(p.stem)
-                                            if p.stem in PAPER_ROUTES else 0, p.stem))  # fmt: skip
+        return sorted(
+            files,
+            key=lambda p: (
+                p.stem not in PAPER_ROUTES,
+                PAPER_ROUTES.index(p.stem) if p.stem in PAPER_ROUTES else 0,
+                p.stem,
+            ),
+        )
     out = []
     for name in names:
         path = Path(name)
         if not path.suffix:
             path = ROUTES_DIR / f"{name}.json"
         if not path.is_file():
-            raise ValueError(f"route not found: {name} (looked at {path}); name one of "
-                             f"{', '.join(p.stem for p in sorted(ROUTES_DIR.glob('*.json')))} or a ROUTE.json file")  # fmt: skip
+            raise ValueError(
+                f"route not found: {name} (looked at {path}); name one of "
+                f"{', '.join(p.stem for p in sorted(ROUTES_DIR.glob('*.json')))} or a ROUTE.json file"
+            )
         out.append(path)
     return out
 

@@ -54,7 +54,7 @@ def markdown(result: dict[str, Any]) -> str:
             [f"**Partial result**: {result['partial']} (the run is still going or was interrupted).", ""]
             if result.get("partial")
             else []
-        ),  # fmt: skip
+        ),
         "| house | routes: rooms, m, s | completed | mean error (mm) | median (mm) | max error (mm) "
         "| steps / taught step | failures |" + (" pose oracle: completed |" if oracle else ""),
         "|---|---|---|---|---|---|---|---|" + ("---|" if oracle else ""),

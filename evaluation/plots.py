@@ -45,8 +45,14 @@ def write_plots(result: dict[str, Any], out_dir: Path) -> list[Path]:
 
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
-    colours = {"velocitynet": "tab:red", "velocitynet_int8": "tab:orange", "ablation_w2_0": "tab:purple",
-               "online_mpc": "tab:green", "open_loop": "tab:gray", "pose_oracle": "tab:olive"}  # fmt: skip
+    colours = {
+        "velocitynet": "tab:red",
+        "velocitynet_int8": "tab:orange",
+        "ablation_w2_0": "tab:purple",
+        "online_mpc": "tab:green",
+        "open_loop": "tab:gray",
+        "pose_oracle": "tab:olive",
+    }
     for r in result["routes"]:
         taught = np.asarray(r["taught_poses"])
         runs = r["scenarios"].get("noise", {})

@@ -50,8 +50,11 @@ def score(route: Any, log: RunLog, open_loop: bool = False) -> dict[str, Any]:
     )
     if log.policy_ms:
         ms = np.asarray(log.policy_ms)
-        out["policy_ms"] = {"p50": float(np.percentile(ms, 50)), "p99": float(np.percentile(ms, 99)),
-                            "mean": float(ms.mean())}  # fmt: skip
+        out["policy_ms"] = {
+            "p50": float(np.percentile(ms, 50)),
+            "p99": float(np.percentile(ms, 99)),
+            "mean": float(ms.mean()),
+        }
     return out
 
 

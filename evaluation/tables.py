@@ -27,8 +27,8 @@ def markdown_report(result: dict[str, Any]) -> str:
         f"from the taught start. e_m: {'calibrated per route' if cfg['e_m'] is None else cfg['e_m']}.",
         "",
     ]
-    methods = [m for m in ("velocitynet", "velocitynet_int8", "ablation_w2_0", "online_mpc", "open_loop", "pose_oracle")
-               if any(m in r["scenarios"].get("noise", {}) for r in routes.values())]  # fmt: skip
+    order = ("velocitynet", "velocitynet_int8", "ablation_w2_0", "online_mpc", "open_loop", "pose_oracle")
+    methods = [m for m in order if any(m in r["scenarios"].get("noise", {}) for r in routes.values())]
     for title, names, unit in (
         ("Table 1: nearest-point position error (m)", ("translation", "translation_rotation"), "m"),
         ("Table 2: nearest yaw error, pure rotation (deg)", ("rotation",), "deg"),
@@ -81,8 +81,12 @@ def markdown_report(result: dict[str, Any]) -> str:
                 )
         lines.append("")
     agg = result["aggregate"]
-    lines += ["### Aggregate", "", "| scenario | method | completed | mean err (m) | cross-track (m) | policy ms p50 |",
-              "|---|---|---|---|---|---|"]  # fmt: skip
+    lines += [
+        "### Aggregate",
+        "",
+        "| scenario | method | completed | mean err (m) | cross-track (m) | policy ms p50 |",
+        "|---|---|---|---|---|---|",
+    ]
     for scen, by_method in agg.items():
         for m, a in by_method.items():
             pm = a["policy_ms_p50"]

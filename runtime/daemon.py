@@ -85,9 +85,10 @@ class RepeatRunConfig:
         metavar="PATH",
     )
     foxglove: int | None = opt(
-        None, "serve the run live to Foxglove on ws://127.0.0.1:PORT; needs pip install 'vtr-mpc[foxglove]'",
+        None,
+        "serve the run live to Foxglove on ws://127.0.0.1:PORT; needs pip install 'vtr-mpc[foxglove]'",
         metavar="PORT",
-    )  # fmt: skip
+    )
     repeat: RepeatConfig = field(default_factory=RepeatConfig)
 
     def __post_init__(self) -> None:
@@ -167,18 +168,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="fixed switch threshold (paper: 17 with --match raw); default: calibrated from the route",
     )
     parser.add_argument(
-        "--match", choices=("patch", "raw"), default=None,
+        "--match",
+        choices=("patch", "raw"),
+        default=None,
         help=f"image comparison: patch-normalised median or the paper's raw mean abs error (default: {default.match.method})",
-    )  # fmt: skip
+    )
     for flag, field_name, kind, text in _OVERRIDES:
-        parser.add_argument(flag, type=kind, default=None, dest=field_name, metavar=flag[2:].upper().replace("-", "_"),
-                            help=f"{text} (default: {getattr(default, field_name)})")  # fmt: skip
+        parser.add_argument(
+            flag,
+            type=kind,
+            default=None,
+            dest=field_name,
+            metavar=flag[2:].upper().replace("-", "_"),
+            help=f"{text} (default: {getattr(default, field_name)})",
+        )
     parser.add_argument(
-        "--thresholds", choices=("calibrated", "per_subgoal", "hybrid"), default=None,
+        "--thresholds",
+        choices=("calibrated", "per_subgoal", "hybrid"),
+        default=None,
         help="calibrated: one switch threshold for the route; per_subgoal: one per subgoal, with the relative "
-             "switch; hybrid: the route's, raised where both gaps around a subgoal are wide "
-             f"(default: {default.e_m_mode})",
-    )  # fmt: skip
+        "switch; hybrid: the route's, raised where both gaps around a subgoal are wide "
+        f"(default: {default.e_m_mode})",
+    )
     parser.add_argument(
         "--paper",
         action="store_true",

@@ -125,8 +125,10 @@ def match_statistics(
 ) -> np.ndarray:
     """``image`` (uint8 (H, W, 3)) with each channel's mean and spread set to ``reference``'s; uint8."""
     if image.dtype != np.uint8 or reference.dtype != np.uint8 or image.shape[-1] != reference.shape[-1]:
-        raise ValueError(f"expected two uint8 RGB images, got {image.dtype} {image.shape} and {reference.dtype} "
-                         f"{reference.shape}")  # fmt: skip
+        raise ValueError(
+            f"expected two uint8 RGB images, got {image.dtype} {image.shape} and {reference.dtype} "
+            f"{reference.shape}"
+        )
     ref_mean, ref_std = reference_stats if reference_stats is not None else channel_stats(reference)
     return _to_uint8(_stats_in_place(planar_levels(image).copy(), ref_mean, ref_std))
 

@@ -255,8 +255,11 @@ def generate_route(house: str, seed: int, dt: float = CONTROL_DT) -> RouteScript
         if pts is None or len(pts) < 2:
             continue
         yaw0, segments = polyline_segments(grid, pts, rng, dt)
-        script = RouteScript((round(float(pts[0][0]), 4), round(float(pts[0][1]), 4), round(yaw0, 5)),
-                             tuple(segments), route_name(house, seed))  # fmt: skip
+        script = RouteScript(
+            (round(float(pts[0][0]), 4), round(float(pts[0][1]), 4), round(yaw0, 5)),
+            tuple(segments),
+            route_name(house, seed),
+        )
         if script.duration > MAX_DURATION:
             continue
         check = drive(h, script, dt)

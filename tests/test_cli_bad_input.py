@@ -41,29 +41,33 @@ def _in_process(capsys: pytest.CaptureFixture[str], argv: list[str]) -> tuple[in
     return code, _one_line(capsys.readouterr().err)
 
 
+def _repeat(*more: str, sim: str = NO_SERVER, model: str = MODEL, route: str = "r.npz") -> list[str]:
+    return ["repeat", "--sim", sim, "--model", model, "--route", route, *more]
+
+
+def _train(stage: str, *more: str) -> list[str]:
+    return ["train", stage, "--preset", "tiny", *more, "--out", "{tmp}/run"]
+
+
 CASES = {
     # name: (argv with {tmp} and {garbage.*} placeholders, words the message must hold)
-    "repeat: http address": (["repeat", "--sim", "http://127.0.0.1:5601", "--model", MODEL, "--route", "r.npz"],
-                             "http://"),
-    "repeat: no port": (["repeat", "--sim", "tcp://127.0.0.1", "--model", MODEL, "--route", "r.npz"], "no port"),
-    "repeat: no transport": (["repeat", "--sim", "127.0.0.1:5555", "--model", MODEL, "--route", "r.npz"],
-                             "tcp://"),
-    "repeat: threads 0": (["repeat", "--sim", NO_SERVER, "--model", MODEL, "--route", "r.npz", "--threads", "0"],
-                          "--threads"),
-    "repeat: max steps -1": (["repeat", "--sim", NO_SERVER, "--model", MODEL, "--route", "r.npz",
-                              "--max-steps", "-1"], "--max-steps"),
-    "repeat: timeout 0": (["repeat", "--sim", NO_SERVER, "--model", MODEL, "--route", "r.npz", "--timeout", "0"],
-                          "--timeout"),
-    "repeat: frame timeout 0": (["repeat", "--sim", NO_SERVER, "--model", MODEL, "--route", "r.npz",
-                                 "--frame-timeout", "0"], "--frame-timeout"),
-    "repeat: garbage model": (["repeat", "--sim", NO_SERVER, "--model", "{garbage.onnx}", "--route", "r.npz"],
-                              "garbage.onnx"),
-    "repeat: garbage route": (["repeat", "--sim", NO_SERVER, "--model", MODEL, "--route", "{garbage.npz}",
-                               "--log", "{tmp}/run.jsonl"], "garbage.npz"),
-    "teach: timeout 0": (["teach", "--sim", NO_SERVER, "--route", ROUTE_JSON, "--out", "{tmp}/t.npz",
-                          "--timeout", "0"], "--timeout"),
-    "teach: garbage route script": (["teach", "--sim", NO_SERVER, "--route", "{garbage.json}", "--out",
-                                     "{tmp}/t.npz"], "garbage.json"),
+    "repeat: http address": (_repeat(sim="http://127.0.0.1:5601"), "http://"),
+    "repeat: no port": (_repeat(sim="tcp://127.0.0.1"), "no port"),
+    "repeat: no transport": (_repeat(sim="127.0.0.1:5555"), "tcp://"),
+    "repeat: threads 0": (_repeat("--threads", "0"), "--threads"),
+    "repeat: max steps -1": (_repeat("--max-steps", "-1"), "--max-steps"),
+    "repeat: timeout 0": (_repeat("--timeout", "0"), "--timeout"),
+    "repeat: frame timeout 0": (_repeat("--frame-timeout", "0"), "--frame-timeout"),
+    "repeat: garbage model": (_repeat(model="{garbage.onnx}"), "garbage.onnx"),
+    "repeat: garbage route": (_repeat("--log", "{tmp}/run.jsonl", route="{garbage.npz}"), "garbage.npz"),
+    "teach: timeout 0": (
+        ["teach", "--sim", NO_SERVER, "--route", ROUTE_JSON, "--out", "{tmp}/t.npz", "--timeout", "0"],
+        "--timeout",
+    ),
+    "teach: garbage route script": (
+        ["teach", "--sim", NO_SERVER, "--route", "{garbage.json}", "--out", "{tmp}/t.npz"],
+        "garbage.json",
+    ),
     "collect: frames 0": (["collect", "--frames", "0", "--out", "{tmp}/d.npz"], "frames"),
     "eval: unknown route": (["eval", "--routes", "nowhere", "--quick"], "nowhere"),
     "eval: garbage route file": (["eval", "--routes", "{garbage.json}", "--quick"], "garbage.json"),
@@ -71,22 +75,25 @@ CASES = {
     "eval: noise 2": (["eval", "--noise", "2", "--quick"], "noise"),
     "bench latency: garbage model": (["bench", "latency", "--model", "{garbage.onnx}"], "garbage.onnx"),
     "bench latency: missing model": (["bench", "latency", "--model", "{tmp}/missing.onnx"], "missing.onnx"),
-    "export: garbage checkpoint": (["export", "--checkpoint", "{garbage.pt}", "--out", "{tmp}/o.onnx"],
-                                   "garbage.pt"),
-    "train: garbage viewnet": (["train", "velocitynet", "--preset", "tiny", "--data", "{tmp}/d.npz", "--viewnet",
-                                "{garbage.pt}", "--out", "{tmp}/run"], "garbage.pt"),
-    "train: tiny preset with the shipped viewnet": (["train", "velocitynet", "--preset", "tiny", "--data",
-                                                     "{tmp}/d.npz", "--viewnet", VIEWNET, "--out", "{tmp}/run"],
-                                                    "--preset"),
-    "train: garbage dataset": (["train", "viewnet", "--preset", "tiny", "--data", "{garbage.npz}", "--out",
-                                "{tmp}/run"], "garbage.npz"),
+    "export: garbage checkpoint": (
+        ["export", "--checkpoint", "{garbage.pt}", "--out", "{tmp}/o.onnx"],
+        "garbage.pt",
+    ),
+    "train: garbage viewnet": (
+        _train("velocitynet", "--data", "{tmp}/d.npz", "--viewnet", "{garbage.pt}"),
+        "garbage.pt",
+    ),
+    "train: tiny preset with the shipped viewnet": (
+        _train("velocitynet", "--data", "{tmp}/d.npz", "--viewnet", VIEWNET),
+        "--preset",
+    ),
+    "train: garbage dataset": (_train("viewnet", "--data", "{garbage.npz}"), "garbage.npz"),
     "sim snapshot: jpeg": (["sim", "snapshot", "--out", "{tmp}/x.jpg"], ".png"),
     "demo: unknown route": (["demo", "--route", "nowhere", "--out", "{tmp}/demo"], "nowhere"),
     "demo: garbage model": (["demo", "--model", "{garbage.onnx}", "--out", "{tmp}/demo"], "garbage.onnx"),
     "unknown command": (["fly"], "unknown command"),
-    "unknown option": (["repeat", "--sim", NO_SERVER, "--model", MODEL, "--route", "r.npz", "--speed", "3"],
-                       "--speed"),
-}  # fmt: skip
+    "unknown option": (_repeat("--speed", "3"), "--speed"),
+}
 
 
 @pytest.mark.parametrize("name", sorted(CASES))
@@ -152,6 +159,7 @@ def test_the_robot_board_entry_refuses_a_bad_address_in_one_line() -> None:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     code = "import sys\nfrom vtr.runtime.cli import main\nsys.exit(main(sys.argv[1:]))\n"
     args = ["repeat", "--sim", "tcp://127.0.0.1", "--model", MODEL, "--route", "r.npz"]
-    proc = subprocess.run([sys.executable, "-c", code, *args], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=30)  # fmt: skip
+    proc = subprocess.run(
+        [sys.executable, "-c", code, *args], cwd=ROOT, env=env, capture_output=True, text=True, timeout=30
+    )
     assert proc.returncode == 2 and "no port" in _one_line(proc.stderr)

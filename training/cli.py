@@ -38,17 +38,22 @@ def _add_common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--val-every", type=int, help="steps between validation passes and checkpoints")
     p.add_argument(
-        "--max-minutes", type=float,
+        "--max-minutes",
+        type=float,
         help="stop after this much wall time, validate and save as if done (default 0: no limit)",
-    )  # fmt: skip
+    )
     p.add_argument(
-        "--augment", action=argparse.BooleanOptionalAction, default=None,
+        "--augment",
+        action=argparse.BooleanOptionalAction,
+        default=None,
         help="photometric augmentation of VelocityNet's inputs (training/augment.py; default: off)",
-    )  # fmt: skip
+    )
     p.add_argument(
-        "--preprocessing", choices=PREPROCESSINGS, default=None,
+        "--preprocessing",
+        choices=PREPROCESSINGS,
+        default=None,
         help=f"VelocityNet's input normalisation, stored in the exported model (default: {PREPROCESSINGS[0]})",
-    )  # fmt: skip
+    )
     p.add_argument(
         "--data-on-device",
         choices=("auto", "yes", "no"),
@@ -74,17 +79,23 @@ def add_stage_parsers(sub: Any) -> None:
         "--init", default=None, help="start from this VelocityNet checkpoint (model.pt) to fine-tune"
     )
     p.add_argument(
-        "--recovery", default=None, metavar="DIR",
+        "--recovery",
+        default=None,
+        metavar="DIR",
         help="recovery views of --data (`vtr collect --recovery-for`): off-path views with corrective labels",
-    )  # fmt: skip
+    )
     p.add_argument(
-        "--w-recovery", type=float, default=None,
+        "--w-recovery",
+        type=float,
+        default=None,
         help="weight of the recovery term (default: 0, or 0.5 when --recovery is given)",
-    )  # fmt: skip
+    )
     p.add_argument(
-        "--w-stop", type=float, default=None,
+        "--w-stop",
+        type=float,
+        default=None,
         help="weight of the stop term, VelocityNet(I, I) -> 0: stand still on the subgoal (default: 0)",
-    )  # fmt: skip
+    )
     _add_common(p)
     from vtr.training.transfer import add_evaluate_arguments
 

@@ -242,13 +242,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     rec = parser.add_argument_group("recovery views of a simulator dataset (a folder as --out)")
     rec.add_argument(
-        "--recovery-for", default=None, metavar="DATASET",
+        "--recovery-for",
+        default=None,
+        metavar="DATASET",
         help="render off-path views with corrective labels for this dataset (training/recovery.py)",
-    )  # fmt: skip
+    )
     rec.add_argument(
-        "--recovery-per-window", type=float, default=0.25,
+        "--recovery-per-window",
+        type=float,
+        default=0.25,
         help="recovery views per training window of the dataset (default: 0.25)",
-    )  # fmt: skip
+    )
     from vtr.training import collect_robot
 
     collect_robot.add_arguments(parser)

@@ -217,7 +217,14 @@ def main_houses(args: Any) -> int:
         reverse_fraction=0.2,
     )
     per_house = args.frames_per_house or max(2, args.frames // len(seeds))
-    cfg = HousesConfig(out=args.out, seeds=tuple(seeds), frames_per_house=per_house, workers=args.workers,
-                       collect=collect, named=named, named_frames=args.include_house_frames)  # fmt: skip
+    cfg = HousesConfig(
+        out=args.out,
+        seeds=tuple(seeds),
+        frames_per_house=per_house,
+        workers=args.workers,
+        collect=collect,
+        named=named,
+        named_frames=args.include_house_frames,
+    )
     print(json.dumps(run_houses(cfg, progress=not args.no_progress), indent=2))
     return 0

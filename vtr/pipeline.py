@@ -76,8 +76,16 @@ def run_all(cfg: AllConfig, preset: Any) -> dict[str, Any]:
         timings["viewnet_s"] = time.perf_counter() - t
     t = time.perf_counter()
     if not (pdir / MODEL).exists():
-        train_velocitynet(cfg.data, vdir / MODEL, pdir, preset.velocitynet, preset.loss,
-                          preset.train_velocitynet, resume=cfg.resume, data=data)  # fmt: skip
+        train_velocitynet(
+            cfg.data,
+            vdir / MODEL,
+            pdir,
+            preset.velocitynet,
+            preset.loss,
+            preset.train_velocitynet,
+            resume=cfg.resume,
+            data=data,
+        )
         timings["velocitynet_s"] = time.perf_counter() - t
     if int(os.environ.get("RANK", "0")) != 0:
         return timings
@@ -144,8 +152,15 @@ def run_cli(args: argparse.Namespace) -> int:
     preset.train_velocitynet = stages.train_cfg(preset.train_velocitynet, args, args.velocitynet_steps)
     if args.frames is not None:
         preset.collect = override(preset.collect, frames=args.frames)
-    cfg = AllConfig(preset=args.preset, out=args.out, data=args.data, models_dir=args.models_dir,
-                    install_models=args.install_models, resume=args.resume, int8=not args.no_int8)  # fmt: skip
+    cfg = AllConfig(
+        preset=args.preset,
+        out=args.out,
+        data=args.data,
+        models_dir=args.models_dir,
+        install_models=args.install_models,
+        resume=args.resume,
+        int8=not args.no_int8,
+    )
     run_all(cfg, preset)
     return 0
 

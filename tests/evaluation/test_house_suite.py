@@ -32,15 +32,27 @@ def test_parse_houses() -> None:
 
 
 def test_config_refuses_bad_values(small_model: Path) -> None:
-    for kwargs in ({"routes_per_house": 0}, {"noise": 2.0}, {"seeds": ()}, {"seeds": (1, 1)},
-                   {"controller": "nope"}, {"workers": 0}):  # fmt: skip
+    for kwargs in (
+        {"routes_per_house": 0},
+        {"noise": 2.0},
+        {"seeds": ()},
+        {"seeds": (1, 1)},
+        {"controller": "nope"},
+        {"workers": 0},
+    ):
         with pytest.raises(ValueError):
             house_suite.HouseSuiteConfig(houses=("random:900",), model=small_model, **kwargs)
 
 
 def _run(completed: bool, err: float, cause: str = "") -> dict:
-    return {"completed": completed, "position_error_m": err, "max_position_error_m": 2 * err,
-            "steps_per_taught_step": 1.5, "cause": cause, "contacts": 0}  # fmt: skip
+    return {
+        "completed": completed,
+        "position_error_m": err,
+        "max_position_error_m": 2 * err,
+        "steps_per_taught_step": 1.5,
+        "cause": cause,
+        "contacts": 0,
+    }
 
 
 def test_summary_counts_runs_and_averages_errors_over_completed_runs_only() -> None:
@@ -60,15 +72,26 @@ def test_summary_counts_runs_and_averages_errors_over_completed_runs_only() -> N
 
 
 def test_run_teaches_repeats_and_writes_json_markdown_and_picture(small_model: Path, tmp_path: Path) -> None:
-    cfg = house_suite.HouseSuiteConfig(houses=("random:900",), routes_per_house=1, seeds=(0, 1),
-                                       model=small_model, workers=1, max_steps_factor=1.0, oracle=True,
-                                       json_path=tmp_path / "houses.json")  # fmt: skip
+    cfg = house_suite.HouseSuiteConfig(
+        houses=("random:900",),
+        routes_per_house=1,
+        seeds=(0, 1),
+        model=small_model,
+        workers=1,
+        max_steps_factor=1.0,
+        oracle=True,
+        json_path=tmp_path / "houses.json",
+    )
     result = house_suite.run(cfg, progress=False)
     (route,) = result["routes"]
     assert parse_route_script(route["route"]) == generate_route("random:900", 0)
     assert 1 <= route["rooms"] <= 3 and route["subgoals"] == len(route["taught_path"])
     assert [(r["method"], r["seed"]) for r in route["runs"]] == [
-        ("velocitynet", 0), ("velocitynet", 1), ("pose_oracle", 0), ("pose_oracle", 1)]  # fmt: skip
+        ("velocitynet", 0),
+        ("velocitynet", 1),
+        ("pose_oracle", 0),
+        ("pose_oracle", 1),
+    ]
     for run in route["runs"]:
         assert run["ran"] and len(run["path"]) == run["steps"] + 1
         assert run["completed"] == (run["status"] == "finished" and run["contacts"] == 0)
@@ -108,8 +131,14 @@ def test_an_interrupted_run_keeps_the_finished_routes(
         }
 
     monkeypatch.setattr(house_suite, "evaluate_route", fake)
-    cfg = house_suite.HouseSuiteConfig(houses=("random:900",), routes_per_house=2, seeds=(0,), model=small_model,
-                                       workers=1, json_path=tmp_path / "h.json")  # fmt: skip
+    cfg = house_suite.HouseSuiteConfig(
+        houses=("random:900",),
+        routes_per_house=2,
+        seeds=(0,),
+        model=small_model,
+        workers=1,
+        json_path=tmp_path / "h.json",
+    )
     with pytest.raises(KeyboardInterrupt):
         house_suite.run(cfg, progress=False)
     saved = json.loads((tmp_path / "h.json").read_text())

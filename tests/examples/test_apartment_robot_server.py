@@ -31,8 +31,9 @@ def _free_port() -> int:
 @pytest.fixture(scope="module")
 def endpoint() -> Iterator[str]:
     address = f"tcp://127.0.0.1:{_free_port()}"
-    proc = subprocess.Popen([sys.executable, str(SCRIPT), "--bind", address, "--noise", "0.05"],
-                            stdout=subprocess.PIPE, text=True)  # fmt: skip
+    proc = subprocess.Popen(
+        [sys.executable, str(SCRIPT), "--bind", address, "--noise", "0.05"], stdout=subprocess.PIPE, text=True
+    )
     try:
         line = proc.stdout.readline() if proc.stdout else ""
         assert line.startswith("apartment robot:"), line

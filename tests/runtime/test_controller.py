@@ -96,8 +96,15 @@ def test_stall_guard_accepts_a_plateau_next_to_the_subgoal():
 def test_an_idle_policy_next_to_the_subgoal_is_accepted_at_once():
     # a noisy error that keeps "improving" by a hair: the stall counter never fills
     noisy = [9.0, 8.9, 8.8, 8.7, 8.6, 8.5, 8.4, 8.3]
-    cfg = old(e_m_mode="fixed", e_m=5.0, stall_steps=10, lookahead=2, jump_factor=2.0, idle_steps=3,
-              stall_min_improvement=0.05)  # fmt: skip
+    cfg = old(
+        e_m_mode="fixed",
+        e_m=5.0,
+        stall_steps=10,
+        lookahead=2,
+        jump_factor=2.0,
+        idle_steps=3,
+        stall_min_improvement=0.05,
+    )
     waits = Controller(subgoals(0, 60, 120), replace(cfg, idle_steps=0))
     for value in noisy:
         assert waits.decide(flat(int(round(value)))).action is Action.COMMAND

@@ -118,13 +118,23 @@ def test_a_controller_can_be_handed_in_and_is_the_one_used():
 
 def test_the_taught_prior_blends_the_taught_command_into_the_policys():
     n = 3
-    route = Route(images=np.stack([flat(v) for v in (0, 100, 200)]), poses=np.zeros((n, 3)),
-                  commands=np.array([[0.4, 0.6], [0.0, 0.0], [0.0, 0.0]]), dt=0.1)  # fmt: skip
+    route = Route(
+        images=np.stack([flat(v) for v in (0, 100, 200)]),
+        poses=np.zeros((n, 3)),
+        commands=np.array([[0.4, 0.6], [0.0, 0.0], [0.0, 0.0]]),
+        dt=0.1,
+    )
     cfg = replace(PAPER, taught_prior=0.25)
     sent: list[StepRecord] = []
     # frame 0 matches subgoal 0 (no command into it: the policy alone), then subgoal 1 is steered to
-    rep = Repeater(Frames([0, 5, 150]), Constant(), route, Controller(route.images, cfg, route.commands),
-                   config=RepeatConfig(cfg), on_step=sent.append)  # fmt: skip
+    rep = Repeater(
+        Frames([0, 5, 150]),
+        Constant(),
+        route,
+        Controller(route.images, cfg, route.commands),
+        config=RepeatConfig(cfg),
+        on_step=sent.append,
+    )
     rep.step()
     first = sent[-1]
     assert first.subgoal == 1 and first.commanded
@@ -155,8 +165,13 @@ def test_zero_bias_takes_the_policys_command_on_the_subgoal_itself_off_every_com
     rep.step()  # grey 40 is 40 from subgoal 0, above e_m = 17: steer toward it
     assert sent[-1].subgoal == 0
     assert sent[-1].v == pytest.approx(0.001 * -40) and sent[-1].w == pytest.approx(0.0, abs=1e-7)
-    half = Repeater(Frames([40, 40]), Biased(), route, config=RepeatConfig(replace(cfg, zero_bias=0.5)),
-                    on_step=sent.append)  # fmt: skip
+    half = Repeater(
+        Frames([40, 40]),
+        Biased(),
+        route,
+        config=RepeatConfig(replace(cfg, zero_bias=0.5)),
+        on_step=sent.append,
+    )
     half.step()
     assert sent[-1].v == pytest.approx(0.001 * -40 + 0.015) and sent[-1].w == pytest.approx(0.075)
     off = Repeater(Frames([40, 40]), Biased(), route, config=RepeatConfig(PAPER), on_step=sent.append)

@@ -11,11 +11,14 @@ from hypothesis import strategies as st
 from vtr.runtime.wire_json import _DECODER, ProtocolError, _too_deep, parse_json
 
 _values = st.recursive(
-    st.none() | st.booleans() | st.integers(-(2**60), 2**60) | st.floats(allow_nan=False, allow_infinity=False)
+    st.none()
+    | st.booleans()
+    | st.integers(-(2**60), 2**60)
+    | st.floats(allow_nan=False, allow_infinity=False)
     | st.text(max_size=8),
     lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=4), inner, max_size=3),
     max_leaves=8,
-)  # fmt: skip
+)
 _space = st.sampled_from(["", " ", "\n", "\t ", "\r\n"])
 
 

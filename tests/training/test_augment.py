@@ -2,14 +2,24 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import pytest
 import torch
 
 from vtr.runtime.preprocess import STANDARDISED, normalise
 from vtr.training.augment import AugmentConfig, InputPipeline, photometric
 
-OFF = AugmentConfig(brightness=(1, 1), contrast=(1, 1), gamma=(1, 1), colour=(1, 1), side_probability=0,
-                    blur_probability=0, noise_std=(0, 0), occluder_probability=0)  # fmt: skip
+OFF = AugmentConfig(
+    brightness=(1, 1),
+    contrast=(1, 1),
+    gamma=(1, 1),
+    colour=(1, 1),
+    side_probability=0,
+    blur_probability=0,
+    noise_std=(0, 0),
+    occluder_probability=0,
+)
 
 
 def images(b: int = 6, seed: int = 0) -> torch.Tensor:
@@ -34,8 +44,7 @@ def test_each_image_gets_its_own_light():
 
 
 def test_occluder_paints_one_rectangle_of_one_colour():
-    cfg = AugmentConfig(brightness=(1, 1), contrast=(1, 1), gamma=(1, 1), colour=(1, 1), side_probability=0,
-                        blur_probability=0, noise_std=(0, 0), occluder_probability=1.0, occluder_size=(0.5, 0.5))  # fmt: skip
+    cfg = replace(OFF, occluder_probability=1.0, occluder_size=(0.5, 0.5))
     x = images(4)
     out = photometric(x, cfg, torch.Generator().manual_seed(3))
     changed = ((out - x).abs() > 1e-5).any(dim=1)  # (B, H, W); elsewhere only float rounding
@@ -43,8 +52,7 @@ def test_occluder_paints_one_rectangle_of_one_colour():
 
 
 def test_side_darker_darkens_one_edge():
-    cfg = AugmentConfig(brightness=(1, 1), contrast=(1, 1), gamma=(1, 1), colour=(1, 1), side_probability=1.0,
-                        side_low=(0.5, 0.5), blur_probability=0, noise_std=(0, 0), occluder_probability=0)  # fmt: skip
+    cfg = replace(OFF, side_probability=1.0, side_low=(0.5, 0.5))
     x = torch.full((4, 3, 8, 8), 0.8)
     out = photometric(x, cfg, torch.Generator().manual_seed(0))
     edges = torch.stack([out[..., 0].mean(dim=(1, 2)), out[..., -1].mean(dim=(1, 2))], 1)  # (B, 2)

@@ -35,6 +35,12 @@ def _lines(path: Path) -> list[dict]:
     return [json.loads(line) for line in path.read_text().splitlines()]
 
 
+def _velocitynet(data: Path, viewnet: Path, out: Path, *more: str) -> list[str]:
+    """`vtr train velocitynet --preset tiny` argv, then ``more``."""
+    tiny = ["train", "velocitynet", "--preset", "tiny"]
+    return [*tiny, "--data", str(data), "--viewnet", str(viewnet), "--out", str(out), *more]
+
+
 def test_viewnet_stage_writes_model_metrics_and_report(viewnet: Path) -> None:
     ckpt = torch.load(viewnet / "model.pt", weights_only=True)
     assert ckpt["kind"] == "viewnet" and ckpt["model_config"]["image_size"] == 32
@@ -47,18 +53,7 @@ def test_viewnet_stage_writes_model_metrics_and_report(viewnet: Path) -> None:
 
 def test_velocitynet_stage_and_report(data: Path, viewnet: Path, tmp_path: Path) -> None:
     out = tmp_path / "vel"
-    args = [
-        "train",
-        "velocitynet",
-        "--preset",
-        "tiny",
-        "--data",
-        str(data),
-        "--viewnet",
-        str(viewnet),
-        "--out",
-        str(out),
-    ]
+    args = _velocitynet(data, viewnet, out)
     assert cli.main(args) == 0
     report = json.loads((out / "report.json").read_text())
     assert report["model"] == "velocitynet"
@@ -74,8 +69,7 @@ def test_velocitynet_with_augmentation_and_standardised_inputs_exports_its_prepr
     from vtr.runtime.preprocess import STANDARDISED
 
     out = tmp_path / "vel_aug"
-    args = ["train", "velocitynet", "--preset", "tiny", "--data", str(data), "--viewnet", str(viewnet),
-            "--out", str(out), "--augment", "--preprocessing", STANDARDISED]  # fmt: skip
+    args = _velocitynet(data, viewnet, out, "--augment", "--preprocessing", STANDARDISED)
     assert cli.main(args) == 0
     ckpt = torch.load(out / "model.pt", weights_only=True)
     assert ckpt["model_config"]["preprocessing"] == STANDARDISED and ckpt["augment"] is True
@@ -129,8 +123,7 @@ def test_the_stop_term_is_recorded_and_changes_the_training(
     states = []
     for name, w in (("plain", "0"), ("stop", "2.0")):
         out = tmp_path / name
-        args = ["train", "velocitynet", "--preset", "tiny", "--data", str(data), "--viewnet", str(viewnet),
-                "--out", str(out), "--steps", "2", "--w-stop", w, "--threads", "1"]  # fmt: skip
+        args = _velocitynet(data, viewnet, out, "--steps", "2", "--w-stop", w, "--threads", "1")
         assert cli.main(args) == 0
         ckpt = torch.load(out / "model.pt", weights_only=False)
         assert ckpt["loss_config"]["w_stop"] == float(w)

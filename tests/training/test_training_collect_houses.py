@@ -104,9 +104,14 @@ def test_seed_range_parsing() -> None:
 
 def test_named_maps_join_the_procedural_houses(tmp_path: Path) -> None:
     cfg = HousesConfig(
-        out=str(tmp_path / "mixed"), seeds=(3,), frames_per_house=40, workers=1, collect=SMALL,
-        named=("house",), named_frames=60,
-    )  # fmt: skip
+        out=str(tmp_path / "mixed"),
+        seeds=(3,),
+        frames_per_house=40,
+        workers=1,
+        collect=SMALL,
+        named=("house",),
+        named_frames=60,
+    )
     summary = run_houses(cfg, progress=False)
     data = load_sharded(tmp_path / "mixed", image_size=32)
     assert summary["frames"] == 100 and summary["houses"] == 2
