@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from vtr.evaluation.conditions import LIGHTING, PATH_SCENES, SCENES
+from vtr.evaluation.metrics import off_route
 from vtr.runtime.controller import ControllerConfig
 from vtr.runtime.matching import MatchConfig
 
@@ -56,6 +57,11 @@ CONTROLLERS: dict[str, Method] = {
     "paper": Method(ControllerConfig.paper()),  # Algorithm 1: raw error, e_m = 17
     "before": Method(ControllerConfig.before()),  # the previous default: raw error, one e_m per route
     "after": Method(AFTER, match_light=True),
+    # the release before the route localiser: threshold switching, plateau, stall guard, progress gate
+    "rules": Method(replace(AFTER, switching="rules"), match_light=True),
+    "after_ff_0": Method(replace(AFTER, feed_forward=0.0), match_light=True),
+    "after_ff_0.8": Method(replace(AFTER, feed_forward=0.8), match_light=True),
+    "after_lead_1": Method(replace(AFTER, lead=1.0), match_light=True),
     # ablations of "after", one part off each
     "after_no_light_matching": Method(AFTER),
     "after_no_side_ramp": Method(AFTER, match_light=True, side_ramp=False),
@@ -148,14 +154,19 @@ def run_once(
         return {"status": "start_blocked", "cause": str(err), "completed": False, "ran": False}
     s = score(route, log)
     touched = log.collisions > 0
+    beside = off_route(s["position_error_m"]["mean"], s["final_pose_error"]["position_m"])
     if log.outcome == "finished":
-        cause = "finished but touched furniture" if touched else ""
+        cause = (
+            "finished but touched furniture"
+            if touched
+            else (f"finished off the route: {beside}" if beside else "")
+        )
     else:
         cause = f"{log.outcome}: {log.detail}" if log.detail else log.outcome
     return {
         "ran": True,
         "status": log.outcome,
-        "completed": bool(log.outcome == "finished" and not touched),
+        "completed": bool(log.outcome == "finished" and not touched and not beside),
         "cause": cause,
         "contacts": log.collisions,
         "subgoals_reached": log.subgoals_reached,

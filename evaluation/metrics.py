@@ -28,6 +28,22 @@ def _as_xy(points: np.ndarray | Sequence[Sequence[float]], what: str) -> np.ndar
 OFF_PATH_M = 0.10
 
 
+#: A finished run counts as completed only on the route: its mean nearest-point error at most ON_ROUTE_MEAN_M
+#: and its final position within ON_ROUTE_FINAL_M of the taught end (issue 19: runs that "finished" 10 cm
+#: beside the route were counted as successes).
+ON_ROUTE_MEAN_M, ON_ROUTE_FINAL_M = 0.03, 0.05
+
+
+def off_route(mean_error_m: float, final_error_m: float) -> str:
+    """Why a finished run is not on the route ("" when it is)."""
+    why = []
+    if not mean_error_m <= ON_ROUTE_MEAN_M:
+        why.append(f"mean error {mean_error_m * 1e3:.0f} mm > {ON_ROUTE_MEAN_M * 1e3:.0f}")
+    if not final_error_m <= ON_ROUTE_FINAL_M:
+        why.append(f"final position {final_error_m * 1e3:.0f} mm > {ON_ROUTE_FINAL_M * 1e3:.0f} from the end")
+    return ", ".join(why)
+
+
 def off_path(runs: Sequence[dict]) -> int:
     """How many of these completed runs' largest nearest-point error exceeds OFF_PATH_M."""
     return sum(

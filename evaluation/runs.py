@@ -15,7 +15,8 @@ from vtr.runtime.controller import Action
 
 if TYPE_CHECKING:
     from vtr.evaluation.harness import EvalConfig
-    from vtr.runtime.controller import Controller, ControllerConfig
+    from vtr.runtime.controller import ControllerConfig
+    from vtr.runtime.follower import RouteController
     from vtr.runtime.route import Route
     from vtr.runtime.route_script import RouteScript
     from vtr.sim2d.local_robot import LocalRobot
@@ -56,10 +57,10 @@ class PoseOracle:
         self.image_shape = image_shape
         self.position_tolerance = 0.01  # m: closer than this, only the heading is corrected
         self.robot: LocalRobot | None = None
-        self.controller: Controller | None = None
+        self.controller: RouteController | None = None
         self.route: Route | None = None
 
-    def bind(self, robot: LocalRobot, controller: Controller, route: Route) -> None:
+    def bind(self, robot: LocalRobot, controller: RouteController, route: Route) -> None:
         self.robot, self.controller, self.route = robot, controller, route
 
     def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
@@ -97,16 +98,21 @@ def repeat_closed_loop(
     """The runtime's Repeater (Algorithm 1 + controller) on images; poses are kept for scoring only.
 
     ``controller_cfg`` (a ControllerConfig) overrides the one ``cfg`` implies (the condition suite's)."""
-    from vtr.runtime.controller import Controller, ControllerConfig
+    from vtr.runtime.controller import ControllerConfig
+    from vtr.runtime.follower import controller_for_route
     from vtr.runtime.repeater import RepeatConfig, Repeater, StepRecord
 
     log = RunLog()
     first = robot.reset(pose=start, seed=seed)
     log.poses.append(first.pose)
-    ccfg = ControllerConfig() if cfg.e_m is None else ControllerConfig(e_m_mode="fixed", e_m=cfg.e_m)
+    ccfg = (
+        ControllerConfig()
+        if cfg.e_m is None
+        else ControllerConfig(switching="rules", e_m_mode="fixed", e_m=cfg.e_m)
+    )
     ccfg = controller_cfg if controller_cfg is not None else ccfg
     rcfg = RepeatConfig(controller=ccfg, dt=cfg.dt, max_steps=int(cfg.max_steps_factor * len(route) + 50))
-    controller = Controller.for_route(route, ccfg)
+    controller = controller_for_route(route, ccfg)
     if isinstance(policy, PoseOracle):
         policy.bind(robot, controller, route)
 

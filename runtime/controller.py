@@ -130,7 +130,7 @@ class Controller:
             )
         self.cfg = cfg or ControllerConfig()
         self.commands = None if commands is None else np.asarray(commands, dtype=np.float64).reshape(-1, 2)
-        self._held = self._turns_in_place(self.commands, poses, len(subgoals))
+        self._held = self.turns_in_place(self.commands, poses, len(subgoals))
         self.subgoals = subgoals
         self.matcher = Matcher(self.cfg.match)
         self._feats = self.matcher.features(subgoals)
@@ -288,7 +288,7 @@ class Controller:
         return self._command(i, error)
 
     @staticmethod
-    def _turns_in_place(commands: np.ndarray | None, poses: np.ndarray | None, n: int) -> np.ndarray:
+    def turns_in_place(commands: np.ndarray | None, poses: np.ndarray | None, n: int) -> np.ndarray:
         """Per subgoal: did the taught robot reach it by turning on the spot? The command after subgoal
         i-1 had v = 0, and (where poses are known) the taught position moved under HOLD_TOLERANCE_M."""
         held = np.zeros(n, dtype=bool)

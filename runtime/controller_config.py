@@ -5,13 +5,31 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from vtr.runtime.localiser import LocaliserConfig
 from vtr.runtime.matching import MatchConfig
 from vtr.runtime.thresholds import DEFAULT_BOUNDS, THRESHOLD_MODES
+
+#: How the subgoal steered to is chosen: "localiser" (runtime.follower: from the route localiser's estimate,
+#: the default) or "rules" (runtime.controller: the paper's threshold switching and the earlier rules on it).
+SWITCHING = ("localiser", "rules")
 
 
 @dataclass
 class ControllerConfig:
     """Subgoal-switching settings (see the module docstring for each rule)."""
+
+    #: "localiser" (default) or "rules" (the paper's Algorithm 1 and the earlier release's rules).
+    switching: str = "localiser"
+    #: localiser: the route localiser's settings.
+    localiser: LocaliserConfig = field(default_factory=LocaliserConfig)
+    #: localiser: steer to the first subgoal more than this many gaps ahead of the estimate (the paper's
+    #: horizon: VelocityNet is trained to reach the view two control steps, one subgoal, ahead).
+    lead: float = 0.5
+    #: localiser: weight of the taught command at the estimated position in each command (feed-forward;
+    #: VelocityNet's command is the rest).
+    feed_forward: float = 0.5
+    #: localiser: FINISHED needs the estimate within this many gaps of the last subgoal.
+    finish_span: float = 0.5
 
     #: Image comparison (runtime.matching): patch-normalised by default, raw for the paper.
     match: MatchConfig = field(default_factory=MatchConfig)
@@ -99,19 +117,24 @@ class ControllerConfig:
     @classmethod
     def paper(cls) -> ControllerConfig:
         """Algorithm 1 exactly: raw error, fixed e_m = 17, switch at once, nothing else."""
-        return cls(match=MatchConfig.paper(), e_m_mode="fixed", e_m=17.0, pass_ratio=0.0, stall_steps=0,
+        return cls(switching="rules", match=MatchConfig.paper(), e_m_mode="fixed", e_m=17.0, pass_ratio=0.0, stall_steps=0,
                    settle_steps=0, lost_steps=0, stop_on_contact=False, hold_turns=False,
                    progress_gate=0.0, match_ramp=False, idle_steps=0, zero_bias=0.0)  # fmt: skip
 
     @classmethod
     def before(cls) -> ControllerConfig:
         """The previous default: raw error, one calibrated e_m per route, settle 2, old plateau rule."""
-        return cls(match=MatchConfig.paper(), e_m_mode="calibrated", pass_ratio=0.0, settle_steps=2,
+        return cls(switching="rules", match=MatchConfig.paper(), e_m_mode="calibrated", pass_ratio=0.0, settle_steps=2,
                    plateau_needs_motion=False, lost_steps=0, stop_on_contact=False, hold_turns=False,
                    stall_min_improvement=0.25, jump_factor=2.0,
                    progress_gate=0.0, match_ramp=False, idle_steps=0, zero_bias=0.0)  # fmt: skip
 
     def __post_init__(self) -> None:
+        if self.switching not in SWITCHING:
+            raise ValueError(f"switching must be one of {SWITCHING}, got {self.switching!r}")
+        for name, hi in (("lead", 3.0), ("feed_forward", 1.0), ("finish_span", 2.0)):
+            if not 0 <= getattr(self, name) <= hi:
+                raise ValueError(f"{name} must be in [0, {hi}], got {getattr(self, name)!r}")
         if self.e_m_mode not in THRESHOLD_MODES:
             raise ValueError(f"e_m_mode must be one of {THRESHOLD_MODES}, got {self.e_m_mode!r}")
         positive = {"e_m": self.e_m, "calib_fraction": self.calib_fraction, "jump_factor": self.jump_factor,

@@ -44,7 +44,8 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from vtr.runtime.contracts import CONTROL_DT, Observation, Policy, Robot
-from vtr.runtime.controller import Action, Controller, Verdict
+from vtr.runtime.controller import Action, Verdict
+from vtr.runtime.follower import RouteController, controller_for_route
 from vtr.runtime.protocol import BadFrameError
 from vtr.runtime.repeat_types import RepeatConfig, RepeatStatus, StepRecord, Summary
 from vtr.runtime.robot import RobotError
@@ -94,7 +95,7 @@ class Repeater:
         robot: Robot,
         policy: Policy,
         route: Route,
-        controller: Controller | None = None,
+        controller: RouteController | None = None,
         *,
         config: RepeatConfig | None = None,
         on_step: Callable[[StepRecord], None] | None = None,
@@ -117,7 +118,7 @@ class Repeater:
             )
         self.dt = float(self.config.dt if self.config.dt is not None else (model_dt or CONTROL_DT))
         self.controller = (
-            controller if controller is not None else Controller.for_route(route, self.config.controller)
+            controller if controller is not None else controller_for_route(route, self.config.controller)
         )
         # one view object per subgoal, passed again while it is steered to (OnnxPolicy keeps its tensor)
         self._views = list(self.controller.subgoals)

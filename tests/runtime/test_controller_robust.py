@@ -21,7 +21,7 @@ ROUTE = np.stack([view(100 + STEP * k) for k in range(8)])
 
 def robust(**changes) -> ControllerConfig:
     """The default with the per-subgoal rule on (thresholds per subgoal and the relative switch)."""
-    return replace(ControllerConfig(e_m_mode="per_subgoal", pass_ratio=1.0), **changes)
+    return replace(ControllerConfig(switching="rules", e_m_mode="per_subgoal", pass_ratio=1.0), **changes)
 
 
 def test_per_subgoal_thresholds_follow_the_incoming_gap():

@@ -1,0 +1,241 @@
+"""Follow a taught route from where the route localiser says the robot is: a pure state machine, an image in,
+a decision out (the default repeat controller; ``runtime.controller`` keeps the paper's Algorithm 1).
+
+Each image:
+
+1. a reported contact ends the run (COLLIDED);
+2. the localiser (``runtime.localiser``) weighs its belief by the view: where along the route the robot
+   is (``position``, in subgoal units) and how sure (``confidence``, ``match``);
+3. the end: the estimate is at the last subgoal, the view is closest to it, and it matches it as well as
+   the teach's neighbouring views match each other (or the policy has stopped driving there): FINISHED;
+4. lost: for ``lost_steps`` images in a row no subgoal near the estimate matches the view (the best
+   distance is over the lost bound) and the match is not improving: LOST, with the evidence;
+5. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
+   ahead, rounded up to a subgoal), with the taught command at the estimated position as feed-forward
+   (``Decision.prior``, blended by the repeat loop) and no translation where the teach turned in place.
+
+The subgoal steered to changes because the estimate moved (ADVANCE events when it moved past subgoals, a
+JUMP back when the views placed the robot behind); never by a timeout, a plateau or a jump on a stall.
+The repeat loop reports every command (:meth:`Follower.commanded`), which moves the estimate along.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from vtr.runtime.controller import Controller
+from vtr.runtime.controller_config import ControllerConfig
+from vtr.runtime.decisions import Action, Decision, Verdict
+from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
+from vtr.runtime.matching import MatchConfig, Matcher
+from vtr.runtime.thresholds import DEFAULT_BOUNDS, LOST_FLOOR, PLAIN_ROUTE_GAP, gaps_between, thresholds
+
+if TYPE_CHECKING:
+    from vtr.runtime.route import Route
+
+#: Commands under these (m/s, rad/s) count as the policy standing still at the end of the route.
+IDLE_SPEED, IDLE_TURN = 0.01, 0.02
+
+
+class Follower:
+    """Decide, image by image, where to steer from the localiser's estimate (see the module docstring)."""
+
+    def __init__(
+        self,
+        subgoals: np.ndarray,
+        cfg: ControllerConfig | None = None,
+        commands: np.ndarray | None = None,
+        poses: np.ndarray | None = None,
+        travel_poses: np.ndarray | None = None,
+        steps_per_subgoal: float = 2.0,
+        dt: float = 0.1,
+    ) -> None:
+        if (
+            subgoals.dtype != np.uint8
+            or subgoals.ndim != 4
+            or subgoals.shape[0] < 1
+            or subgoals.shape[-1] != 3
+        ):
+            raise ValueError(
+                f"subgoals must be (L, H, W, 3) uint8 with L >= 1, got {subgoals.shape} {subgoals.dtype}"
+            )
+        self.cfg = cfg or ControllerConfig()
+        n = len(subgoals)
+        self.subgoals = subgoals
+        self.commands = (
+            np.zeros((n, 2)) if commands is None else np.asarray(commands, dtype=np.float64).reshape(-1, 2)
+        )
+        self._held = Controller.turns_in_place(self.commands, poses, n)
+        self.matcher = Matcher(self.cfg.match)
+        self._feats = self.matcher.features(subgoals)
+        self.gaps = gaps_between(self.matcher, self._feats)
+        self.fallback = ""
+        if self.cfg.match.method == "patch" and n > 1 and np.median(self.gaps) < PLAIN_ROUTE_GAP:
+            self.fallback = (
+                f"patch matching sees no motion along this route (median gap {np.median(self.gaps):.3f})"
+            )
+            self.cfg = replace(self.cfg, match=MatchConfig.paper())
+            self.matcher = Matcher(self.cfg.match)
+            self._feats = self.matcher.features(subgoals)
+            self.gaps = gaps_between(self.matcher, self._feats)
+        self.thresholds = thresholds(self.gaps, n, self.cfg)
+        self.median_gap = float(np.median(self.gaps)) if n > 1 else float(self.thresholds[0])
+        self.lost_bound = max(self.cfg.lost_factor * self.median_gap, LOST_FLOOR[self.cfg.match.method])
+        if n < 2 or self.gaps.max() < DEFAULT_BOUNDS[self.cfg.match.method][0] / 10:
+            self.lost_bound = math.inf  # a route whose views barely change cannot tell being lost
+        motion = taught_motion(travel_poses, self.commands, n, dt * steps_per_subgoal)
+        self.localiser = RouteLocaliser(
+            self._feats, self.matcher, motion, self.median_gap, self.cfg.localiser
+        )
+        if self.cfg.localise:
+            self.localiser.start_at(None)
+        self.index = 0  # the subgoal steered to
+        self.status: Action | None = None
+        self.estimate: Estimate | None = None
+        self.jumps = 0
+        self.plateaus = 0  # kept for the summary: this controller never accepts a subgoal on a plateau
+        self.localised_to: int | None = None
+        self._lost_count = 0
+        self._lost_best = math.inf
+        self._idle = 0
+        self._finished = False
+
+    @classmethod
+    def for_route(cls, route: Route, cfg: ControllerConfig | None = None) -> Follower:
+        """The follower of a taught route (its subgoals, commands, poses and spacing)."""
+        every = route.spacing.get("every") if route.spacing.get("rule") == "steps" else None
+        steps = float(every) if isinstance(every, int) and every >= 1 else 2.0
+        return cls(
+            route.images, cfg, route.commands, route.poses, route.travel_poses(), steps, float(route.dt)
+        )
+
+    def __len__(self) -> int:
+        return int(self.subgoals.shape[0])
+
+    @property
+    def finished(self) -> bool:
+        return self._finished
+
+    @property
+    def e_m(self) -> float:
+        """The final subgoal's match threshold (what FINISHED needs); kept for logs and summaries."""
+        return float(self.thresholds[min(self.index, len(self) - 1)])
+
+    @property
+    def subgoal(self) -> np.ndarray:
+        return self.subgoals[min(self.index, len(self) - 1)]
+
+    @property
+    def stalled(self) -> bool:
+        return False
+
+    def holds_turn(self, i: int) -> bool:
+        return self.cfg.hold_turns and 0 <= i < len(self._held) and bool(self._held[i])
+
+    def commanded(self, v: float, w: float, dt: float) -> None:
+        """The repeat loop applied (v, w) for ``dt`` seconds: the estimate moves along the route."""
+        self._idle = self._idle + 1 if abs(v) < IDLE_SPEED and abs(w) < IDLE_TURN else 0
+        self.localiser.predict(v, w, dt)
+
+    def relocalise(self) -> None:
+        """Search the whole route on the next image (after a robot restart)."""
+        self.localiser.start_at(None)
+
+    def judge(self, image: np.ndarray, collided: bool = False) -> Verdict:
+        """The decision on ``image``, with the subgoal changes it implies as events."""
+        from_index = self.index
+        decision = self._decide(image, collided)
+        events: list[Decision] = []
+        if decision.action is Action.COMMAND or decision.action is Action.FINISHED:
+            to = len(self) if decision.action is Action.FINISHED else decision.index
+            if to > from_index:
+                events = [Decision(Action.ADVANCE, k + 1, decision.error) for k in range(from_index, to)]
+            elif to < from_index:
+                self.jumps += 1
+                events = [Decision(Action.JUMP, to, decision.error, note="the view places the robot behind")]
+            self.index = to
+        return Verdict(decision, tuple(events), from_index)
+
+    def _stop(self, action: Action, error: float, note: str) -> Decision:
+        self.status = action
+        return Decision(action, self.index, error, note=note)
+
+    def _decide(self, image: np.ndarray, collided: bool) -> Decision:
+        if image.shape != self.subgoals.shape[1:]:
+            raise ValueError(
+                f"image shape {image.shape} differs from the subgoals' {self.subgoals.shape[1:]}"
+            )
+        if self._finished:
+            return Decision(Action.FINISHED, len(self), math.nan)
+        if self.status is not None:
+            return Decision(self.status, self.index, math.nan, note=f"{self.status.value} earlier")
+        if collided and self.cfg.stop_on_contact:
+            return self._stop(Action.COLLIDED, math.nan, f"contact reported near subgoal {self.index}")
+        wide = self.localiser.wide
+        est = self.estimate = self.localiser.update(self.matcher.features(image))
+        if wide:
+            self.localised_to = int(round(est.position))
+        last = len(self) - 1
+        final_error = est.error_to(last)
+        at_end = est.position >= last - self.cfg.finish_span and est.best == last
+        # the view must match the last subgoal: as the teach's neighbouring views match each other, or, where
+        # the policy has stopped driving next to it, within ``jump_factor`` of that
+        threshold = float(self.thresholds[last])
+        settled = self._idle >= 2 and final_error <= self.cfg.jump_factor * threshold
+        if at_end and (final_error <= threshold or settled):
+            self._finished = True
+            return Decision(Action.FINISHED, len(self), final_error)
+        lost = self._lost(est)
+        if lost is not None:
+            return lost
+        target = min(last, int(math.floor(est.position + self.cfg.lead)) + 1)
+        gap = min(int(est.position), last - 1) if last > 0 else 0
+        prior = None
+        if self.cfg.feed_forward > 0 and last > 0:
+            prior = (self.cfg.feed_forward, *map(float, self.commands[gap]))
+        hold = self.holds_turn(gap + 1)  # the teach turned on the spot where the robot is
+        return Decision(
+            Action.COMMAND,
+            target,
+            est.error_to(target),
+            then_stop=not self.cfg.continuous,
+            note=f"at {est.position:.2f} (confidence {est.confidence:.2f})",
+            v_limit=0.0 if hold else math.inf,
+            prior=prior,
+        )
+
+    def _lost(self, est: Estimate) -> Decision | None:
+        if self.cfg.lost_steps <= 0 or est.best_error <= self.lost_bound:
+            self._lost_count, self._lost_best = 0, math.inf
+            return None
+        if est.best_error < self._lost_best - 0.02 * self.lost_bound:  # still closing in on a match
+            self._lost_best = est.best_error
+            return None
+        self._lost_count += 1
+        if self._lost_count < self.cfg.lost_steps:
+            return None
+        return self._stop(
+            Action.LOST,
+            est.best_error,
+            f"lost near subgoal {int(round(est.position))}: best match {est.best_error:.3f} at subgoal "
+            f"{est.best} (bound {self.lost_bound:.3f}), confidence {est.confidence:.2f}",
+        )
+
+
+#: Either controller: the route localiser's (default) or the threshold rules' (``switching="rules"``).
+RouteController = Controller | Follower
+
+
+def controller_for_route(route: Route, cfg: ControllerConfig | None = None) -> RouteController:
+    """The controller ``cfg.switching`` names, built for ``route``."""
+    cfg = cfg or ControllerConfig()
+    return (
+        Follower.for_route(route, cfg) if cfg.switching == "localiser" else Controller.for_route(route, cfg)
+    )
+
+
+__all__ = ["Follower", "RouteController", "controller_for_route"]

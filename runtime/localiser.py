@@ -1,0 +1,275 @@
+"""Where the robot is along its taught route, and how sure: a discrete Bayes filter over route positions.
+
+The state is the robot's position ``s`` along the route in subgoal units (``s = 3.5``: half-way from
+subgoal 3 to subgoal 4), held as a belief over a grid of ``cells_per_gap`` cells per gap. Each control step:
+
+- **predict** (:meth:`RouteLocaliser.predict`): the command the robot was given moves the belief along the
+  route by the share of the taught gap it covers. A gap's taught motion is a vector (distance, turn) from
+  the taught poses; the command's (v dt, w dt) is projected onto it, so a drive on a straight, a turn in
+  place and a curve all count, and a command against the taught direction counts back. The belief is
+  blurred by the motion's uncertainty (a fraction of the move, plus a floor).
+- **update** (:meth:`RouteLocaliser.update`): the view is compared with the subgoals in a window around the
+  estimate. The expected distances at a position come from the teach itself: at subgoal k they are the
+  taught images' distances to each subgoal of the window, and between subgoals they are interpolated. A
+  repeat-time change (light, a shifted start, a moved chair) raises every distance alike, so each position
+  is scored by its residuals after the best common offset; that offset is the match's quality.
+
+Sequence matching of this kind (the view's distances to several neighbouring subgoals at once, against the
+profile the teach itself shows) tells "just before subgoal 4" from "just after it" where one distance
+cannot: that single distance is what the threshold rules of the earlier controller switched on. Nothing
+here advances by time or by rule; the estimate moves because the commanded motion and the views say so.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from vtr.runtime.matching import Matcher
+
+
+@dataclass(frozen=True)
+class LocaliserConfig:
+    """The filter's settings; the defaults were chosen on development routes only (evaluation/README)."""
+
+    #: Grid cells per gap between two subgoals.
+    cells_per_gap: int = 4
+    #: Subgoals compared with each view: this many behind the estimate and ahead of it.
+    window_behind: int = 3
+    window_ahead: int = 5
+    #: Std of a command's progress: this fraction of the move, plus ``motion_floor`` gaps.
+    motion_noise: float = 0.3
+    motion_floor: float = 0.05
+    #: Std of a residual distance, in units of the route's median gap.
+    obs_sigma: float = 0.35
+    #: Metres of travel a radian of turn weighs as, to put distance and turn in one progress.
+    turn_length_m: float = 0.2
+    #: Belief mass spread uniformly each step, so that a wrong estimate can be recovered from.
+    mixing: float = 1e-4
+
+    def __post_init__(self) -> None:
+        if self.cells_per_gap < 1 or self.window_behind < 1 or self.window_ahead < 1:
+            raise ValueError("cells_per_gap, window_behind and window_ahead must be >= 1")
+        for name in ("motion_noise", "motion_floor", "obs_sigma", "turn_length_m", "mixing"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
+        if self.obs_sigma <= 0 or self.turn_length_m <= 0 or self.mixing >= 1:
+            raise ValueError("obs_sigma and turn_length_m must be > 0 and mixing < 1")
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The localiser's answer after a view.
+
+    ``position``: the belief's mean near its mode, in subgoal units; ``std``: its spread (gaps);
+    ``confidence``: the belief mass within ``CONFIDENT_SPAN`` gaps of the mode (0..1); ``match``: the common
+    offset of the view's distances at the estimate (matcher units: 0 when the view is as the teach saw it);
+    ``best``, ``best_error``: the subgoal of the window the view is closest to, and that distance;
+    ``errors``: the window's distances, from subgoal ``first``.
+    """
+
+    position: float
+    std: float
+    confidence: float
+    match: float
+    best: int
+    best_error: float
+    first: int
+    errors: np.ndarray
+
+    def error_to(self, index: int) -> float:
+        """The view's distance to subgoal ``index`` (nan when it was outside the window)."""
+        k = index - self.first
+        return float(self.errors[k]) if 0 <= k < len(self.errors) else math.nan
+
+
+#: Half-width (gaps) of the span around the mode whose mass is the confidence.
+CONFIDENT_SPAN = 0.75
+
+
+def taught_motion(travel_poses: np.ndarray | None, commands: np.ndarray, n: int, steps: float) -> np.ndarray:
+    """(n-1, 2) signed taught motion of each gap: (metres forward, radians counter-clockwise).
+
+    From the taught poses where known (the sign of the distance from the taught command); else the taught
+    command held for ``steps`` control steps of its dt (the caller passes ``dt * steps`` as ``steps``)."""
+    out = np.zeros((max(n - 1, 0), 2))
+    if n < 2:
+        return out
+    cmds = np.asarray(commands, dtype=np.float64)[: n - 1]
+    if travel_poses is not None and len(travel_poses) >= n and np.isfinite(travel_poses[:n]).all():
+        p = np.asarray(travel_poses, dtype=np.float64)[:n]
+        distance = np.hypot(*np.diff(p[:, :2], axis=0).T)
+        sign = np.where(cmds[:, 0] < 0, -1.0, 1.0)
+        turn = np.remainder(np.diff(p[:, 2]) + math.pi, 2 * math.pi) - math.pi
+        out[:, 0], out[:, 1] = sign * distance, turn
+        return out
+    out[:] = cmds * steps
+    return out
+
+
+class RouteLocaliser:
+    """A belief over the position along a route of ``len(feats)`` subgoals (see the module docstring)."""
+
+    def __init__(
+        self,
+        feats: np.ndarray,
+        matcher: Matcher,
+        motion: np.ndarray,
+        median_gap: float,
+        cfg: LocaliserConfig | None = None,
+    ) -> None:
+        """``feats``: the subgoals' features (``matcher.features``); ``motion``: (L-1, 2) from
+        :func:`taught_motion`; ``median_gap``: the route's median distance between consecutive subgoals."""
+        self.cfg = cfg or LocaliserConfig()
+        self.matcher, self.feats = matcher, feats
+        self.n = len(feats)
+        k = self.cfg.cells_per_gap
+        self.cells = np.arange((self.n - 1) * k + 1) / k  # positions of the grid, in subgoal units
+        self.sigma = max(self.cfg.obs_sigma * float(median_gap), 1e-6)
+        rho = self.cfg.turn_length_m
+        self._motion = np.asarray(motion, dtype=np.float64).reshape(-1, 2) * (1.0, rho)
+        self._motion_sq = np.einsum("ij,ij->i", self._motion, self._motion)
+        # the teach's own distances, subgoal k to k + o for every offset o of the widest window
+        self._span = self.cfg.window_behind + self.cfg.window_ahead + 1
+        self._band = self._self_distances(self._span)
+        self.belief = np.zeros(len(self.cells))
+        self.start_at(0.0)
+        self.last: Estimate | None = None
+
+    def _self_distances(self, span: int) -> np.ndarray:
+        """(n, 2 * span + 1): distance of taught subgoal k to subgoal k + o - span (nan outside the route)."""
+        band = np.full((self.n, 2 * span + 1), np.nan)
+        for k in range(self.n):
+            lo, hi = max(0, k - span), min(self.n, k + span + 1)
+            band[k, lo - k + span : hi - k + span] = self.matcher.distances(self.feats[k], self.feats[lo:hi])
+        return band
+
+    # ------------------------------------------------------------------ the belief
+    def start_at(self, position: float | None) -> None:
+        """A belief at ``position`` (subgoal units), or spread over the whole route (None: start anywhere)."""
+        if position is None or self.n < 2:
+            self.belief[:] = 1.0 / len(self.belief)
+            self._wide = True
+            return
+        self.belief[:] = np.exp(-0.5 * ((self.cells - position) / 0.25) ** 2)
+        self.belief /= self.belief.sum()
+        self._wide = False
+
+    @property
+    def wide(self) -> bool:
+        """The next update compares the view with the whole route (start anywhere, or after a restart)."""
+        return self._wide
+
+    def progress(self, v: float, w: float, dt: float, position: float) -> float:
+        """The share of the taught gap at ``position`` that the command (v, w) for ``dt`` covers."""
+        if self.n < 2:
+            return 0.0
+        gap = min(int(position), self.n - 2)
+        norm = self._motion_sq[gap]
+        if norm < 1e-10:  # the teach stood still here: no motion tells progress
+            return 0.0
+        move = np.array([v * dt, self.cfg.turn_length_m * w * dt])
+        return float(move @ self._motion[gap] / norm)
+
+    def predict(self, v: float, w: float, dt: float) -> None:
+        """The robot was commanded (v, w) for ``dt`` seconds: move the belief along the route."""
+        if self.n < 2 or self._wide:
+            return
+        position = self.last.position if self.last is not None else self._mean()
+        shift = self.progress(v, w, dt, position)
+        k = self.cfg.cells_per_gap
+        std = (self.cfg.motion_noise * abs(shift) + self.cfg.motion_floor) * k  # in cells
+        grid = np.arange(len(self.belief))
+        moved = np.interp(grid - shift * k, grid, self.belief, left=0.0, right=0.0)
+        # what would move past either end piles up there: the robot cannot be beyond the route's ends
+        if shift > 0:
+            moved[-1] += max(0.0, 1.0 - moved.sum())
+        elif shift < 0:
+            moved[0] += max(0.0, 1.0 - moved.sum())
+        half = max(1, int(math.ceil(3 * std)))
+        taps = np.exp(-0.5 * (np.arange(-half, half + 1) / max(std, 1e-6)) ** 2)
+        self.belief = np.convolve(moved, taps / taps.sum(), mode="same")
+        self._normalise()
+
+    def _normalise(self) -> None:
+        total = self.belief.sum()
+        if not (math.isfinite(total) and total > 0):
+            self.belief[:] = 1.0
+            total = float(len(self.belief))
+        self.belief /= total
+        m = self.cfg.mixing
+        self.belief = (1 - m) * self.belief + m / len(self.belief)
+
+    def _mean(self) -> float:
+        return float(self.belief @ self.cells)
+
+    def window(self) -> range:
+        """The subgoals the next view is compared with."""
+        if self._wide:
+            return range(0, self.n)
+        centre = int(round(self.last.position if self.last is not None else self._mode()))
+        return range(max(0, centre - self.cfg.window_behind), min(self.n, centre + self.cfg.window_ahead + 1))
+
+    def _mode(self) -> float:
+        return float(self.cells[int(np.argmax(self.belief))])
+
+    def update(self, view: np.ndarray) -> Estimate:
+        """Weigh the belief by how well ``view`` (features of the current image) fits each position."""
+        win = self.window()
+        errors = self.matcher.distances(view, self.feats[win.start : win.stop])
+        best = int(np.argmin(errors))
+        if self.n < 2:
+            self.last = Estimate(0.0, 0.0, 1.0, float(errors[0]), 0, float(errors[0]), 0, errors)
+            return self.last
+        k = self.cfg.cells_per_gap
+        lo, hi = win.start * k, (win.stop - 1) * k + 1  # cells the window can judge
+        pos = self.cells[lo:hi]
+        expected = self._expected(pos, win)  # (cells, window)
+        resid = errors[None, :] - expected
+        offset = np.nanmean(resid, axis=1)
+        sq = np.nanmean((resid - offset[:, None]) ** 2, axis=1)
+        loglik = -0.5 * sq / self.sigma**2 * min(len(win), 4)
+        like = np.exp(loglik - loglik.max())
+        outside = like.min()  # a position the window cannot judge is taken as no better than its worst
+        weights = np.full(len(self.belief), outside)
+        weights[lo:hi] = like
+        self.belief *= weights
+        self._normalise()
+        self._wide = False
+        mode = int(np.argmax(self.belief))
+        span = int(round(3 * k))
+        a, b = max(0, mode - span), min(len(self.belief), mode + span + 1)
+        local = self.belief[a:b] / self.belief[a:b].sum()
+        mean = float(local @ self.cells[a:b])
+        std = float(np.sqrt(max(local @ (self.cells[a:b] - mean) ** 2, 0.0)))
+        near = int(round(CONFIDENT_SPAN * k))
+        confidence = float(self.belief[max(0, mode - near) : mode + near + 1].sum())
+        at = int(np.clip(round(mean * k), lo, hi - 1)) - lo
+        self.last = Estimate(
+            position=mean,
+            std=std,
+            confidence=confidence,
+            match=float(max(offset[at], 0.0)),
+            best=win.start + best,
+            best_error=float(errors[best]),
+            first=win.start,
+            errors=errors,
+        )
+        return self.last
+
+    def _expected(self, pos: np.ndarray, win: range) -> np.ndarray:
+        """(len(pos), len(win)) distances the teach predicts at each position to each subgoal of the window."""
+        k0 = np.minimum(np.floor(pos).astype(int), self.n - 2)
+        frac = (pos - k0)[:, None]
+        cols = np.arange(win.start, win.stop)[None, :]
+        span = self._span
+        a = self._band[k0[:, None], np.clip(cols - k0[:, None] + span, 0, 2 * span)]
+        b = self._band[k0[:, None] + 1, np.clip(cols - k0[:, None] - 1 + span, 0, 2 * span)]
+        far_a = np.abs(cols - k0[:, None]) > span
+        far_b = np.abs(cols - k0[:, None] - 1) > span
+        a = np.where(far_a, np.nan, a)
+        b = np.where(far_b, np.nan, b)
+        return (1 - frac) * a + frac * b

@@ -1,0 +1,110 @@
+"""The default controller: it steers from the route localiser's estimate and never advances without evidence."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from runtime_fakes import corridor_route, render
+
+from vtr.runtime.contracts import Observation
+from vtr.runtime.controller import Action, Controller, ControllerConfig
+from vtr.runtime.follower import Follower, controller_for_route
+from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
+
+
+class Corridor:
+    """A robot on the corridor world of runtime_fakes; ``stuck_at``: its wheels stop turning there."""
+
+    def __init__(self, x: float = 0.0, stuck_at: float | None = None) -> None:
+        self.x, self.t, self.stuck_at = x, 0.0, stuck_at
+
+    def observe(self) -> Observation:
+        return Observation(render(self.x), self.t, pose=(self.x, 0.0, 0.0))
+
+    def step(self, v: float, w: float, duration: float) -> Observation:
+        self.x += v * duration
+        if self.stuck_at is not None:
+            self.x = min(self.x, self.stuck_at)
+        self.t += duration
+        return self.observe()
+
+    def stop(self) -> None:
+        pass
+
+
+class TowardSubgoal:
+    """Drives toward the subgoal's brightness (the corridor's views brighten along x)."""
+
+    image_shape = (16, 16)
+
+    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+        v = float(np.clip((subgoal.mean() - current.mean()) / 200.0 / 0.2, -0.5, 0.5))
+        return np.array([[v, v], [0.0, 0.0]], dtype=np.float32)
+
+
+def _run(robot: Corridor, **cfg) -> tuple[Repeater, list]:
+    route = corridor_route(0.4, 0.05)
+    records: list = []
+    config = RepeatConfig(controller=ControllerConfig(zero_bias=0.0, **cfg), max_steps=60)
+    rep = Repeater(robot, TowardSubgoal(), route, config=config, on_step=records.append)
+    rep.run()
+    return rep, records
+
+
+def test_the_default_controller_is_the_follower_and_paper_keeps_algorithm_1():
+    route = corridor_route(0.2, 0.05)
+    assert isinstance(controller_for_route(route), Follower)
+    assert isinstance(controller_for_route(route, ControllerConfig.paper()), Controller)
+
+
+def test_a_robot_that_follows_finishes_at_about_the_taught_pace():
+    robot = Corridor()
+    rep, records = _run(robot)
+    assert rep.status is RepeatStatus.FINISHED
+    assert robot.x == pytest.approx(0.4, abs=0.02)
+    taught_steps = 2 * (len(rep.route) - 1)  # a subgoal every 2 control steps
+    assert rep.steps <= 1.3 * taught_steps
+    advanced = [e.index for r in records for e in r.events if e.action is Action.ADVANCE]
+    assert advanced == sorted(advanced) and advanced[-1] == len(rep.route)
+
+
+def test_a_robot_that_cannot_move_is_never_advanced_to_the_end():
+    """The wheels stop at 0.12 m (subgoal 2.4): whatever it commands, the subgoal steered to stays near the
+    robot, and the run does not end as finished (the earlier rules accepted subgoals on a plateau)."""
+    robot = Corridor(stuck_at=0.12)
+    rep, records = _run(robot)
+    assert rep.status is not RepeatStatus.FINISHED
+    assert max(r.subgoal for r in records) <= 4
+    est = rep.controller.estimate
+    assert est is not None and est.position == pytest.approx(2.4, abs=0.7)
+
+
+def test_a_view_off_the_route_ends_lost_with_the_evidence():
+    route = corridor_route(0.4, 0.05)
+    follower = Follower.for_route(route, ControllerConfig(lost_steps=3))
+    far = render(0.95)
+    for _ in range(10):
+        verdict = follower.judge(far)
+        if verdict.decision.action is Action.LOST:
+            break
+        follower.commanded(0.0, 0.0, 0.1)
+    assert verdict.decision.action is Action.LOST
+    assert "lost near subgoal" in verdict.decision.note and "best match" in verdict.decision.note
+    assert "confidence" in verdict.decision.note
+
+
+def test_started_anywhere_it_steers_from_where_the_view_is():
+    route = corridor_route(0.4, 0.05)
+    follower = Follower.for_route(route, ControllerConfig(localise=True))
+    verdict = follower.judge(render(0.25))  # subgoal 5
+    assert follower.localised_to == 5 and verdict.decision.index in (6, 7)
+
+
+def test_no_translation_where_the_teach_turned_in_place():
+    route = corridor_route(0.2, 0.05)
+    route = replace(route, commands=np.array([[0.0, 0.5]] * len(route)), poses=np.zeros((len(route), 3)))
+    follower = Follower.for_route(route)
+    decision = follower.judge(route.images[0]).decision
+    assert decision.action is Action.COMMAND and decision.v_limit == 0.0

@@ -1,0 +1,76 @@
+"""The route localiser: a Bayes filter over positions along the route, from views and commanded motion."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from runtime_fakes import corridor_route, render
+
+from vtr.runtime.localiser import LocaliserConfig, RouteLocaliser, taught_motion
+from vtr.runtime.matching import MatchConfig, Matcher
+
+SPACING = 0.05  # m between the corridor route's subgoals
+
+
+def _localiser(length_m: float = 0.6, **cfg) -> RouteLocaliser:
+    route = corridor_route(length_m, SPACING)
+    matcher = Matcher(MatchConfig.paper())
+    feats = matcher.features(route.images)
+    gaps = np.array([matcher.distance(feats[k], feats[k + 1]) for k in range(len(feats) - 1)])
+    motion = taught_motion(route.poses, route.commands, len(route), 0.2)
+    return RouteLocaliser(feats, matcher, motion, float(np.median(gaps)), LocaliserConfig(**cfg))
+
+
+def _view(x: float) -> np.ndarray:
+    return Matcher(MatchConfig.paper()).features(render(x))
+
+
+def test_views_along_the_route_place_the_robot_between_subgoals():
+    loc = _localiser()
+    for x in np.arange(0.0, 0.3, 0.0125):  # a quarter of a gap per view, as commanded
+        est = loc.update(_view(x))
+        loc.predict(0.125, 0.0, 0.1)
+    assert est.position == pytest.approx(x / SPACING, abs=0.3)
+    assert est.confidence > 0.5 and est.std < 0.5
+
+
+def test_commanded_motion_moves_the_estimate_by_the_taught_share_of_a_gap():
+    loc = _localiser()
+    loc.update(_view(0.1))  # subgoal 2
+    before = loc.last.position
+    loc.predict(0.25, 0.0, 0.1)  # 2.5 cm: half of a 5 cm gap
+    loc.predict(0.25, 0.0, 0.1)
+    assert float(loc.belief @ loc.cells) == pytest.approx(before + 1.0, abs=0.15)
+    assert loc.progress(-0.25, 0.0, 0.1, 2.0) == pytest.approx(-0.5)  # backwards counts back
+
+
+def test_a_view_that_does_not_move_holds_the_estimate_whatever_is_commanded():
+    """Commands say the robot drove 3 gaps; the camera keeps seeing subgoal 2: the views win."""
+    loc = _localiser()
+    for _ in range(6):
+        loc.update(_view(0.1))
+        loc.predict(0.25, 0.0, 0.1)
+    est = loc.update(_view(0.1))
+    assert est.position == pytest.approx(2.0, abs=0.6)
+
+
+def test_started_wide_it_finds_the_robot_anywhere_on_the_route():
+    loc = _localiser()
+    loc.start_at(None)
+    assert loc.wide and len(loc.window()) == 13
+    est = loc.update(_view(0.4))
+    assert est.position == pytest.approx(8.0, abs=0.5) and not loc.wide
+
+
+def test_a_view_far_from_every_subgoal_matches_badly():
+    loc = _localiser()
+    good = loc.update(_view(0.1)).best_error
+    bad = loc.update(_view(0.95)).best_error  # far beyond the route's end
+    assert bad > 10 * max(good, 1.0)
+
+
+def test_settings_are_checked_where_they_enter():
+    with pytest.raises(ValueError, match="cells_per_gap"):
+        LocaliserConfig(cells_per_gap=0)
+    with pytest.raises(ValueError, match="obs_sigma"):
+        LocaliserConfig(obs_sigma=float("nan"))
