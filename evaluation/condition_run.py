@@ -62,6 +62,9 @@ CONTROLLERS: dict[str, Method] = {
     "after_ff_0": Method(replace(AFTER, feed_forward=0.0), match_light=True),
     "after_ff_0.8": Method(replace(AFTER, feed_forward=0.8), match_light=True),
     "after_lead_1": Method(replace(AFTER, lead=1.0), match_light=True),
+    "after_ff_turn_0": Method(replace(AFTER, feed_forward_turn=0.0), match_light=True),
+    "after_lead_0.75": Method(replace(AFTER, lead=0.75), match_light=True),
+    "after_lead_0.75_ff_turn_0": Method(replace(AFTER, lead=0.75, feed_forward_turn=0.0), match_light=True),
     # ablations of "after", one part off each
     "after_no_light_matching": Method(AFTER),
     "after_no_side_ramp": Method(AFTER, match_light=True, side_ramp=False),

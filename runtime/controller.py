@@ -309,7 +309,7 @@ class Controller:
         prior = None
         owed = self.gate is None or self.gate.progress < 1.0  # the taught gap is not yet driven
         if self.cfg.taught_prior > 0 and owed and self.commands is not None and 0 < i <= len(self.commands):
-            prior = (self.cfg.taught_prior, *map(float, self.commands[i - 1]))
+            prior = (self.cfg.taught_prior, self.cfg.taught_prior, *map(float, self.commands[i - 1]))
         return Decision(Action.COMMAND, i, error, then_stop=not self.cfg.continuous, note=note,
                         v_limit=0.0 if self.holds_turn(i) else math.inf, prior=prior)  # fmt: skip
 

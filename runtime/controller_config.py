@@ -28,6 +28,9 @@ class ControllerConfig:
     #: localiser: weight of the taught command at the estimated position in each command (feed-forward;
     #: VelocityNet's command is the rest).
     feed_forward: float = 0.5
+    #: localiser: the same for the turn rate. 0: VelocityNet steers alone, so its heading and side corrections
+    #: keep their full gain (dev routes, start 10 cm / 10 deg off: cross-track 41 -> 26 mm against 0.5).
+    feed_forward_turn: float = 0.0
     #: localiser: FINISHED needs the estimate within this many gaps of the last subgoal.
     finish_span: float = 0.5
 
@@ -132,7 +135,12 @@ class ControllerConfig:
     def __post_init__(self) -> None:
         if self.switching not in SWITCHING:
             raise ValueError(f"switching must be one of {SWITCHING}, got {self.switching!r}")
-        for name, hi in (("lead", 3.0), ("feed_forward", 1.0), ("finish_span", 2.0)):
+        for name, hi in (
+            ("lead", 3.0),
+            ("feed_forward", 1.0),
+            ("feed_forward_turn", 1.0),
+            ("finish_span", 2.0),
+        ):
             if not 0 <= getattr(self, name) <= hi:
                 raise ValueError(f"{name} must be in [0, {hi}], got {getattr(self, name)!r}")
         if self.e_m_mode not in THRESHOLD_MODES:

@@ -32,8 +32,8 @@ class Decision:
     note: str = ""
     #: COMMAND only: |v| the robot may drive at (0 during a taught turn in place, see ``hold_turns``).
     v_limit: float = math.inf
-    #: COMMAND only: (weight, v, w): blend the taught command into the subgoal with the policy's.
-    prior: tuple[float, float, float] | None = None
+    #: COMMAND only: (weight of v, weight of w, v, w): blend the taught command with the policy's.
+    prior: tuple[float, float, float, float] | None = None
 
 
 #: Decisions the controller takes without moving the robot: it acts on them itself and judges again.

@@ -195,8 +195,8 @@ class Follower:
         target = min(last, int(math.floor(est.position + self.cfg.lead)) + 1)
         gap = min(int(est.position), last - 1) if last > 0 else 0
         prior = None
-        if self.cfg.feed_forward > 0 and last > 0:
-            prior = (self.cfg.feed_forward, *map(float, self.commands[gap]))
+        if (self.cfg.feed_forward > 0 or self.cfg.feed_forward_turn > 0) and last > 0:
+            prior = (self.cfg.feed_forward, self.cfg.feed_forward_turn, *map(float, self.commands[gap]))
         hold = self.holds_turn(gap + 1)  # the teach turned on the spot where the robot is
         return Decision(
             Action.COMMAND,

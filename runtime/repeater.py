@@ -284,8 +284,8 @@ class Repeater:
         if self._bias is not None:
             v, w = v - float(self._bias[target, 0]), w - float(self._bias[target, 1])
         if decision.prior is not None:  # the taught command into the subgoal, blended in
-            a, pv, pw = decision.prior
-            v, w = (1 - a) * v + a * pv, (1 - a) * w + a * pw
+            a, b, pv, pw = decision.prior
+            v, w = (1 - a) * v + a * pv, (1 - b) * w + b * pw
         v_max = min(decision.v_limit, self._v_max)  # v_limit 0: no translation in a taught turn in place
         v, w = max(-v_max, min(v_max, v)), max(-self._w_max, min(self._w_max, w))
         t_policy = time.perf_counter()
