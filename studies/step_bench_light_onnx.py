@@ -1,4 +1,5 @@
-"""`python -m vtr.benchmarks.step_bench_light_onnx`: would light matching be cheaper inside the ONNX graph?
+"""`python -m studies.step_bench_light_onnx` (from the checkout's root): would light matching be cheaper
+inside the ONNX graph?
 
 Issue 11 asked whether fusing the runtime's light matching (runtime/light.py) into the network's
 onnxruntime call would cut the step's overhead. This builds that subgraph with onnx.helper (uint8 camera

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from vtr.benchmarks import step_bench_light_onnx
+from studies import step_bench_light_onnx
 
 
 def test_the_onnx_subgraph_matches_the_numpy_light_matching_within_one_level() -> None:

@@ -1,5 +1,5 @@
-"""`python -m vtr.evaluation.matching_study`: how well each image comparison tells subgoals apart when the
-light or the room changed between teach and repeat, and what one comparison costs.
+"""`python -m studies.matching_study` (from the checkout's root): how well each image comparison tells
+subgoals apart when the light or the room changed between teach and repeat, and what one comparison costs.
 
 For tuning routes (taught noise-free), every ``stride``-th subgoal is viewed again from its taught pose and
 from poses moved along the route, sideways and in yaw, under each repeat-time condition (benchmarks.
@@ -161,7 +161,7 @@ def timing(methods: dict[str, MatchConfig], repeats: int = 300) -> dict[str, dic
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
-        prog="python -m vtr.evaluation.matching_study", description=__doc__.split("\n")[0]
+        prog="python -m studies.matching_study", description=__doc__.split("\n")[0]
     )
     parser.add_argument(
         "--routes", nargs="*", default=list(TUNING_ROUTES), help="tuning routes (default: %(default)s)"

@@ -1,4 +1,4 @@
-"""`python benchmarks/step_bench_ab.py ROUTE.npz MODEL`: median ``Repeater.step`` with the raw error, with
+"""`python studies/step_bench_ab.py ROUTE.npz MODEL`: median ``Repeater.step`` with the raw error, with
 patch matching and with light matching too, for whichever ``vtr`` is importable, to compare code versions.
 
 Run it by path with ``PYTHONPATH`` set to each checkout in turn (an old one made with ``git archive REV |

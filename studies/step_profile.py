@@ -1,5 +1,5 @@
-"""`python -m vtr.benchmarks.step_profile MODEL`: where one real ``Repeater.step`` spends its time, stage
-by stage (issue 11's step overhead).
+"""`python -m studies.step_profile MODEL` (from the checkout's root): where one real ``Repeater.step``
+spends its time, stage by stage (issue 11's step overhead).
 
 Steps the light-matched, patch-matched or raw-error repeater of ``step_bench_ab`` (the route from
 ``step_bench.sample_route``, or ``--route ROUTE.npz``) and wraps each call below in a timer, nested as
@@ -135,7 +135,7 @@ def _route_file(args: argparse.Namespace) -> str:
         return args.route
     import tempfile
 
-    from vtr.benchmarks.step_bench_ab import write_route
+    from studies.step_bench_ab import write_route
 
     path = tempfile.mkstemp(suffix=".npz")[1]
     write_route(path, args.model)
@@ -143,7 +143,7 @@ def _route_file(args: argparse.Namespace) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from vtr.benchmarks.step_bench_ab import _repeaters
+    from studies.step_bench_ab import _repeaters
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("model", help="VelocityNet ONNX")
