@@ -8,7 +8,7 @@ completed only when the repeat finished and the robot touched nothing. The step 
 route: ``max_steps_factor`` times its subgoals, plus 50.
 
 By default the routes are the held-out ones (sim2d/routes/heldout): written for this suite and never used
-to choose a threshold or a rule. Tuning used the routes in sim2d/routes (see evaluation.matching_study).
+to choose a threshold or a rule. Tuning used the routes in sim2d/routes (see studies/matching_study.py).
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@
 2. teach the paper's translation + rotation route over ZeroMQ (`runtime.teach`);
 3. repeat it with the shipped VelocityNet (`runtime.repeater.Repeater`, ONNX on onnxruntime), and replay the
    taught commands blind for comparison;
-4. print the paper-style error table and write a PNG of the taught and repeated paths;
+4. print the paper-style error table and write a PNG of the taught and repeated paths (its only file);
 5. shut the server down, also on errors and Ctrl-C.
 """
 
@@ -37,7 +37,7 @@ class DemoConfig:
     route: str = opt(DEFAULT_ROUTE, "route name in sim2d/routes, or a ROUTE.json path")
     noise: float = opt(0.05, "actuation noise of the simulator (teach and repeat alike)")
     seed: int = opt(0, "actuation noise seed of the repeat")
-    out: Path = opt(Path("demo_out"), "folder for the PNG and the taught route")
+    out: Path = opt(Path("demo_out"), "folder for the PNG (the only file the demo writes)")
     threads: int = opt(1, "onnxruntime intra-op threads")
     open_loop: bool = opt(True, "also replay the taught commands blind, to show what vision corrects")
     timeout_s: float = opt(5.0, "seconds to wait for each simulator reply", flag="--timeout")
@@ -99,7 +99,6 @@ def run(cfg: DemoConfig) -> dict[str, Any]:
         try:
             route = teach(client, script, TeachConfig(dt=policy.meta.dt, seed=cfg.seed + 1))
             say(f"taught {len(route)} subgoals over {script.duration:.1f} s of driving")
-            route_file = cfg.out / f"{script.name}.npz"
 
             start = tuple(float(v) for v in route.poses[0])
             obs = client.reset(pose=start, seed=cfg.seed)
@@ -127,8 +126,7 @@ def run(cfg: DemoConfig) -> dict[str, Any]:
     finally:
         server.terminate()
     say("simulator server stopped")
-    cfg.out.mkdir(parents=True, exist_ok=True)  # only now: a failed demo leaves no empty folder
-    route.save(route_file)
+    # The taught route (megabytes of images) is not kept: `vtr teach --out` is the way to keep one.
 
     run_metrics = metrics.route_metrics(
         route.poses, np.asarray(poses), np.asarray(commands).reshape(-1, 2), summary.subgoals_reached
@@ -267,6 +265,7 @@ def write_png(result: dict[str, Any], path: Path) -> Path:
 
     from vtr.evaluation.plots import draw_house, frame_route
 
+    path.parent.mkdir(parents=True, exist_ok=True)  # only now: a failed demo leaves no empty folder
     taught = np.asarray(result["taught_poses"])
     rep = np.asarray(result["repeated_poses"])
     fig, ax = plt.subplots(figsize=(6.5, 7))

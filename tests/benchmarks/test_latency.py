@@ -120,22 +120,3 @@ def test_vtr_bench_latency_cli(tiny_model: Path, tmp_path: Path, capsys: pytest.
     assert set(other["step_overhead"]) == set(latency_report.STEP_VARIANTS)
     assert other["stages"]["pairs"]["whole_step_match_light"]["inference"]["n"] == 3
     assert main(["bench", "latency", "--model", str(tmp_path / "missing.onnx")]) == 2
-
-
-def test_the_ab_script_steps_all_three_variants_on_a_saved_route(tiny_model: Path, tmp_path: Path) -> None:
-    from vtr.benchmarks import step_bench_ab
-
-    route_file = str(tmp_path / "route.npz")
-    step_bench_ab.write_route(route_file, str(tiny_model))
-    out = step_bench_ab.medians(route_file, str(tiny_model), steps=3, warmup=1)
-    assert set(out) == {"raw", "patch", "light"} and all(v > 0 for v in out.values())
-    inside = step_bench_ab.sections(route_file, str(tiny_model), steps=3, warmup=1, variant="light")
-    assert {
-        "step",
-        "controller.judge",
-        "matcher.features",
-        "policy.match",
-        "onnx._run",
-        "robot.stop",
-    } <= set(inside)
-    assert inside["step"] > inside["onnx._run"] > 0

@@ -88,7 +88,8 @@ def test_demo_runs_end_to_end(small_model: Path, short_route: Path, tmp_path: Pa
     from vtr.evaluation import demo
 
     result = demo.run(demo.DemoConfig(model=small_model, route=str(short_route), out=tmp_path))
-    assert Path(result["png"]).is_file() and (tmp_path / "short.npz").is_file()
+    assert [p.name for p in tmp_path.iterdir()] == ["short.png"]  # the picture only, not the taught route
+    assert Path(result["png"]) == tmp_path / "short.png"
     assert len(result["open_loop_poses"]) == round(0.8 / 0.1) + round(0.6 / 0.1) + 1
     assert result["summary"]["subgoals_total"] >= 2
     assert result["velocitynet"]["position_error_m"]["n"] == result["summary"]["subgoals_total"]

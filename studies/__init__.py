@@ -1,0 +1,1 @@
+"""One-off measurements behind figures in the docs; not installed with the package (see README.md here)."""

@@ -1,0 +1,136 @@
+"""`python studies/step_bench_ab.py ROUTE.npz MODEL`: median ``Repeater.step`` with the raw error, with
+patch matching and with light matching too, for whichever ``vtr`` is importable, to compare code versions.
+
+Run it by path with ``PYTHONPATH`` set to each checkout in turn (an old one made with ``git archive REV |
+tar -x -C DIR``); it uses only interfaces older checkouts have too (``OnnxPolicy``, ``LightMatchedPolicy``,
+``Repeater``, ``LoopbackRobot``). ROUTE.npz holds ``current`` and ``route`` (written by ``--write`` from
+``step_bench.sample_route``), so every version steps on the same frames. The three variants are stepped
+round-robin in one process; prints one JSON line of medians in microseconds. ``--sections`` instead
+steps each variant alone and adds the median of each call inside the step (the controller's judgement,
+the matcher's features and distance, the policy, light matching, inference, the link's calls), each
+measured by a wrapper around that call (about 1 us of wrapper included in each).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from typing import Any
+
+import numpy as np
+
+
+def _repeaters(route_file: str, model: str) -> dict[str, Any]:
+    """One Repeater per variant (raw, patch, light) on the saved route, each with its own policy."""
+    from vtr.benchmarks.step_bench import LoopbackRobot
+    from vtr.runtime.controller import ControllerConfig
+    from vtr.runtime.light import LightMatchedPolicy
+    from vtr.runtime.matching import MatchConfig
+    from vtr.runtime.policy import OnnxPolicy
+    from vtr.runtime.repeater import RepeatConfig, Repeater
+    from vtr.runtime.route import Route
+
+    data = np.load(route_file)
+    current, images = data["current"], data["route"]
+    n = len(images)
+
+    def repeater(method: str, light: bool) -> Repeater:
+        policy = OnnxPolicy(model, threads=1)
+        route = Route(images=images, poses=np.zeros((n, 3)), commands=np.zeros((n, 2)), name="ab",
+                      dt=policy.meta.dt)  # fmt: skip
+        cfg = ControllerConfig(match=MatchConfig(method=method), e_m_mode="fixed", e_m=1e-3, stall_steps=0,
+                               settle_steps=0)  # fmt: skip
+        wrapped = LightMatchedPolicy(policy) if light else policy
+        return Repeater(
+            LoopbackRobot(current), wrapped, route, config=RepeatConfig(controller=cfg, max_steps=10**12)
+        )
+
+    return {
+        "raw": repeater("raw", False),
+        "patch": repeater("patch", False),
+        "light": repeater("patch", True),
+    }
+
+
+def medians(route_file: str, model: str, steps: int, warmup: int) -> dict[str, float]:
+    variants = _repeaters(route_file, model)
+    samples: dict[str, list[int]] = {k: [] for k in variants}
+    for i in range(warmup + steps):
+        for name, rep in variants.items():
+            t0 = time.perf_counter_ns()
+            record = rep.step()
+            elapsed = time.perf_counter_ns() - t0
+            if not record.commanded:
+                raise RuntimeError(f"{name}: the repeat ended ({record.status})")
+            if i >= warmup:
+                samples[name].append(elapsed)
+    return {name: float(np.median(s)) / 1e3 for name, s in samples.items()}
+
+
+# ("onnx", "_run"): the network as predict runs it since IOBinding (older checkouts: "infer")
+_SECTIONS = (("controller", "judge"), ("matcher", "features"), ("matcher", "distance"), ("policy", "predict"),
+             ("policy", "match"), ("onnx", "infer"), ("onnx", "_run"), ("onnx", "postprocess"), ("robot", "step"),
+             ("robot", "stop"))  # fmt: skip
+
+
+def sections(route_file: str, model: str, steps: int, warmup: int, variant: str) -> dict[str, float]:
+    """Median whole step and median of each call in it, for one variant stepped alone (microseconds)."""
+    import functools
+
+    rep = _repeaters(route_file, model)[variant]
+    owners = {"controller": rep.controller, "matcher": rep.controller.matcher, "policy": rep.policy,
+              "onnx": getattr(rep.policy, "policy", rep.policy), "robot": rep.robot}  # fmt: skip
+    samples: dict[str, list[int]] = {"step": []}
+
+    def timed(name: str, call: Any, *args: Any, **kwargs: Any) -> Any:
+        t0 = time.perf_counter_ns()
+        out = call(*args, **kwargs)
+        samples.setdefault(name, []).append(time.perf_counter_ns() - t0)
+        return out
+
+    for owner, method in _SECTIONS:
+        call = getattr(owners[owner], method, None)
+        if call is not None:  # a policy without light matching has no match
+            setattr(owners[owner], method, functools.partial(timed, f"{owner}.{method}", call))
+    for i in range(warmup + steps):
+        if i == warmup:
+            samples = {"step": []}
+        timed("step", rep.step)
+    return {name: float(np.median(s)) / 1e3 for name, s in samples.items()}
+
+
+def write_route(route_file: str, model: str) -> None:
+    """ROUTE.npz from ``step_bench.sample_route`` at the model's image size (needs a checkout that has it)."""
+    from vtr.benchmarks.step_bench import sample_route
+    from vtr.runtime.policy import OnnxPolicy
+
+    current, route = sample_route(*OnnxPolicy(model).image_shape)
+    with open(route_file, "wb") as f:
+        np.savez(f, current=current, route=route)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("route_file", help="ROUTE.npz with 'current' and 'route'")
+    parser.add_argument("model", help="VelocityNet ONNX")
+    parser.add_argument("--steps", type=int, default=2000, help="timed steps per variant (default: 2000)")
+    parser.add_argument("--warmup", type=int, default=200, help="untimed steps first (default: 200)")
+    parser.add_argument(
+        "--write", action="store_true", help="write ROUTE.npz from step_bench.sample_route first"
+    )
+    parser.add_argument(
+        "--sections", choices=("raw", "patch", "light"), help="time the calls inside one variant"
+    )
+    args = parser.parse_args()
+    if args.write:
+        write_route(args.route_file, args.model)
+    if args.sections:
+        print(json.dumps(sections(args.route_file, args.model, args.steps, args.warmup, args.sections)))
+    else:
+        print(json.dumps(medians(args.route_file, args.model, args.steps, args.warmup)))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

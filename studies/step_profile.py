@@ -1,0 +1,192 @@
+"""`python -m studies.step_profile MODEL` (from the checkout's root): where one real ``Repeater.step``
+spends its time, stage by stage (issue 11's step overhead).
+
+Steps the light-matched, patch-matched or raw-error repeater of ``step_bench_ab`` (the route from
+``step_bench.sample_route``, or ``--route ROUTE.npz``) and wraps each call below in a timer, nested as
+the step nests them; prints the median of each (microseconds per step, a call made twice in a step
+counted as the sum) and the step's own share (the whole step minus its four top-level calls: the
+Repeater's and the controller's Python). Each wrapper adds about 0.3-1 us to its own figure and to
+every figure above it, so the whole step here is slower than ``vtr bench latency``'s; the stages tell
+where time goes, the ratio is `vtr bench latency`'s. ``--cprofile N`` prints the top N functions of
+cProfile over the same steps instead (its overhead is larger and uneven: read it for call counts).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+#: (label, owner key, attribute): wrapped in this order; ``owner key`` names an object or a module.
+STAGES: tuple[tuple[str, str, str], ...] = (
+    ("link.step", "robot", "step"),
+    ("link.stop", "robot", "stop"),
+    ("link.decode_reply", "protocol", "decode_reply"),
+    ("link.encode_request", "protocol", "encode_request"),
+    ("judge", "controller", "judge"),
+    ("judge.features", "matcher", "features"),
+    ("judge.features.planar_levels", "matching", "planar_levels"),
+    ("judge.features.tiles", "matcher", "_tiles_of_frame"),
+    ("judge.features.normalise", "matcher", "_normalised"),
+    ("judge.distance", "matcher", "distance"),
+    ("predict", "policy", "predict"),
+    ("predict.light_match", "light", "matched_planar"),
+    ("predict.light_match.ramp", "light", "_ramp"),
+    ("predict.light_match.statistics", "light", "_stats_in_place"),
+    ("predict.preprocess", "policy_module", "nchw_into"),
+    ("predict.standardise", "policy_module", "normalise_planar"),
+    ("predict.inference", "onnx", "_run"),  # the network as predict runs it (IOBinding)
+    ("predict.inference", "onnx", "infer"),  # the same in checkouts before IOBinding (predict called infer)
+    ("predict.postprocess", "onnx", "postprocess"),
+)
+TOP_LEVEL = ("link.step", "link.stop", "judge", "predict")
+
+
+def _owners(rep: Any) -> dict[str, Any]:
+    from vtr.runtime import light, matching, policy, protocol
+
+    onnx = getattr(rep.policy, "policy", rep.policy)
+    return {
+        "robot": rep.robot,
+        "protocol": protocol,
+        "controller": rep.controller,
+        "matcher": rep.controller.matcher,
+        "matching": matching,
+        "policy": rep.policy,
+        "light": light,
+        "policy_module": policy,
+        "onnx": onnx,
+    }
+
+
+def profile_stages(rep: Any, steps: int, warmup: int) -> dict[str, dict[str, float]]:
+    """Median us per step of each stage (and of the whole step) over ``steps`` steps of ``rep``."""
+    owners = _owners(rep)
+    per_step: dict[str, int] = {}
+    calls: dict[str, int] = {}
+    counting = 0  # 1 once the warm-up is over
+
+    def wrap(label: str, call: Callable[..., Any]) -> Callable[..., Any]:
+        def timed(*args: Any, **kwargs: Any) -> Any:
+            t0 = time.perf_counter_ns()
+            try:
+                return call(*args, **kwargs)
+            finally:
+                per_step[label] = per_step.get(label, 0) + time.perf_counter_ns() - t0
+                calls[label] = calls.get(label, 0) + counting
+
+        return timed
+
+    restore = []
+    for label, owner, attr in STAGES:
+        target = owners[owner]
+        call = getattr(target, attr, None)
+        if call is None:  # e.g. no light matching in this variant
+            continue
+        restore.append((target, attr, target.__dict__.get(attr) if hasattr(target, "__dict__") else None))
+        setattr(target, attr, wrap(label, call))
+    samples: dict[str, list[int]] = {}
+    try:
+        for i in range(warmup + steps):
+            per_step.clear()
+            counting = int(i >= warmup)
+            t0 = time.perf_counter_ns()
+            record = rep.step()
+            whole = time.perf_counter_ns() - t0
+            if not record.commanded:
+                raise RuntimeError(f"the repeat ended ({record.status})")
+            if i < warmup:
+                continue
+            per_step["step"] = whole
+            per_step["step.own"] = whole - sum(per_step.get(k, 0) for k in TOP_LEVEL)
+            for k, v in per_step.items():
+                samples.setdefault(k, []).append(v)
+    finally:
+        for target, attr, old in reversed(restore):
+            if old is None:
+                delattr(target, attr)  # an instance attribute shadowed the class's method
+            else:
+                setattr(target, attr, old)
+    order = ["step", "step.own"] + [label for label, _, _ in STAGES]
+    # a stage absent from some steps counts 0 there: the medians are per step, not per call
+    return {
+        k: {
+            "median_us": float(np.median(samples[k] + [0] * (steps - len(samples[k])))) / 1e3,
+            "calls_per_step": calls.get(k, steps) / steps,
+        }
+        for k in order
+        if k in samples
+    }
+
+
+def cprofile_top(rep: Any, steps: int, warmup: int, top: int) -> str:
+    import cProfile
+    import io
+    import pstats
+
+    for _ in range(warmup):
+        rep.step()
+    prof = cProfile.Profile()
+    prof.enable()
+    for _ in range(steps):
+        rep.step()
+    prof.disable()
+    out = io.StringIO()
+    pstats.Stats(prof, stream=out).sort_stats("tottime").print_stats(top)
+    return out.getvalue()
+
+
+def _route_file(args: argparse.Namespace) -> str:
+    if args.route:
+        return args.route
+    import tempfile
+
+    from studies.step_bench_ab import write_route
+
+    path = tempfile.mkstemp(suffix=".npz")[1]
+    write_route(path, args.model)
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    from studies.step_bench_ab import _repeaters
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("model", help="VelocityNet ONNX")
+    parser.add_argument("--route", help="ROUTE.npz from step_bench_ab --write (default: made now)")
+    parser.add_argument(
+        "--variant",
+        choices=("raw", "patch", "light"),
+        default="light",
+        help="the step's image comparison (default: light)",
+    )
+    parser.add_argument("--steps", type=int, default=3000, help="timed steps (default: 3000)")
+    parser.add_argument("--warmup", type=int, default=300, help="untimed steps first (default: 300)")
+    parser.add_argument("--cprofile", type=int, metavar="N", help="print cProfile's top N functions instead")
+    parser.add_argument("--json", help="also write the medians here")
+    args = parser.parse_args(argv)
+    rep = _repeaters(_route_file(args), args.model)[args.variant]
+    if args.cprofile:
+        print(cprofile_top(rep, args.steps, args.warmup, args.cprofile))
+        return 0
+    result = profile_stages(rep, args.steps, args.warmup)
+    for name, s in result.items():
+        depth = name.count(".")
+        calls = f"  x{s['calls_per_step']:.0f}" if s["calls_per_step"] != 1 else ""
+        print(f"{'  ' * depth}{name:<{40 - 2 * depth}}{s['median_us']:8.1f} us{calls}")
+    if args.json:
+        from vtr.benchmarks.results import write_json
+
+        write_json(
+            args.json,
+            {"model": args.model, "variant": args.variant, "steps": args.steps, "stages_us": result},
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
