@@ -135,7 +135,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    """A bad checkpoint or dataset is a ValueError: one line, exit 2 (``runtime.cli.dispatch``)."""
+    """A bad checkpoint or dataset is a ValueError: one line, exit 2 (``runtime.commands``)."""
     result = run(config_from_args(ExportConfig, args))
     print(json.dumps(result, indent=2))
     return 0
