@@ -273,4 +273,3 @@ def run_cli(args: argparse.Namespace) -> int:
     if args.out:
         write_text_atomic(args.out, json.dumps(result, indent=2) + "\n")
     return 0
-

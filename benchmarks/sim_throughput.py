@@ -167,4 +167,3 @@ def run_cli(args: argparse.Namespace) -> int:
     cfg = config_from_args(SimBenchConfig, args)
     print(format_table(run(cfg)))
     return 0
-
