@@ -105,7 +105,6 @@ class SuiteConfig:
     controllers: tuple[str, ...] = ("paper", "before", "after")
     models: tuple[str, ...] = ("fp32", "int8")
     max_steps_factor: float = 8.0  # step limit = factor * subgoals + 50 (subgoals: every 2nd taught step)
-    e_m: float | None = None  # the harness's fixed-e_m override: unused (each method has its controller)
     dt: float = 0.1
     threads: int = 1
     workers: int = 2
@@ -193,7 +192,7 @@ def run_once(route: Any, script: Any, cond: Condition, house: str, seed: int, me
              policy: Any, cfg: Any, keep_path: bool = False) -> dict[str, Any]:  # fmt: skip
     """One repeat under ``cond`` (evaluation.runs, the `vtr eval` harness's loop); its scores plus the
     status, the failure's cause and the control steps per taught control step (``keep_path``: and the
-    repeated x, y in mm precision). ``cfg`` needs dt, e_m and max_steps_factor (a SuiteConfig)."""
+    repeated x, y in mm precision). ``cfg`` needs dt and max_steps_factor (a SuiteConfig)."""
     from vtr.evaluation.conditions import LitRobot
     from vtr.evaluation.runs import repeat_closed_loop
     from vtr.evaluation.scoring import score
