@@ -273,13 +273,3 @@ def run_cli(args: argparse.Namespace) -> int:
     if args.out:
         write_text_atomic(args.out, json.dumps(result, indent=2) + "\n")
     return 0
-
-
-def main() -> int:
-    parser = argparse.ArgumentParser(prog="python -m vtr.benchmarks.link_faults", description=__doc__)
-    add_arguments(parser)
-    return run_cli(parser.parse_args())
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -1,8 +1,8 @@
 """Simulator throughput: steps per second, one step = physics of one control step + render of one frame.
 
-    python -m benchmarks.sim_throughput [--steps 2000] [--json out.json]   (wired as `vtr bench sim`)
+    vtr bench sim [--steps 2000] [--json out.json]
 
-Single thread: BLAS is limited to one thread before numpy loads when run from the command line.
+Single thread: `_limit_threads` sets the BLAS thread variables (read only by a BLAS not loaded yet).
 """
 
 from __future__ import annotations
@@ -13,12 +13,11 @@ import math
 import os
 import platform
 import statistics
-import sys
 import time
 from dataclasses import asdict, dataclass
 
 from vtr.runtime.atomic import write_text_atomic
-from vtr.runtime.cliargs import OneLineParser, add_config_arguments, config_from_args, opt
+from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CAMERA, CONTROL_DT
 
 
@@ -168,9 +167,3 @@ def run_cli(args: argparse.Namespace) -> int:
     cfg = config_from_args(SimBenchConfig, args)
     print(format_table(run(cfg)))
     return 0
-
-
-if __name__ == "__main__":
-    p = OneLineParser(description=__doc__.splitlines()[0])
-    add_arguments(p)
-    sys.exit(run_cli(p.parse_args()))

@@ -132,7 +132,7 @@ def run_once(
 ) -> dict[str, Any]:
     """One repeat under ``cond`` (evaluation.runs, the `vtr eval` harness's loop); its scores plus the
     status, the failure's cause and the control steps per taught control step (``keep_path``: and the
-    repeated x, y in mm precision). ``cfg`` needs dt, e_m and max_steps_factor (a SuiteConfig)."""
+    repeated x, y in mm precision). ``cfg`` needs dt and max_steps_factor (a SuiteConfig)."""
     from vtr.evaluation.conditions import LitRobot
     from vtr.evaluation.runs import repeat_closed_loop
     from vtr.evaluation.scoring import score

@@ -43,7 +43,6 @@ class SuiteConfig:
     controllers: tuple[str, ...] = ("paper", "before", "after")
     models: tuple[str, ...] = ("fp32", "int8")
     max_steps_factor: float = 8.0  # step limit = factor * subgoals + 50 (subgoals: every 2nd taught step)
-    e_m: float | None = None  # the harness's fixed-e_m override: unused (each method has its controller)
     dt: float = 0.1
     threads: int = 1
     workers: int = 2

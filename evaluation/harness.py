@@ -304,7 +304,7 @@ def run_cli(args: argparse.Namespace) -> int:
         from vtr.evaluation.recorded_runs import run_cli as score_recorded_cli
 
         return score_recorded_cli(args)
-    cfg = config_from_args(EvalConfig, args)  # a ValueError is one line, exit 2 (runtime.cli.dispatch)
+    cfg = config_from_args(EvalConfig, args)  # a ValueError is one line, exit 2 (runtime.commands)
     result = run(cfg)
     print(markdown_report(result))
     for path in (cfg.json_path, cfg.markdown_path, cfg.plots_dir):

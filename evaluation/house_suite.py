@@ -77,7 +77,6 @@ class HouseSuiteConfig:
     controller: str = "after"  # the runtime's default repeat
     oracle: bool = False  # also repeat with the pose oracle (evaluation.runs.PoseOracle): switching's floor
     max_steps_factor: float = 8.0  # step limit = factor * subgoals + 50
-    e_m: float | None = None  # unused: the controller comes with the method
     dt: float = 0.1
     threads: int = 1
     workers: int = 2

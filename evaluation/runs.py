@@ -105,12 +105,13 @@ def repeat_closed_loop(
     log = RunLog()
     first = robot.reset(pose=start, seed=seed)
     log.poses.append(first.pose)
-    ccfg = (
-        ControllerConfig()
-        if cfg.e_m is None
-        else ControllerConfig(switching="rules", e_m_mode="fixed", e_m=cfg.e_m)
-    )
-    ccfg = controller_cfg if controller_cfg is not None else ccfg
+    ccfg = controller_cfg
+    if ccfg is None:  # the harness's: the default, or the paper's rule at its fixed --e-m
+        ccfg = (
+            ControllerConfig()
+            if cfg.e_m is None
+            else ControllerConfig(switching="rules", e_m_mode="fixed", e_m=cfg.e_m)
+        )
     rcfg = RepeatConfig(controller=ccfg, dt=cfg.dt, max_steps=int(cfg.max_steps_factor * len(route) + 50))
     controller = controller_for_route(route, ccfg)
     if isinstance(policy, PoseOracle):

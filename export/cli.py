@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -31,6 +33,7 @@ class ExportConfig:
     calibration_pairs: int = 128  # (current, subgoal) pairs used to calibrate int8
     viewnet: str | None = opt(None, "also export this ViewNet checkpoint")
     viewnet_out: str | None = opt(None, "where the ViewNet ONNX goes (default: viewnet.onnx next to --out)")
+    dt: float | None = opt(None, "seconds each command lasts, for a checkpoint whose dataset records no dt")
 
     def __post_init__(self) -> None:
         if self.opset < 13:
@@ -41,6 +44,28 @@ class ExportConfig:
             )
         if self.calibration_pairs < 1:
             raise ValueError(f"ExportConfig.calibration_pairs must be >= 1, got {self.calibration_pairs}")
+        if self.dt is not None and not (math.isfinite(self.dt) and self.dt > 0):
+            raise ValueError(f"--dt must be a positive number of seconds, got {self.dt!r}")
+
+
+def model_dt(data_meta: dict[str, Any], given: float | None) -> float:
+    """The dt the model's metadata records: the training dataset's; ``given`` (--dt) when the checkpoint
+    records none (a dataset saved before datasets carried it), else the control step, said on stderr."""
+    if "dt" in data_meta:
+        dt = float(data_meta["dt"])
+        if given is not None and abs(given - dt) > 1e-9:
+            raise ValueError(
+                f"--dt {given:g} s, but the checkpoint was trained on data recorded at dt={dt:g} s"
+            )
+        return dt
+    if given is not None:
+        return given
+    print(
+        f"vtr export: the checkpoint records no dataset dt; the model gets the control step dt={CONTROL_DT:g} s "
+        "(pass --dt to set it)",
+        file=sys.stderr,
+    )
+    return CONTROL_DT
 
 
 def run(cfg: ExportConfig, data: Any = None) -> dict[str, Any]:
@@ -60,7 +85,7 @@ def run(cfg: ExportConfig, data: Any = None) -> dict[str, Any]:
             f"{cfg.checkpoint} holds a {kind}; `vtr export` exports VelocityNet (use --viewnet for ViewNet)"
         )
     data_meta = ckpt.get("data_meta") or {}
-    dt = float(data_meta.get("dt", CONTROL_DT))
+    dt = model_dt(data_meta, cfg.dt)
     meta = velocitynet_meta(model.cfg, dt=dt, **camera_of(data_meta))
     real = None
     if cfg.data and data is None:
@@ -135,7 +160,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    """A bad checkpoint or dataset is a ValueError: one line, exit 2 (``runtime.cli.dispatch``)."""
+    """A bad checkpoint or dataset is a ValueError: one line, exit 2 (``runtime.commands``)."""
     result = run(config_from_args(ExportConfig, args))
     print(json.dumps(result, indent=2))
     return 0

@@ -63,7 +63,7 @@ default of the release before the robust rules, kept for comparison):
 - **Contact** (``stop_on_contact``): an image reported with ``collided=True`` ends the repeat (COLLIDED).
 - **Start-anywhere localisation** (``localise``) and **continuous mode** (``continuous``): as before.
 
-Chosen on the tuning routes (sim2d/routes): median tiles (evaluation.matching_study), 3/4 of the gap, 1
+Chosen on the tuning routes (sim2d/routes): median tiles (studies/matching_study.py), 3/4 of the gap, 1
 settling command (0, 1, 2: 1.06, 1.41, 1.82 control steps per taught step at 11.5, 8.9, 6.6 mm). The
 default threshold is the route's: per subgoal was faster but completed fewer held-out runs (evaluation/README).
 The stall bound (2.5, was 2) and the progress gate were chosen on the dev routes and houses only

@@ -2,7 +2,8 @@
 
 :func:`parse_hello` validates a hello reply into a :class:`Hello`; :func:`check_camera` compares the
 robot's camera with the camera a route was taught with and the camera a model was trained on, and raises
-:class:`CameraMismatchError` with a one-line message naming the first difference.
+:class:`CameraMismatchError` with a one-line message naming the first difference; :func:`check_robot_fits`
+adds the limits and the control step (:class:`RobotMismatchError`, of which a camera mismatch is one kind).
 """
 
 from __future__ import annotations
@@ -21,7 +22,11 @@ HEIGHT_TOLERANCE_M = 0.02
 MODES = ("lockstep", "realtime")
 
 
-class CameraMismatchError(ValueError):
+class RobotMismatchError(ValueError):
+    """The robot does not fit the route and the model (camera, limits or control step); the message says how."""
+
+
+class CameraMismatchError(RobotMismatchError):
     """Robot, route and model disagree about the camera; the message says which and how."""
 
 
@@ -132,18 +137,18 @@ def route_camera(camera: Any) -> CameraSpec | None:
 
 
 def check_robot_fits(hello: Hello, route_cam: dict[str, Any] | None, model: Any) -> list[str]:
-    """Refuse (CameraMismatchError, one line) a robot whose camera differs from the route's or the model's
-    (``model``: a ModelMeta), whose limits are below the model's, or whose steps cannot last the model's dt.
-    Returns notes on what could not be compared."""
+    """Refuse (RobotMismatchError, one line) a robot whose camera differs from the route's or the model's
+    (``model``: a ModelMeta; then a CameraMismatchError), whose limits are below the model's, or whose steps
+    cannot last the model's dt. Returns notes on what could not be compared."""
     notes = check_camera(hello.camera, route_camera(route_cam), model.camera)
     for name, unit in (("v_max", "m/s"), ("w_max", "rad/s")):
         mine, robots = getattr(model, name), getattr(hello.limits, name)
         if mine > robots + 1e-9:
-            raise CameraMismatchError(
+            raise RobotMismatchError(
                 f"the model commands up to {name}={mine:g} {unit} but the robot accepts at most {robots:g} {unit}"
             )
     if not hello.dt <= model.dt <= hello.limits.max_duration:
-        raise CameraMismatchError(
+        raise RobotMismatchError(
             f"the model's control step is {model.dt:g} s but the robot runs steps of "
             f"{hello.dt:g}..{hello.limits.max_duration:g} s"
         )

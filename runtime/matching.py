@@ -15,7 +15,7 @@ Two methods, both "smaller is closer", both computed on features the caller can 
   ``std_floor`` so sensor noise is not blown up into a pattern.
 
 The patch distance is in units of standard deviations: 0 for the same view, about 1.13 (2 / sqrt(pi)) for
-two unrelated textures. Measured cost and discriminability: ``python -m vtr.evaluation.matching_study``.
+two unrelated textures. Measured cost and discriminability: ``python -m studies.matching_study`` (a study, not installed).
 """
 
 from __future__ import annotations

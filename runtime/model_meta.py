@@ -28,7 +28,6 @@ class ModelMeta:
     v_max: float = V_MAX  # m/s, |v| <= v_max by the tanh head
     w_max: float = W_MAX  # rad/s
     dt: float = CONTROL_DT  # s each predicted command is meant to be applied for
-    e_m_default: float = 17.0  # subgoal switch threshold, mean abs pixel difference (0..255)
     preprocessing: str = PREPROCESSING
     format_version: int = FORMAT_VERSION
     #: The camera the training images came from (None: not recorded, as in models exported before it was).
@@ -46,15 +45,16 @@ class ModelMeta:
         if self.horizon < 1:
             raise ValueError(f"horizon must be >= 1, got {self.horizon}")
         check_preprocessing(self.preprocessing)
-        if not (self.v_max > 0 and self.w_max > 0 and self.dt > 0 and self.e_m_default > 0):
-            raise ValueError(f"v_max, w_max, dt and e_m_default must be positive: {self}")
+        if not (self.v_max > 0 and self.w_max > 0 and self.dt > 0):
+            raise ValueError(f"v_max, w_max and dt must be positive: {self}")
 
     def to_props(self) -> dict[str, str]:
         return {PREFIX + k: str(v) for k, v in asdict(self).items() if v is not None}
 
     @classmethod
     def from_props(cls, props: dict[str, str]) -> ModelMeta:
-        """Parse ONNX metadata; raises ValueError naming any missing or malformed key."""
+        """Parse ONNX metadata; raises ValueError naming any missing or malformed key. Keys of no field are
+        ignored (``vtr.e_m_default``, which models exported before it was dropped carry; the provenance)."""
         kwargs = {}
         for name, field in cls.__dataclass_fields__.items():
             key = PREFIX + name

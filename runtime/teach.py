@@ -71,6 +71,20 @@ class TeachConfig:
         }[self.spacing]
         return {"rule": self.spacing, "dt": self.dt, **params}
 
+    def subgoal_due(self, since: int, obs: Observation, last_image: np.ndarray, last_pose: tuple) -> bool:
+        """Whether ``obs``, ``since`` control steps after the last subgoal, is the next one by this rule
+        (`vtr teach` on a robot and from a ROS bag decide alike)."""
+        if self.spacing == "steps":
+            return since >= self.every
+        if self.spacing == "image":
+            return image_error(obs.image, last_image) >= self.min_image_change
+        if obs.pose is None:
+            raise ValueError(
+                "spacing='distance' needs poses, but the robot reports none; use 'steps' or 'image'"
+            )
+        dist = math.hypot(obs.pose[0] - last_pose[0], obs.pose[1] - last_pose[1])
+        return dist >= self.min_distance or abs(_wrap(obs.pose[2] - last_pose[2])) >= self.min_angle
+
 
 def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2 * math.pi) - math.pi
@@ -124,7 +138,7 @@ def teach(robot: ResettableRobot, script: RouteScript, cfg: TeachConfig | None =
                 pending = False
             obs = robot.step(segment.v, segment.w, cfg.dt)
             since += 1
-            if _due(cfg, since, obs, images[-1], poses[-1]):
+            if cfg.subgoal_due(since, obs, images[-1], poses[-1]):
                 record(obs)
                 since = 0
     robot.stop()
@@ -144,17 +158,6 @@ def teach(robot: ResettableRobot, script: RouteScript, cfg: TeachConfig | None =
         map=info.get("map") if isinstance(info.get("map"), str) else None,
         dt=cfg.dt,
     )
-
-
-def _due(cfg: TeachConfig, since: int, obs: Observation, last_image: np.ndarray, last_pose: tuple) -> bool:
-    if cfg.spacing == "steps":
-        return since >= cfg.every
-    if cfg.spacing == "image":
-        return image_error(obs.image, last_image) >= cfg.min_image_change
-    if obs.pose is None:
-        raise ValueError("spacing='distance' needs poses, but the robot reports none; use 'steps' or 'image'")
-    dist = math.hypot(obs.pose[0] - last_pose[0], obs.pose[1] - last_pose[1])
-    return dist >= cfg.min_distance or abs(_wrap(obs.pose[2] - last_pose[2])) >= cfg.min_angle
 
 
 # ------------------------------------------------------------------------------------------------- CLI

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from vtr.runtime.address import check_endpoint
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
+from vtr.runtime.commands import Command
 
 
 @dataclass(frozen=True)
@@ -144,68 +145,92 @@ _CHANGE_HELP = (
 )
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    sub = parser.add_subparsers(dest="sim_command", metavar="{snapshot,serve,route}")
-    sub.required = True
-    snap = sub.add_parser(
-        "snapshot", help="write a top-down picture of the house beside the robot's camera image"
-    )
-    add_config_arguments(snap, SnapshotConfig)
-    snap.add_argument("--change", action="append", default=[], metavar="SPEC", help=_CHANGE_HELP)
-    serve = sub.add_parser("serve", help="serve the simulator over ZeroMQ (runtime/protocol.py)")
-    serve.add_argument(
+def add_snapshot_arguments(parser: argparse.ArgumentParser) -> None:
+    add_config_arguments(parser, SnapshotConfig)
+    parser.add_argument("--change", action="append", default=[], metavar="SPEC", help=_CHANGE_HELP)
+
+
+def add_serve_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
         "--bind",
         default="tcp://127.0.0.1:5555",
         help="ZeroMQ endpoint to bind (default: tcp://127.0.0.1:5555)",
     )
-    serve.add_argument(
+    parser.add_argument(
         "--noise",
         type=float,
         default=0.0,
         help="actuation noise level (SimConfig.noise), 0 = off (default: 0)",
     )
-    serve.add_argument(
+    parser.add_argument(
         "--house",
         default="house",
         help="map name in sim2d/maps, a path, or random:SEED (a procedural house) (default: house)",
     )
-    serve.add_argument("--change", action="append", default=[], metavar="SPEC", help=_CHANGE_HELP)
-    serve.add_argument(
+    parser.add_argument("--change", action="append", default=[], metavar="SPEC", help=_CHANGE_HELP)
+    parser.add_argument(
         "--brightness", type=float, default=1.0, help="camera brightness multiplier (default: 1.0)"
     )
-    serve.add_argument(
+    parser.add_argument(
         "--mode",
         choices=("lockstep", "realtime"),
         default="lockstep",
         help="lockstep: time advances only in step requests (deterministic); realtime: follows the wall clock "
         "(default: lockstep)",
     )
-    serve.add_argument(
+    parser.add_argument(
         "--cmd-vel-timeout",
         type=float,
         default=0.5,
         help="realtime: stop the robot when no step arrived for this many seconds; 0 disables (default: 0.5)",
     )
 
-    route = sub.add_parser("route", help="generate a taught route for a house (ROUTE.json for `vtr teach`)")
-    add_config_arguments(route, RouteGenConfig)
+
+def add_route_arguments(parser: argparse.ArgumentParser) -> None:
+    add_config_arguments(parser, RouteGenConfig)
 
 
-def run_cli(args: argparse.Namespace) -> int:
-    try:
-        if args.sim_command == "route":
-            return run_route(config_from_args(RouteGenConfig, args))
-        if args.sim_command == "snapshot":
-            return run_snapshot(config_from_args(SnapshotConfig, args, changes=tuple(args.change)))
-        return run_serve(
-            args.bind,
-            args.noise,
-            args.house,
-            args.brightness,
-            args.mode,
-            args.cmd_vel_timeout,
-            tuple(args.change),
-        )
-    except ValueError as err:  # bad configuration values or a bad map file
-        print(f"vtr sim {args.sim_command}: {err}", file=sys.stderr)
-        return 2
+def run_snapshot_cli(args: argparse.Namespace) -> int:
+    return run_snapshot(config_from_args(SnapshotConfig, args, changes=tuple(args.change)))
+
+
+def run_serve_cli(args: argparse.Namespace) -> int:
+    return run_serve(
+        args.bind,
+        args.noise,
+        args.house,
+        args.brightness,
+        args.mode,
+        args.cmd_vel_timeout,
+        tuple(args.change),
+    )
+
+
+def run_route_cli(args: argparse.Namespace) -> int:
+    return run_route(config_from_args(RouteGenConfig, args))
+
+
+# `vtr sim SUBCOMMAND`: bad configuration values or a bad map file are a ValueError, one line, exit 2
+COMMANDS = {
+    "snapshot": Command(
+        __name__,
+        "write a top-down picture of the house beside the robot's camera image",
+        "sim",
+        "add_snapshot_arguments",
+        "run_snapshot_cli",
+    ),
+    "serve": Command(
+        __name__,
+        "serve the simulator over ZeroMQ (runtime/protocol.py)",
+        "sim",
+        "add_serve_arguments",
+        "run_serve_cli",
+    ),
+    "route": Command(
+        __name__,
+        "generate a taught route for a house (ROUTE.json for `vtr teach`)",
+        "sim",
+        "add_route_arguments",
+        "run_route_cli",
+    ),
+}

@@ -1,9 +1,11 @@
 """Structure the project promises: small modules, no import circles, libraries that never import the
-application layer (``vtr.cli``, ``vtr.pipeline``) or the evaluation, and a lean robot-board runtime."""
+application layer (``vtr.cli``, ``vtr.pipeline``) or the evaluation, a lean robot-board runtime, and
+docs/ARCHITECTURE.md's import table and runtime's public surface true of every import."""
 
 from __future__ import annotations
 
 import ast
+import re
 import shutil
 import subprocess
 import sys
@@ -48,6 +50,111 @@ def _top_level_imports(path: Path, known: set[str]) -> set[str]:
             names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
         found |= {n for n in names if n in known}
     return found
+
+
+def _imports(path: Path, known: set[str]) -> list[tuple[int, str, str]]:
+    """(line, module of ours, name imported from it or "") for every import in ``path``: module level, inside
+    functions, and the modules a command table names (``Command("vtr.x.y", ...)``, imported when it runs)."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found += [(node.lineno, a.name, "") for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            for a in node.names:  # `from vtr.runtime import protocol` imports the module vtr.runtime.protocol
+                sub = f"{node.module}.{a.name}"
+                found.append((node.lineno, sub, "") if sub in known else (node.lineno, node.module, a.name))
+        elif (
+            isinstance(node, ast.Call)
+            and getattr(node.func, "id", getattr(node.func, "attr", "")) == "Command"
+        ):
+            first = node.args[0] if node.args else None
+            if isinstance(first, ast.Constant) and isinstance(first.value, str):
+                found.append((node.lineno, first.value, ""))
+    return [(line, m, n) for line, m, n in found if m == "vtr" or m.startswith("vtr.")]
+
+
+def _package(module: str) -> str:
+    """The folder a ``vtr.*`` module belongs to: ``vtr.runtime.teach`` -> runtime, ``vtr.cli`` -> vtr."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 and parts[1] in PACKAGES and parts[1] != "vtr" else "vtr"
+
+
+def _doc_section(title: str) -> str:
+    text = (ROOT / "docs" / "ARCHITECTURE.md").read_text()
+    start = text.index(title)
+    end = re.compile(r"^#{2,3} ", re.M).search(text, start + len(title))
+    return text[start : end.start() if end else len(text)]
+
+
+def _import_table() -> dict[str, set[str]]:
+    """docs/ARCHITECTURE.md's "package | may import" table: package -> the packages and modules of ours it names."""
+    ours = "|".join(p for p in PACKAGES if p != "vtr")
+    table = {}
+    for line in _doc_section("## Import boundaries").splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        head = re.match(r"`(\w+)/`", cells[0]) if len(cells) == 2 else None
+        if head:
+            table[head.group(1)] = set(re.findall(rf"`((?:{ours})(?:\.\w+)?)`", cells[1]))
+    return table
+
+
+def _runtime_surface() -> set[str]:
+    return set(re.findall(r"`runtime\.(\w+)`", _doc_section("### What runtime/ offers the other packages")))
+
+
+def _cross_package_imports() -> list[tuple[str, int, str, str, str]]:
+    """(file, line, importing package, module of ours imported, name) for imports between two packages."""
+    modules = _modules()
+    out = []
+    for name, path in modules.items():
+        here = _package(name)
+        for line, module, imported in _imports(path, set(modules)):
+            if module != "vtr" and _package(module) != here:
+                out.append((str(path.relative_to(ROOT)), line, here, module, imported))
+    return out
+
+
+def test_the_import_table_is_what_the_code_imports() -> None:
+    table, surface = _import_table(), _runtime_surface()
+    assert set(table) == set(PACKAGES), f"docs/ARCHITECTURE.md's import table has rows for {sorted(table)}"
+    assert surface, "docs/ARCHITECTURE.md lists no public runtime module"
+    used: set[tuple[str, str]] = set()
+    wrong = []
+    for file, line, here, module, _ in _cross_package_imports():
+        short = module.removeprefix("vtr.")
+        there = _package(module)
+        grant = next((g for g in (short, there) if g in table[here]), None)
+        if there == "runtime" and short.removeprefix("runtime.") not in surface:
+            grant = None  # runtime-internal, whatever the row says
+        if grant is None:
+            wrong.append(f"{file}:{line} imports {module}")
+        else:
+            used.add((here, grant))
+    wrong = sorted(set(wrong))
+    assert not wrong, "imports docs/ARCHITECTURE.md's table does not allow:\n" + "\n".join(wrong)
+    unused = sorted(f"{here}: {g}" for here, grants in table.items() for g in grants if (here, g) not in used)
+    assert not unused, f"the table allows imports the code does not make: {unused}"
+
+
+def test_other_packages_import_only_runtimes_public_modules() -> None:
+    surface = _runtime_surface()
+    imported = {
+        (m.split(".") + ["(vtr.runtime itself)"])[2]
+        for _, _, _, m, _ in _cross_package_imports()
+        if _package(m) == "runtime"
+    }
+    assert imported <= surface, f"runtime-internal modules imported by other packages: {imported - surface}"
+    assert surface <= imported, f"public runtime modules no other package imports: {surface - imported}"
+    assert surface <= {m.split(".")[-1] for m in _modules() if m.startswith("vtr.runtime.")}
+
+
+def test_no_private_name_crosses_packages() -> None:
+    private = [
+        f"{file}:{line} imports {module}{'.' + name if name else ''}"
+        for file, line, _, module, name in _cross_package_imports()
+        if any(p.startswith("_") and not p.startswith("__") for p in [*module.split("."), name])
+    ]
+    assert not private, private
 
 
 def test_no_module_over_400_lines() -> None:

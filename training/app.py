@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import sys
 
-from vtr.runtime.cli import Command, run_command
+from vtr.runtime.commands import Command, run_command
 
-STAGES = Command("vtr.training.cli", "train ViewNet or VelocityNet", "train")
+STAGES = Command("vtr.training.cli", "train ViewNet or VelocityNet", "train", subcommands=True)
 
 
 def main(argv: list[str] | None = None) -> int:

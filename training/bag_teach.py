@@ -15,7 +15,7 @@ import numpy as np
 
 from vtr.runtime.robot import Observation
 from vtr.runtime.route import Route
-from vtr.runtime.teach import TeachConfig, _due
+from vtr.runtime.teach import TeachConfig
 from vtr.training import bag_read
 from vtr.training.bag_read import BagDrive, BagError, read_bag_args
 
@@ -49,7 +49,7 @@ def route_from_drive(
     for k in range(1, len(frames)):
         since += 1
         last = chosen[-1]
-        if _due(cfg, since, obs(k), drive.images[frames[last]], tuple(poses[last])):
+        if cfg.subgoal_due(since, obs(k), drive.images[frames[last]], tuple(poses[last])):
             chosen.append(k)
             since = 0
     if chosen[-1] != len(frames) - 1:

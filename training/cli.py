@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from vtr.runtime.commands import Command
 from vtr.runtime.preprocess import PREPROCESSINGS
 
 
@@ -66,13 +67,15 @@ def add_common_arguments(p: argparse.ArgumentParser) -> None:
     _add_common(p)
 
 
-def add_stage_parsers(sub: Any) -> None:
-    """The ``viewnet`` and ``velocitynet`` subcommands on an argparse subparsers object."""
-    p = sub.add_parser("viewnet", help="train ViewNet (next-frame prediction, L1, forward + reversed pairs)")
+def add_viewnet_arguments(p: argparse.ArgumentParser) -> None:
+    p.set_defaults(stage="viewnet")
     p.add_argument("--data", required=True, help="dataset from `vtr collect`")
     p.add_argument("--init", default=None, help="start from this ViewNet checkpoint (e.g. models/viewnet.pt)")
     _add_common(p)
-    p = sub.add_parser("velocitynet", help="train VelocityNet with the offline MPC loss (ViewNet frozen)")
+
+
+def add_velocitynet_arguments(p: argparse.ArgumentParser) -> None:
+    p.set_defaults(stage="velocitynet")
     p.add_argument("--data", required=True, help="dataset from `vtr collect`")
     p.add_argument("--viewnet", required=True, help="trained ViewNet (model.pt or its folder)")
     p.add_argument(
@@ -97,13 +100,30 @@ def add_stage_parsers(sub: Any) -> None:
         help="weight of the stop term, VelocityNet(I, I) -> 0: stand still on the subgoal (default: 0)",
     )
     _add_common(p)
-    from vtr.training.transfer import add_evaluate_arguments
-
-    add_evaluate_arguments(sub.add_parser("evaluate", help="offline report of given models on a dataset"))
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    add_stage_parsers(parser.add_subparsers(dest="stage", required=True))
+#: The stages (`vtr train STAGE`, and `python -m vtr.training.app STAGE` for torchrun).
+COMMANDS = {
+    "viewnet": Command(
+        __name__,
+        "train ViewNet (next-frame prediction, L1, forward + reversed pairs)",
+        "train",
+        "add_viewnet_arguments",
+    ),
+    "velocitynet": Command(
+        __name__,
+        "train VelocityNet with the offline MPC loss (ViewNet frozen)",
+        "train",
+        "add_velocitynet_arguments",
+    ),
+    "evaluate": Command(
+        "vtr.training.transfer",
+        "offline report of given models on a dataset",
+        "train",
+        "add_evaluate_arguments",
+        "run_evaluate",
+    ),
+}
 
 
 def train_cfg(base: Any, args: argparse.Namespace, steps: int | None = None) -> Any:
@@ -127,14 +147,10 @@ def train_cfg(base: Any, args: argparse.Namespace, steps: int | None = None) -> 
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    """Run the ``viewnet`` or ``velocitynet`` stage; a bad dataset or checkpoint is one line, exit 2."""
+    """Run the ``viewnet`` or ``velocitynet`` stage (``args.stage``); a bad dataset or checkpoint is one line, exit 2."""
     from vtr.training.config import get_preset, override
     from vtr.training.train import train_velocitynet, train_viewnet
 
-    if args.stage == "evaluate":
-        from vtr.training.transfer import run_evaluate
-
-        return run_evaluate(args)
     if args.stage == "velocitynet" and args.init:
         from vtr.training.transfer import inherit_init_settings
 

@@ -19,7 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from vtr.runtime.atomic import atomic_path, write_text_atomic
-from vtr.runtime.cliargs import opt
+from vtr.runtime.cliargs import add_config_arguments, opt
+from vtr.runtime.commands import Command, run_command
 from vtr.training import cli as stages
 
 # The ONNX models the runtime uses, and both torch checkpoints: ViewNet for the MPC loss and VelocityNet
@@ -126,12 +127,7 @@ def install(export_dir: Path, models_dir: Path) -> list[str]:
     return written
 
 
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    sub = parser.add_subparsers(dest="stage", required=True)
-    stages.add_stage_parsers(sub)
-    p = sub.add_parser("all", help="collect if needed, train ViewNet, VelocityNet, export ONNX (fp32 + int8)")
-    from vtr.runtime.cliargs import add_config_arguments
-
+def add_all_arguments(p: argparse.ArgumentParser) -> None:
     add_config_arguments(p, AllConfig)
     p.add_argument("--viewnet-steps", type=int, help="override ViewNet's steps")
     p.add_argument("--velocitynet-steps", type=int, help="override VelocityNet's steps")
@@ -140,9 +136,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     stages.add_common_arguments(p)
 
 
-def run_cli(args: argparse.Namespace) -> int:
-    if args.stage != "all":
-        return stages.run_cli(args)
+def run_all_cli(args: argparse.Namespace) -> int:
     from vtr.training.config import get_preset, override
 
     preset = get_preset(args.preset)
@@ -165,10 +159,20 @@ def run_cli(args: argparse.Namespace) -> int:
     return 0
 
 
+#: `vtr train STAGE`: the training stages, and `all`
+COMMANDS = {
+    **stages.COMMANDS,
+    "all": Command(
+        __name__,
+        "collect if needed, train ViewNet, VelocityNet, export ONNX (fp32 + int8)",
+        "train",
+        "add_all_arguments",
+        "run_all_cli",
+    ),
+}
+
 if __name__ == "__main__":  # torchrun -m vtr.pipeline all ...: the whole pipeline under DDP
     import sys
 
-    from vtr.runtime.cli import Command, run_command
-
-    command = Command("vtr.pipeline", "train ViewNet, VelocityNet, or all", "train")
+    command = Command("vtr.pipeline", "train ViewNet, VelocityNet, or all", "train", subcommands=True)
     sys.exit(run_command("python -m vtr.pipeline", command, sys.argv[1:]))

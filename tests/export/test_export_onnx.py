@@ -12,7 +12,7 @@ import pytest
 import torch
 
 from vtr import cli
-from vtr.export.cli import ExportConfig, int8_path
+from vtr.export.cli import ExportConfig, int8_path, model_dt
 from vtr.export.cli import run as export_run
 from vtr.export.onnx_export import ParityError, check_parity, export_onnx, velocitynet_meta
 from vtr.export.quantize import calibration_pairs, compare, quantize_int8
@@ -187,7 +187,9 @@ def test_export_cli_writes_fp32_int8_and_viewnet(tmp_path: Path, capsys: pytest.
         str(vckpt),
     ]
     assert cli.main(args) == 0
-    report = json.loads(capsys.readouterr().out)
+    printed = capsys.readouterr()
+    report = json.loads(printed.out)
+    assert "records no dataset dt" in printed.err  # this checkpoint has no data_meta: said, not silent
     assert out.exists() and int8_path(out).exists() and (out.parent / "viewnet.onnx").exists()
     # ViewNet's ONNX says what it is and does not pass for a policy
     vprops = {p.key: p.value for p in onnx.load(out.parent / "viewnet.onnx").metadata_props}
@@ -202,3 +204,14 @@ def test_export_cli_writes_fp32_int8_and_viewnet(tmp_path: Path, capsys: pytest.
     assert cli.main(["export", "--checkpoint", str(ckpt), "--out", str(out), "--int8"]) == 2
     with pytest.raises(ValueError, match="holds a viewnet"):
         export_run(ExportConfig(checkpoint=str(vckpt), out=str(out)))
+
+
+def test_the_model_dt_is_the_datasets_or_given_or_the_control_step_said_aloud(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    assert model_dt({"dt": 0.2}, None) == 0.2 and model_dt({"dt": 0.2}, 0.2) == 0.2
+    with pytest.raises(ValueError, match="recorded at dt=0.2"):
+        model_dt({"dt": 0.2}, 0.1)
+    assert model_dt({}, 0.05) == 0.05 and capsys.readouterr().err == ""
+    assert model_dt({}, None) == 0.1
+    assert "pass --dt" in capsys.readouterr().err

@@ -8,7 +8,13 @@ import pytest
 
 from vtr.runtime import protocol
 from vtr.runtime.contracts import CameraSpec
-from vtr.runtime.hello import CameraMismatchError, check_camera, check_robot_fits, parse_hello
+from vtr.runtime.hello import (
+    CameraMismatchError,
+    RobotMismatchError,
+    check_camera,
+    check_robot_fits,
+    parse_hello,
+)
 from vtr.runtime.model_meta import ModelMeta
 from vtr.runtime.protocol import BadFrameError
 
@@ -75,10 +81,11 @@ def test_small_differences_pass_and_unknowns_are_noted_not_refused():
 
 def test_the_robot_must_accept_what_the_model_commands():
     h = parse_hello(hello(limits={"v_max": 0.3, "w_max": 1.0, "max_duration": 10.0}))
-    with pytest.raises(CameraMismatchError, match="v_max=0.5 m/s but the robot accepts at most 0.3"):
+    with pytest.raises(RobotMismatchError, match="v_max=0.5 m/s but the robot accepts at most 0.3") as info:
         check_robot_fits(h, {"width": 128, "height": 128}, ModelMeta())
     slow = parse_hello(hello(dt=0.2))
-    with pytest.raises(CameraMismatchError, match="control step is 0.1 s"):
+    assert not isinstance(info.value, CameraMismatchError)  # the limits are not the camera
+    with pytest.raises(RobotMismatchError, match="control step is 0.1 s"):
         check_robot_fits(slow, None, ModelMeta())
     assert check_robot_fits(
         parse_hello(hello()), {"width": 128, "height": 128, "camera_height": 0.3}, ModelMeta()
@@ -91,6 +98,12 @@ def test_the_model_records_its_camera_and_older_models_without_it_still_load():
     older = {k: v for k, v in props.items() if "camera" not in k}
     assert ModelMeta.from_props(older).camera == CameraSpec(128, 128, None, None)
     assert json.dumps(ModelMeta().to_props())  # every value a string
+
+
+def test_models_carrying_the_dropped_e_m_default_still_load():
+    props = ModelMeta().to_props()
+    assert "vtr.e_m_default" not in props  # read by nothing, no longer written
+    assert ModelMeta.from_props({**props, "vtr.e_m_default": "17.0"}) == ModelMeta()
 
 
 def test_vtr_repeat_refuses_in_one_line_a_robot_whose_camera_differs_from_the_route(tmp_path, capsys):

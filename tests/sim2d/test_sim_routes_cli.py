@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 
@@ -59,11 +58,9 @@ def test_route_validation(tmp_path):
 
 
 def _cli(argv: list[str]) -> int:
-    from vtr.sim2d import cli
+    from vtr.cli import main
 
-    parser = argparse.ArgumentParser()
-    cli.add_arguments(parser)
-    return cli.run_cli(parser.parse_args(argv))
+    return main(["sim", *argv])
 
 
 def test_snapshot_cli_writes_a_png(tmp_path, capsys):
