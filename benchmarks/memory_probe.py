@@ -42,9 +42,18 @@ def main(argv: list[str]) -> None:
     heavy = sorted(
         m for m in ("torch", "cv2", "pymunk", "matplotlib", "onnx") if sys.modules.get(m) is not None
     )
-    print(json.dumps({"peak_rss_mb": hwm_mb(), "rss_after_imports_mb": before, "steps": steps,
-                      "ru_maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
-                      "heavy_modules_loaded": heavy, "step": step.name}))  # fmt: skip
+    print(
+        json.dumps(
+            {
+                "peak_rss_mb": hwm_mb(),
+                "rss_after_imports_mb": before,
+                "steps": steps,
+                "ru_maxrss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+                "heavy_modules_loaded": heavy,
+                "step": step.name,
+            }
+        )
+    )
 
 
 if __name__ == "__main__":

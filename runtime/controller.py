@@ -9,65 +9,29 @@ The paper's Algorithm 1, exactly, with ``ControllerConfig.paper()``::
         else:            ADVANCE                  i += 1, and the same image is judged against I_{i+1}
     FINISHED
 
-Beyond the paper, each switchable in :class:`ControllerConfig` (``ControllerConfig.before()`` is the
-default of the release before the robust rules, kept for comparison):
+Beyond the paper, with ``switching="rules"`` (the release before the route localiser; the default controller is
+now ``runtime.follower``, which steers from ``runtime.localiser``'s estimate instead), each rule switchable in
+:class:`ControllerConfig`, whose field comments give the dev figures behind each default:
 
-- **Matching** (``match``): how the image is compared with a subgoal (runtime.matching). The default is
-  patch-normalised and median over tiles, so light and a changed region do not move the error; ``raw``
-  is the paper's mean absolute pixel error.
-- **Switch threshold** (``e_m_mode``). ``fixed``: ``e_m``. ``calibrated`` (default): one e_m for the route, ``clip(
-  calib_fraction * quantile(d, calib_quantile), e_m_min, e_m_max)`` with d_k the distance between taught
-  subgoals k and k+1. ``per_subgoal``: subgoal i gets ``calib_fraction * d_{i-1}``, the change
-  the robot sees when it drives the gap into i, so creeping and fast segments of one route each get their
-  own (a route-wide threshold set by many creeping gaps stalled the robot on the fast ones). ``hybrid``:
-  the route's threshold, raised to ``calib_fraction * min(d_{i-1}, d_i)`` where both gaps around subgoal i
-  are wider (a fast stretch or a turn: there a 1-2 degree miss scores several median gaps).
-- **Relative switch** (``pass_ratio`` > 0): ADVANCE when subgoal i+1 matches at least as well as i
-  (``d(I, i+1) <= pass_ratio * d(I, i)``, and i+1 under the lost bound, so that two unrelated views
-  cannot pass for a match): the robot is past i, whatever the light does to both errors.
-  It switches early; a robot standing on a taught pose can always switch (threshold, or the plateau).
-- **Settling** (``settle_steps``): once under the threshold, keep steering to the same subgoal while the
-  error still falls, for at most ``settle_steps`` extra commands.
-- **Stall guard** (``stall_steps`` > 0): after ``stall_steps`` commands without progress, JUMP to the best
-  of the next ``lookahead`` subgoals if it is within ``jump_factor`` thresholds and better than the
-  current one; else ADVANCE if the current error is within ``jump_factor`` thresholds (a plateau next to
-  the subgoal) -- but with ``plateau_needs_motion`` only if the view changed since the last plateau
-  acceptance by at least ``motion_fraction`` of a gap, so a robot that does not move never accepts more
-  than one subgoal; else STALLED. When the policy idles (``idle_steps`` commands in a row under
-  ``idle_speed`` and ``idle_turn``) the jump and the plateau are tried at once: with actuation noise the
-  error of a robot standing 8 mm from the subgoal flickers, each flicker counts as progress, and the
-  robot otherwise stood there for 20-30 commands (dev routes).
-- **Progress gate** (``progress_gate`` > 0, default 0.5, with the taught poses): switch past subgoal i
-  (threshold or relative rule) only once the travel commanded since i was set reaches that fraction of
-  the taught travel into i (what fell short is owed to the next subgoal), or after ``gate_patience``
-  commands that hardly moved the robot (runtime.progress_gate): where the view barely changes as the
-  robot drives, the index otherwise runs ahead of the robot, which then cuts the next curve and drives
-  beside the path. The repeat loop reports every command with :meth:`Controller.commanded`.
-- **Light ramp** (``match_ramp``, off): before patch matching, even out the view's left-to-right gain toward
-  the subgoal judged (runtime.light); it helps one side darker and costs moved furniture (evaluation/README).
-- **Taught prior** (``taught_prior`` > 0, off): each command toward subgoal i is blended with the taught
-  command into i while the commanded travel is short of the taught gap (``Decision.prior``; the repeat
-  loop blends). Lower error, more stalls and steps on dev (evaluation/README).
-- **Lost** (``lost_steps`` > 0): when the best match among subgoals i-2 .. i+20 stays above the lost bound
-  for ``lost_steps`` commands that bring no new best error at subgoal i, stop with LOST ("lost at subgoal i,
-  best match error X"): the view cannot be matched and driving on is a guess. The bound is ``lost_factor``
-  times the route's median gap (and LOST_FLOOR), or times the wider gap next to subgoal i where that is
-  more (``thresholds.lost_bounds``); a robot still closing in on its subgoal is not lost.
-- **Zero bias** (``zero_bias`` > 0; applied by the repeat loop): the policy's command on the subgoal image
-  itself, policy(S, S), is taken off every command toward S (in that fraction). A robot on the subgoal
-  should be told to stand still; in the example room the network said 0.1-0.2 rad/s of turn there and
-  drove the robot off its first subgoal.
-- **Turns in place** (``hold_turns``): where the taught robot turned on the spot, |v| is limited to 0.
-- **Plain routes**: when consecutive taught views differ by under ``PLAIN_ROUTE_GAP`` in patch distance
-  (plain walls and floor: no texture to normalise), the controller uses the raw error (``fallback`` says so).
-- **Contact** (``stop_on_contact``): an image reported with ``collided=True`` ends the repeat (COLLIDED).
-- **Start-anywhere localisation** (``localise``) and **continuous mode** (``continuous``): as before.
+- **Matching** (``match``, runtime.matching): patch-normalised, median over tiles; ``raw`` is the paper's error.
+- **Switch threshold** (``e_m_mode``): ``fixed`` (``e_m``), ``calibrated`` (one per route from the gaps between
+  taught subgoals), ``per_subgoal`` (from each subgoal's incoming gap) or ``hybrid`` (the route's, raised where
+  both neighbouring gaps are wide; the default). ``pass_ratio`` > 0 adds a relative switch (the next subgoal
+  matches as well as the current one); ``settle_steps`` keeps steering while the error still falls.
+- **Stall guard** (``stall_steps``, ``idle_steps``): after commands without progress, JUMP to a better subgoal
+  ahead or accept a plateau within ``jump_factor`` thresholds (once per motion of the view), else STALLED.
+- **Progress gate** (``progress_gate``, runtime.progress_gate): switch past a subgoal only after commanding that
+  fraction of the taught travel into it.
+- **Light ramp** (``match_ramp``), **taught prior** (``taught_prior``), **zero bias** (``zero_bias``, applied
+  by the repeat loop), **turns in place** held at v = 0 (``hold_turns``), the raw error on **plain routes**.
+- **Lost** (``lost_steps``): no subgoal near the current one matches for a while: LOST with the evidence.
+- **Contact** (``stop_on_contact``): COLLIDED. **Start anywhere** (``localise``) and **continuous** mode.
 
-Chosen on the tuning routes (sim2d/routes): median tiles (studies/matching_study.py), 3/4 of the gap, 1
-settling command (0, 1, 2: 1.06, 1.41, 1.82 control steps per taught step at 11.5, 8.9, 6.6 mm). The
-default threshold is the route's: per subgoal was faster but completed fewer held-out runs (evaluation/README).
-The stall bound (2.5, was 2) and the progress gate were chosen on the dev routes and houses only
-(evaluation/README); ``python -m vtr.evaluation.trace_run`` traces a run against the true pose.
+These rules advance the subgoal without seeing the robot get there (the plateau, the stall guard's jumps, the
+gate's patience): issue 19 measured boxes driven into and runs "finished" beside the route because of them,
+which is why the follower replaced them as the default. They stay for ``--paper`` and for the ablation
+(``vtr eval --suite conditions --controllers rules``); the matching study is ``studies/matching_study.py`` and
+``python -m vtr.evaluation.trace_run`` traces a run against the true pose.
 """
 
 from __future__ import annotations
@@ -310,8 +274,15 @@ class Controller:
         owed = self.gate is None or self.gate.progress < 1.0  # the taught gap is not yet driven
         if self.cfg.taught_prior > 0 and owed and self.commands is not None and 0 < i <= len(self.commands):
             prior = (self.cfg.taught_prior, self.cfg.taught_prior, *map(float, self.commands[i - 1]))
-        return Decision(Action.COMMAND, i, error, then_stop=not self.cfg.continuous, note=note,
-                        v_limit=0.0 if self.holds_turn(i) else math.inf, prior=prior)  # fmt: skip
+        return Decision(
+            Action.COMMAND,
+            i,
+            error,
+            then_stop=not self.cfg.continuous,
+            note=note,
+            v_limit=0.0 if self.holds_turn(i) else math.inf,
+            prior=prior,
+        )
 
     def judge(self, image: np.ndarray, collided: bool = False) -> Verdict:
         """Decide on ``image`` until a decision needs the robot: subgoal switches (ADVANCE, JUMP) are
@@ -346,10 +317,11 @@ class Controller:
         if self._lost_count < self.cfg.lost_steps:
             return None
         return self._stop(
-            Action.LOST, error,
+            Action.LOST,
+            error,
             f"lost at subgoal {self.index}, best match error {errors[best]:.3f} (subgoal {window.start + best}) "
             f"above {bound:.3f} for {self.cfg.lost_steps} steps",
-        )  # fmt: skip
+        )
 
     def _localise(self, view: np.ndarray) -> Decision | None:
         errors = self.matcher.distances(view, self._feats)
@@ -391,8 +363,13 @@ class Controller:
             return Decision(Action.ADVANCE, self.index, error, note="accepted on plateau")
         if not stop:
             return None
-        why = "the robot has not moved since the last plateau acceptance" if error <= bound else (
-            f"none of the next {self.cfg.lookahead} subgoals is within {self.cfg.jump_factor} thresholds = {bound:.3f}")  # fmt: skip
+        why = (
+            "the robot has not moved since the last plateau acceptance"
+            if error <= bound
+            else (
+                f"none of the next {self.cfg.lookahead} subgoals is within {self.cfg.jump_factor} thresholds = {bound:.3f}"
+            )
+        )
         return self._stop(
             Action.STALLED,
             error,

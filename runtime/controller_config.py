@@ -120,17 +120,43 @@ class ControllerConfig:
     @classmethod
     def paper(cls) -> ControllerConfig:
         """Algorithm 1 exactly: raw error, fixed e_m = 17, switch at once, nothing else."""
-        return cls(switching="rules", match=MatchConfig.paper(), e_m_mode="fixed", e_m=17.0, pass_ratio=0.0, stall_steps=0,
-                   settle_steps=0, lost_steps=0, stop_on_contact=False, hold_turns=False,
-                   progress_gate=0.0, match_ramp=False, idle_steps=0, zero_bias=0.0)  # fmt: skip
+        return cls(
+            switching="rules",
+            match=MatchConfig.paper(),
+            e_m_mode="fixed",
+            e_m=17.0,
+            pass_ratio=0.0,
+            stall_steps=0,
+            settle_steps=0,
+            lost_steps=0,
+            stop_on_contact=False,
+            hold_turns=False,
+            progress_gate=0.0,
+            match_ramp=False,
+            idle_steps=0,
+            zero_bias=0.0,
+        )
 
     @classmethod
     def before(cls) -> ControllerConfig:
         """The previous default: raw error, one calibrated e_m per route, settle 2, old plateau rule."""
-        return cls(switching="rules", match=MatchConfig.paper(), e_m_mode="calibrated", pass_ratio=0.0, settle_steps=2,
-                   plateau_needs_motion=False, lost_steps=0, stop_on_contact=False, hold_turns=False,
-                   stall_min_improvement=0.25, jump_factor=2.0,
-                   progress_gate=0.0, match_ramp=False, idle_steps=0, zero_bias=0.0)  # fmt: skip
+        return cls(
+            switching="rules",
+            match=MatchConfig.paper(),
+            e_m_mode="calibrated",
+            pass_ratio=0.0,
+            settle_steps=2,
+            plateau_needs_motion=False,
+            lost_steps=0,
+            stop_on_contact=False,
+            hold_turns=False,
+            stall_min_improvement=0.25,
+            jump_factor=2.0,
+            progress_gate=0.0,
+            match_ramp=False,
+            idle_steps=0,
+            zero_bias=0.0,
+        )
 
     def __post_init__(self) -> None:
         if self.switching not in SWITCHING:
@@ -145,8 +171,12 @@ class ControllerConfig:
                 raise ValueError(f"{name} must be in [0, {hi}], got {getattr(self, name)!r}")
         if self.e_m_mode not in THRESHOLD_MODES:
             raise ValueError(f"e_m_mode must be one of {THRESHOLD_MODES}, got {self.e_m_mode!r}")
-        positive = {"e_m": self.e_m, "calib_fraction": self.calib_fraction, "jump_factor": self.jump_factor,
-                    "lost_factor": self.lost_factor}  # fmt: skip
+        positive = {
+            "e_m": self.e_m,
+            "calib_fraction": self.calib_fraction,
+            "jump_factor": self.jump_factor,
+            "lost_factor": self.lost_factor,
+        }
         for name, value in positive.items():
             if not (math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} must be a positive finite number, got {value!r}")

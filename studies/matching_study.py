@@ -178,9 +178,13 @@ def main(argv: list[str] | None = None) -> int:
         print("matching_study: --stride must be >= 1", file=sys.stderr)
         return 2
     methods = {m: METHODS[m] for m in args.methods}
-    result = {"routes": args.routes, "stride": args.stride, "timing": timing(methods),
-              "methods": {m: vars(c) if hasattr(c, "__dict__") else str(c) for m, c in methods.items()},
-              "study": study(tuple(args.routes), args.stride, methods)}  # fmt: skip
+    result = {
+        "routes": args.routes,
+        "stride": args.stride,
+        "timing": timing(methods),
+        "methods": {m: vars(c) if hasattr(c, "__dict__") else str(c) for m, c in methods.items()},
+        "study": study(tuple(args.routes), args.stride, methods),
+    }
     for m, by_cond in result["study"].items():
         if m == "skipped_subgoals":
             continue
@@ -188,9 +192,11 @@ def main(argv: list[str] | None = None) -> int:
             f"{m}: {result['timing'][m]['features_us']:.0f} us features + {result['timing'][m]['compare_us']:.0f} us per comparison"
         )
         for cond, row in by_cond.items():
-            print(f"  {cond:17s} at_pose {row['at_pose']:.2f} switchable {row['switchable']:.2f} "
-                  f"monotone {row['monotone']:.2f} localised {row['localised']:.2f} along_0.05 {row['along_0.05']:.2f} "
-                  f"yaw_5 {row['yaw_5']:.2f} lateral_0.06 {row['lateral_0.06']:.2f}")  # fmt: skip
+            print(
+                f"  {cond:17s} at_pose {row['at_pose']:.2f} switchable {row['switchable']:.2f} "
+                f"monotone {row['monotone']:.2f} localised {row['localised']:.2f} along_0.05 {row['along_0.05']:.2f} "
+                f"yaw_5 {row['yaw_5']:.2f} lateral_0.06 {row['lateral_0.06']:.2f}"
+            )
     if args.json is not None:
         from vtr.runtime.atomic import write_text_atomic
 

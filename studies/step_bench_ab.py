@@ -37,10 +37,12 @@ def _repeaters(route_file: str, model: str) -> dict[str, Any]:
 
     def repeater(method: str, light: bool) -> Repeater:
         policy = OnnxPolicy(model, threads=1)
-        route = Route(images=images, poses=np.zeros((n, 3)), commands=np.zeros((n, 2)), name="ab",
-                      dt=policy.meta.dt)  # fmt: skip
-        cfg = ControllerConfig(match=MatchConfig(method=method), e_m_mode="fixed", e_m=1e-3, stall_steps=0,
-                               settle_steps=0)  # fmt: skip
+        route = Route(
+            images=images, poses=np.zeros((n, 3)), commands=np.zeros((n, 2)), name="ab", dt=policy.meta.dt
+        )
+        cfg = ControllerConfig(
+            match=MatchConfig(method=method), e_m_mode="fixed", e_m=1e-3, stall_steps=0, settle_steps=0
+        )
         wrapped = LightMatchedPolicy(policy) if light else policy
         return Repeater(
             LoopbackRobot(current), wrapped, route, config=RepeatConfig(controller=cfg, max_steps=10**12)
@@ -69,9 +71,18 @@ def medians(route_file: str, model: str, steps: int, warmup: int) -> dict[str, f
 
 
 # ("onnx", "_run"): the network as predict runs it since IOBinding (older checkouts: "infer")
-_SECTIONS = (("controller", "judge"), ("matcher", "features"), ("matcher", "distance"), ("policy", "predict"),
-             ("policy", "match"), ("onnx", "infer"), ("onnx", "_run"), ("onnx", "postprocess"), ("robot", "step"),
-             ("robot", "stop"))  # fmt: skip
+_SECTIONS = (
+    ("controller", "judge"),
+    ("matcher", "features"),
+    ("matcher", "distance"),
+    ("policy", "predict"),
+    ("policy", "match"),
+    ("onnx", "infer"),
+    ("onnx", "_run"),
+    ("onnx", "postprocess"),
+    ("robot", "step"),
+    ("robot", "stop"),
+)
 
 
 def sections(route_file: str, model: str, steps: int, warmup: int, variant: str) -> dict[str, float]:
@@ -79,8 +90,13 @@ def sections(route_file: str, model: str, steps: int, warmup: int, variant: str)
     import functools
 
     rep = _repeaters(route_file, model)[variant]
-    owners = {"controller": rep.controller, "matcher": rep.controller.matcher, "policy": rep.policy,
-              "onnx": getattr(rep.policy, "policy", rep.policy), "robot": rep.robot}  # fmt: skip
+    owners = {
+        "controller": rep.controller,
+        "matcher": rep.controller.matcher,
+        "policy": rep.policy,
+        "onnx": getattr(rep.policy, "policy", rep.policy),
+        "robot": rep.robot,
+    }
     samples: dict[str, list[int]] = {"step": []}
 
     def timed(name: str, call: Any, *args: Any, **kwargs: Any) -> Any:

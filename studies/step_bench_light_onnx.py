@@ -33,17 +33,30 @@ def light_graph(height: int, width: int) -> Any:
         return out
 
     x_axis = np.linspace(-1.0, 1.0, width, dtype=np.float32)
-    consts = {"axes_cw": np.array([1, 2], np.int64), "axes_hw": np.array([2, 3], np.int64),
-              "three": np.float32(3), "height": np.float32(height), "one": np.float32(1),
-              "half": np.float32(0.5), "zero": np.float32(0), "top": np.float32(255),
-              "x": x_axis.reshape(1, 1, 1, width), "xx": np.float32((x_axis * x_axis).sum()),
-              "pixels": np.float32(height * width), "floor": np.float32(2), "scale": np.float32(1 / 255)}  # fmt: skip
+    consts = {
+        "axes_cw": np.array([1, 2], np.int64),
+        "axes_hw": np.array([2, 3], np.int64),
+        "three": np.float32(3),
+        "height": np.float32(height),
+        "one": np.float32(1),
+        "half": np.float32(0.5),
+        "zero": np.float32(0),
+        "top": np.float32(255),
+        "x": x_axis.reshape(1, 1, 1, width),
+        "xx": np.float32((x_axis * x_axis).sum()),
+        "pixels": np.float32(height * width),
+        "floor": np.float32(2),
+        "scale": np.float32(1 / 255),
+    }
     inits = [numpy_helper.from_array(np.asarray(v), k) for k, v in consts.items()]
     p = op(
         "Cast", [op("Transpose", ["current_u8"], "planar_u8", perm=[0, 3, 1, 2])], "p", to=TensorProto.FLOAT
     )
-    cols = op("Div", [op("Div", [op("ReduceSum", [p, "axes_cw"], "colsum", keepdims=1), "three"], "c3"),
-                      "height"], "cols")  # fmt: skip
+    cols = op(
+        "Div",
+        [op("Div", [op("ReduceSum", [p, "axes_cw"], "colsum", keepdims=1), "three"], "c3"), "height"],
+        "cols",
+    )
     log_ratio = op("Log", [op("Div", ["ref_cols", op("Add", [cols, "one"], "cols1")], "ratio")], "log_ratio")
     centred = op("Sub", [log_ratio, op("ReduceMean", [log_ratio], "lr_mean", keepdims=1)], "centred")
     slope = op("Div", [op("ReduceSum", [op("Mul", ["x", centred], "xc")], "num", keepdims=1), "xx"], "slope")
@@ -61,10 +74,12 @@ def light_graph(height: int, width: int) -> Any:
     matched = op("Add", [op("Mul", [levels, g], "lg"), shift], "matched")
     out = op("Floor", [op("Clip", [matched, "zero", "top"], "matched_clipped")], "matched_levels")
     op("Mul", [out, "scale"], "current")
-    inputs = [helper.make_tensor_value_info("current_u8", TensorProto.UINT8, [1, height, width, 3]),
-              helper.make_tensor_value_info("ref_cols", TensorProto.FLOAT, [1, 1, 1, width]),
-              helper.make_tensor_value_info("ref_mean", TensorProto.FLOAT, [1, 3, 1, 1]),
-              helper.make_tensor_value_info("ref_std", TensorProto.FLOAT, [1, 3, 1, 1])]  # fmt: skip
+    inputs = [
+        helper.make_tensor_value_info("current_u8", TensorProto.UINT8, [1, height, width, 3]),
+        helper.make_tensor_value_info("ref_cols", TensorProto.FLOAT, [1, 1, 1, width]),
+        helper.make_tensor_value_info("ref_mean", TensorProto.FLOAT, [1, 3, 1, 1]),
+        helper.make_tensor_value_info("ref_std", TensorProto.FLOAT, [1, 3, 1, 1]),
+    ]
     outputs = [helper.make_tensor_value_info("current", TensorProto.FLOAT, [1, 3, height, width])]
     graph = helper.make_graph(nodes, "light_matching", inputs, outputs, inits)
     return helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
@@ -87,8 +102,12 @@ def run(steps: int, warmup: int, size: int) -> dict[str, Any]:
     model = light_graph(size, size)
     session = ort.InferenceSession(model.SerializeToString(), options, providers=["CPUExecutionProvider"])
     ref = LightReference.of(subgoal)
-    feeds = {"current_u8": current[None], "ref_cols": ref.cols.reshape(1, 1, 1, -1),
-             "ref_mean": ref.mean.reshape(1, 3, 1, 1), "ref_std": ref.std.reshape(1, 3, 1, 1)}  # fmt: skip
+    feeds = {
+        "current_u8": current[None],
+        "ref_cols": ref.cols.reshape(1, 1, 1, -1),
+        "ref_mean": ref.mean.reshape(1, 3, 1, 1),
+        "ref_std": ref.std.reshape(1, 3, 1, 1),
+    }
     wrapper = LightMatchedPolicy(None)
 
     def numpy_path() -> np.ndarray:
