@@ -1,7 +1,7 @@
 """`vtr sim`: the simulator from the command line.
 
 vtr sim snapshot --out house.png [--x X --y Y --yaw YAW] [--start NAME]
-vtr sim serve --bind tcp://127.0.0.1:5555 [--noise 0.05]
+vtr sim serve --bind tcp://127.0.0.1:5555 [--noise 0.05] [--no-scan]
 vtr sim route --house random:SEED --seed K --out route.json   (a generated route to `vtr teach`)
 """
 
@@ -117,6 +117,7 @@ def run_serve(
     mode: str = "lockstep",
     cmd_vel_timeout: float = 0.5,
     changes: tuple[str, ...] = (),
+    scan: bool = True,
 ) -> int:
     from vtr.sim2d.config import CameraConfig, SimConfig
 
@@ -131,7 +132,8 @@ def run_serve(
     sim_cfg = SimConfig(house=house, noise=noise, changes=changes, camera=CameraConfig(brightness=brightness))
     try:
         return int(
-            serve(ServerConfig(bind=bind, sim=sim_cfg, mode=mode, cmd_vel_timeout=cmd_vel_timeout)) or 0
+            serve(ServerConfig(bind=bind, sim=sim_cfg, mode=mode, cmd_vel_timeout=cmd_vel_timeout, scan=scan))
+            or 0
         )
     except BindError as err:  # the port is taken, or the interface does not exist
         print(f"vtr sim serve: {err}; choose another --bind", file=sys.stderr)
@@ -186,6 +188,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=0.5,
         help="realtime: stop the robot when no step arrived for this many seconds; 0 disables (default: 0.5)",
     )
+    serve.add_argument(
+        "--no-scan",
+        dest="scan",
+        action="store_false",
+        help="serve a camera-only robot: no range scanner in hello, no scan in the replies (default: a 181-beam "
+        "270 deg scanner, 5 m, sim2d/rangefinder.py)",
+    )
 
     route = sub.add_parser("route", help="generate a taught route for a house (ROUTE.json for `vtr teach`)")
     add_config_arguments(route, RouteGenConfig)
@@ -205,6 +214,7 @@ def run_cli(args: argparse.Namespace) -> int:
             args.mode,
             args.cmd_vel_timeout,
             tuple(args.change),
+            args.scan,
         )
     except ValueError as err:  # bad configuration values or a bad map file
         print(f"vtr sim {args.sim_command}: {err}", file=sys.stderr)
