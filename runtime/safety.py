@@ -113,13 +113,12 @@ class SafetyDecision:
 
 
 def scan_points(scan: Scan) -> np.ndarray:
-    """(n, 2) robot-frame points (x forward, y left, metres from the robot's centre) of the beams that saw
-    something."""
-    r = scan.ranges.astype(np.float64)
-    seen = np.isfinite(r)
-    angles = scan.angles()[seen]
-    r = r[seen]
-    return np.stack([scan.x_m + r * np.cos(angles), r * np.sin(angles)], axis=1)
+    """(2, n) robot-frame points (row 0 x forward, row 1 y left, metres from the robot's centre) of the
+    beams that saw something."""
+    seen = scan.ranges < np.inf
+    pts = scan.directions()[:, seen] * scan.ranges[seen]
+    pts[0] += scan.x_m
+    return pts
 
 
 def limit_twist(v: float, w: float, scan: Scan | None, cfg: SafetyConfig = SafetyConfig()) -> SafetyDecision:
@@ -127,20 +126,23 @@ def limit_twist(v: float, w: float, scan: Scan | None, cfg: SafetyConfig = Safet
     reversing = v < 0
     if scan is None:
         return SafetyDecision(v, w, NO_SCAN, (v, w), reversing=reversing)
-    pts = scan_points(scan)
-    grown = cfg.radius + cfg.margin
+    x, y = scan_points(scan)
+    if reversing:
+        x = -x  # along the driving direction
+    grown2 = (cfg.radius + cfg.margin) ** 2
     k = cfg.min_points
-    x = -pts[:, 0] if reversing else pts[:, 0]  # along the driving direction
-    y = pts[:, 1]
-    footprint = int(np.count_nonzero(x * x + y * y < grown * grown)) >= k
+    y2 = y * y
+    footprint = int(np.count_nonzero(x * x + y2 < grown2)) >= k
     # The corridor: points the grown disc meets when it moves along x (those with x <= 0 it moves away
     # from); the gap is how far it moves before it touches one.
-    ahead = (np.abs(y) <= grown) & (x > 0)
+    ahead = y2 <= grown2
+    ahead &= x > 0
     distance = bearing = None
     zone, v_out = CLEAR, v
     if ahead.any():
         xa, ya = x[ahead], y[ahead]
-        gaps = np.maximum(xa - np.sqrt(np.maximum(grown * grown - ya * ya, 0.0)), 0.0)
+        gaps = xa - np.sqrt(grown2 - y2[ahead])
+        np.maximum(gaps, 0.0, out=gaps)
         nearest = int(np.argmin(gaps))
         distance = float(gaps[nearest])
         bearing = math.atan2(float(ya[nearest]), -float(xa[nearest]) if reversing else float(xa[nearest]))

@@ -15,6 +15,7 @@ sends millimetres.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -32,7 +33,7 @@ MAX_MOUNT_OFFSET = 5.0
 #: A reply's angles and range_max must equal the announcement within this (float32 rounding in bridges).
 MATCH_TOLERANCE = 1e-5
 _TWO_PI = 2.0 * math.pi
-_NUMBER_TYPES = (float, int, type(None))
+_NUMBER_TYPES = frozenset((float, int, type(None)))
 
 
 @dataclass(frozen=True)
@@ -89,6 +90,11 @@ class Scan:
         """(beams,) bearing of each beam from the scanner, radians."""
         return self.angle_min + self.angle_increment * np.arange(self.ranges.size)
 
+    def directions(self) -> np.ndarray:
+        """(2, beams) read-only unit vector of each beam (cos, sin of its bearing), shared by every scan of
+        the same geometry."""
+        return _directions(self.angle_min, self.angle_increment, self.ranges.size)
+
     def matches(self, spec: ScanSpec) -> bool:
         return (
             self.beams == spec.beams
@@ -96,6 +102,14 @@ class Scan:
             and _close(self.angle_increment, spec.angle_increment)
             and _close(self.range_max, spec.range_max)
         )
+
+
+@functools.lru_cache(maxsize=8)  # keyed by the geometry's values: a robot has one scanner
+def _directions(angle_min: float, angle_increment: float, beams: int) -> np.ndarray:
+    angles = angle_min + angle_increment * np.arange(beams)
+    out = np.stack([np.cos(angles), np.sin(angles)])
+    out.flags.writeable = False
+    return out
 
 
 def _close(a: float, b: float) -> bool:

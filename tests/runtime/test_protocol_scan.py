@@ -161,3 +161,22 @@ def test_a_scan_freezes_a_view_never_the_callers_array():
     assert mine.flags.writeable and not s.ranges.flags.writeable
     assert s.matches(ScanSpec(4, 0.0, 0.1, 4.0)) and not s.matches(ScanSpec(5, 0.0, 0.1, 4.0))
     np.testing.assert_allclose(s.angles(), [0.0, 0.1, 0.2, 0.3])
+
+
+JUNK = [None, True, 0, -1, 1e15, -1e15, 2.5, "", "x", [], [None] * 5, [[]], {}, {"ranges": []}, [1] * 5000]
+
+
+def test_any_scan_decodes_or_is_a_bad_frame():
+    rng = np.random.default_rng(0)
+    keys = ["angle_min", "angle_increment", "range_max", "ranges", "extra"]
+    for _ in range(400):
+        field = wire()
+        for key in rng.choice(keys, size=rng.integers(1, 3), replace=False):
+            field[str(key)] = JUNK[rng.integers(len(JUNK))]
+        if rng.random() < 0.3:
+            field["ranges"] = [JUNK[i] for i in rng.integers(0, 8, size=5)]
+        try:
+            got = protocol.decode_reply(reply_frames(field), expect_scan=SPEC).scan
+        except BadFrameError:
+            continue
+        assert got is not None and got.beams == 5 and not np.isnan(got.ranges).any()

@@ -104,7 +104,7 @@ def test_the_mounting_offset_moves_the_points():
         ranges[1] = 0.40
         d = limit_twist(0.3, 0.0, Scan(-0.1, 0.1, 5.0, ranges, x_m))
         assert d.zone == zone
-    assert scan_points(Scan(-0.1, 0.1, 5.0, ranges, 0.15)) == pytest.approx(np.array([[0.55, 0.0]]))
+    assert scan_points(Scan(-0.1, 0.1, 5.0, ranges, 0.15)) == pytest.approx(np.array([[0.55], [0.0]]))
 
 
 def test_min_points_ignores_a_lone_return():
