@@ -16,6 +16,7 @@ import copy
 import json
 import math
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -77,7 +78,7 @@ class LitRobot:
         return self.robot.last
 
     def _lit(self, obs: Observation) -> Observation:
-        return Observation(image=self.light(obs.image), stamp=obs.stamp, pose=obs.pose, collided=obs.collided)
+        return replace(obs, image=self.light(obs.image))  # pose, contact and range scan pass through
 
     def reset(self, pose: tuple[float, float, float] | None = None, seed: int | None = None) -> Observation:
         return self._lit(self.robot.reset(pose=pose, seed=seed))

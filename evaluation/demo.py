@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -168,7 +168,7 @@ class _PoseKeeper:
 
     def _strip(self, obs: Observation) -> Observation:
         self.last_pose = obs.pose
-        return Observation(image=obs.image, stamp=obs.stamp, pose=None, collided=obs.collided)
+        return replace(obs, pose=None)  # the image, contact and range scan pass through
 
     def observe(self) -> Observation:
         return self._strip(self.client.observe())

@@ -144,12 +144,14 @@ def route_files(names: tuple[str, ...]) -> list[Path]:
     return out
 
 
-def make_robot(noise: float, image_size: tuple[int, int], house: str = "house") -> Any:
+def make_robot(noise: float, image_size: tuple[int, int], house: str = "house", scan: bool = False) -> Any:
+    """An in-process simulated robot; ``scan`` adds the range scanner's reading to every observation."""
     from vtr.sim2d import CameraConfig, SimConfig, Simulator
     from vtr.sim2d.local_robot import LocalRobot
 
     h, w = image_size
-    return LocalRobot(Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=noise, house=house)))
+    sim = Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=noise, house=house))
+    return LocalRobot(sim, scan=scan)
 
 
 def teach(

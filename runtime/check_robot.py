@@ -5,18 +5,21 @@ to fix), a summary, exit status 1 when anything failed. It talks raw ZeroMQ so t
 runtime's client would never send (malformed, beyond the limits). Every request has a timeout, a timed-out socket
 is rebuilt, and the whole run has a time budget: it never hangs.
 
-The robot moves: a zero step, a turn in place of about 0.3 rad and back, and steps the robot must refuse. It ends
-with a ``stop``. Run it with the robot in free space.
+The robot moves: zero steps, a turn in place of about 0.3 rad and back, and steps the robot must refuse. It ends
+with a ``stop``. Run it with the robot in free space. A robot that announces a range scanner in ``hello`` must send
+a matching scan with every image (check ``scan``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from dataclasses import asdict, dataclass
 
+import numpy as np
 import zmq
 
 from vtr.runtime import protocol
@@ -41,6 +44,7 @@ from vtr.runtime.check_motion import (
 )
 from vtr.runtime.contracts import CAMERA, CONTROL_DT
 from vtr.runtime.hello import parse_hello
+from vtr.runtime.scan import scan_from_wire
 
 #: Image size (height, width) the shipped model takes.
 MODEL_IMAGE_SIZE = (CAMERA.height, CAMERA.width)
@@ -137,6 +141,35 @@ def check_image(ctx: Context) -> tuple[str, str]:
     return PASS, f"{image.shape[1]}x{image.shape[0]} rgb8, mean {image.mean():.0f}, std {image.std():.0f}"
 
 
+def check_scan(ctx: Context) -> tuple[str, str]:
+    """The range scan: every image reply carries one matching the scanner hello announced, or none is
+    announced (the runtime then drives with camera-only safety)."""
+    assert ctx.hello is not None
+    spec = ctx.hello.scan
+    replies = [ctx.ask("observe"), ctx.step(0.0, 0.0)]
+    if spec is None:
+        if any(r.header.get("scan") is not None for r in replies):
+            return WARN, (
+                "replies carry a 'scan' but hello announces no scanner, so the runtime ignores it: announce "
+                "it (docs/PROTOCOL.md, 'Range scan')"
+            )
+        return PASS, "no range sensor: camera-only safety"
+    scans = []
+    for reply in replies:
+        if reply.header.get("scan") is None:
+            raise CheckFailed(f"hello announces a scanner but the {reply.cmd!r} reply carries no 'scan'")
+        try:
+            scans.append(scan_from_wire(reply.header["scan"], spec))
+        except protocol.BadFrameError as exc:
+            raise CheckFailed(f"the {reply.cmd!r} reply's scan: {exc}") from None
+    span = math.degrees(abs(spec.angle_increment) * (spec.beams - 1))
+    text = f"{spec.beams} beams over {span:.0f} deg, range_max {spec.range_max:g} m, mounted {spec.x_m:g} m ahead"
+    seen = scans[-1].ranges[np.isfinite(scans[-1].ranges)]
+    if seen.size == 0:
+        return WARN, f"{text}; no beam sees anything within range_max: is the scanner streaming?"
+    return PASS, f"{text}; nearest return {float(seen.min()):.2f} m"
+
+
 def check_stop(ctx: Context) -> tuple[str, str]:
     reply = ctx.ask("stop")
     return PASS, f"stamp {reply.stamp}"
@@ -205,6 +238,7 @@ CHECKS: list[tuple[str, Check, tuple[str, ...]]] = [
     ("reset", check_reset, ("hello",)),
     ("observe", check_observe, ("hello",)),
     ("image", check_image, ("observe",)),
+    ("scan", check_scan, ("observe",)),
     ("stop", check_stop, ("hello",)),
     ("step.zero", check_zero_step, ("observe",)),
     ("step.turn", check_turn, ("observe",)),

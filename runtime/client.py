@@ -22,6 +22,9 @@ than the wall clock allows (``duration`` + elapsed wall time x the announced rat
 future; either is rejected without moving the reference, so one outlier costs one frame. ``reset``
 restarts the clock. A new session token, confirmed by a ``hello`` that carries it too, means the robot
 restarted: :class:`RobotRestarted` (one corrupt session field is one bad frame, not a restart).
+
+A range scan in a reply is read (checked against the scanner ``hello`` announced) once :meth:`handshake`
+has run, and travels on the :class:`Observation`; before it, or from a robot without one, ``scan`` is None.
 """
 
 from __future__ import annotations
@@ -237,7 +240,10 @@ class SimClient:
         frames = raw[1:]
         try:
             reply = protocol.decode_reply(
-                frames, expect_shape=self.expect_shape, max_message_bytes=self.max_message_bytes
+                frames,
+                expect_shape=self.expect_shape,
+                max_message_bytes=self.max_message_bytes,
+                expect_scan=None if self.hello_info is None else self.hello_info.scan,
             )
         except BadFrameError as exc:
             _, peeked = protocol.peek_cmd_seq(frames)
@@ -302,7 +308,9 @@ class SimClient:
     @staticmethod
     def _observation(reply: Reply) -> Observation:
         assert reply.image is not None and reply.stamp is not None
-        return Observation(image=reply.image, stamp=reply.stamp, pose=reply.pose, collided=reply.collided)
+        return Observation(
+            image=reply.image, stamp=reply.stamp, pose=reply.pose, collided=reply.collided, scan=reply.scan
+        )
 
     # ------------------------------------------------------------------ the Robot protocol
     def hello(self) -> dict[str, Any]:

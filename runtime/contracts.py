@@ -13,12 +13,16 @@ from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
+from vtr.runtime.scan import Scan
+
 #: The paper's robot: |v| <= 0.5 m/s (Twist linear.x), |w| <= 1.0 rad/s (angular.z).
 V_MAX = 0.5
 W_MAX = 1.0
 #: Seconds each command is applied for: the paper's control step, the teach recording period and the
 #: spacing of training frames.
 CONTROL_DT = 0.1
+#: The simulated robot's footprint: a disc of this radius (m); the safety layer's default size.
+ROBOT_RADIUS = 0.17
 
 
 @dataclass(frozen=True)
@@ -59,12 +63,14 @@ class Observation:
     image: (H, W, 3) uint8 RGB. stamp: the robot's clock in seconds (simulated time for the simulator).
     pose: ground-truth (x, y, yaw) in metres/radians when the other side knows it, else None (the
     repeat never uses it; evaluation scores with it). collided: the robot touched something on the way.
+    scan: the range reading taken with the image, when the robot has a scanner (None: camera only).
     """
 
     image: np.ndarray
     stamp: float
     pose: tuple[float, float, float] | None = None
     collided: bool = False
+    scan: Scan | None = None
 
 
 @runtime_checkable

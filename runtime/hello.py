@@ -13,6 +13,7 @@ from typing import Any
 
 from vtr.runtime.contracts import CameraSpec
 from vtr.runtime.protocol import MAX_IMAGE_SIDE, BadFrameError, Limits, Reply, integer, number
+from vtr.runtime.scan import ScanSpec, spec_from_dict
 
 #: Cameras whose horizontal fields of view differ by more than this (degrees) see different images.
 FOV_TOLERANCE_DEG = 2.0
@@ -66,6 +67,8 @@ class Hello:
     robot: str | None = None
     map: str | None = None
     info: dict[str, Any] = field(default_factory=dict)
+    #: The range scanner every image reply may carry a reading of (None: camera only).
+    scan: ScanSpec | None = None
 
 
 def parse_hello(reply: Reply) -> Hello:
@@ -95,8 +98,20 @@ def parse_hello(reply: Reply) -> Hello:
         raise BadFrameError(f"hello field 'realtime_factor' must be > 0, got {rate}")
     names = {k: h.get(k) if isinstance(h.get(k), str) else None for k in ("robot", "map")}
     info = h.get("info") if isinstance(h.get("info"), dict) else {}
+    scan = spec_from_dict(h["scan"]) if h.get("scan") is not None else None
     return Hello(
-        reply.session, reply.stamp, version, camera, limits, dt, mode, timeout, rate, info=info, **names
+        reply.session,
+        reply.stamp,
+        version,
+        camera,
+        limits,
+        dt,
+        mode,
+        timeout,
+        rate,
+        info=info,
+        scan=scan,
+        **names,
     )
 
 

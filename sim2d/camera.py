@@ -3,7 +3,8 @@
 One frame is:
 
 1. one ray per image column against the surface segments that face the camera and overlap the field of
-   view (one small matmul gives every ray/segment cross product at once), keeping two layers per column:
+   view (one small matmul gives every ray/segment cross product at once: sim2d.rays, which the
+   rangefinder shares), keeping two layers per column:
    the nearest wall and the nearest furniture in front of it (furniture is lower than walls, so the wall
    shows above it; furniture hidden behind other furniture is not drawn, a limit of two layers);
 2. per column and layer, one lookup in a (segment, depth bin) table gives the texture block to read
@@ -32,6 +33,7 @@ import numpy as np
 
 from vtr.sim2d.config import CameraConfig
 from vtr.sim2d.house import House
+from vtr.sim2d.rays import Surfaces, inverse_depths
 from vtr.sim2d.textures import TEX, mip_levels
 
 _TEX_LEVELS = 4  # mip levels kept per surface texture: 64, 32, 16, 8 texels
@@ -79,9 +81,7 @@ class Camera:
         self.seg_b = seg.b[order]
         self.seg_e = self.seg_b - self.seg_a
         self.seg_len = np.hypot(self.seg_e[:, 0], self.seg_e[:, 1])
-        # cross(p, e) = p @ e_perp with e_perp = (e_y, -e_x)
-        self._e_perp_t = np.stack([self.seg_e[:, 1], -self.seg_e[:, 0]])  # (2, S)
-        self._e_perp = np.ascontiguousarray(self._e_perp_t.T)  # (S, 2)
+        self._surfaces = Surfaces(self.seg_a, self.seg_b)
         self.seg_u0 = seg.u0[order]
         self.seg_tex = seg.texture[order]
         self.seg_height = np.where(seg.is_wall[order], cfg.wall_height, seg.height[order])
@@ -225,9 +225,7 @@ class Camera:
         depth (forward distance, _NO_HIT when nothing), segment index and position s in [0, 1] along it."""
         cos, sin = math.cos(yaw), math.sin(yaw)
         dirs = self._cam_dirs @ np.array([[cos, sin], [-sin, cos]], np.float32)  # (W, 2) world, forward 1
-        ap = self.seg_a - (x, y)  # (S, 2)
-        # cross(ap, e) < 0 where the camera sees the front face
-        t_num = np.einsum("ij,ij->i", ap, self._e_perp)  # (S,)
+        ap, t_num = self._surfaces.from_origin(x, y)  # (S, 2), (S,): t_num < 0 on a front face
         # Signed offsets of both endpoints from the three planes bounding the view (behind, beyond the left
         # edge, beyond the right edge), > 0 outside: a segment with both endpoints beyond the same plane
         # cannot be seen. planes^T @ camera-from-world rotation, applied to all endpoints in one product.
@@ -237,18 +235,8 @@ class Camera:
         front = np.flatnonzero((t_num < 0) & ~beyond)
         n_w = int(np.searchsorted(front, self.n_walls))  # front faces of walls come first
         n = len(front)
-        m = np.empty((2, 2 * n), np.float32)  # float32 halves the work per ray and segment pair
-        m[:, :n] = self._e_perp_t[:, front]
-        m[0, n:] = -ap[front, 1]
-        m[1, n:] = ap[front, 0]
-        r = dirs @ m  # (W, 2S'): [denom | s_num], cross(dir, e) and cross(ap, dir)
-        denom = r[:, :n]
-        s_num = r[:, n:]
-        # A front face is hit iff the ray points at it (denom < 0) within the segment (0 <= s <= 1); then
-        # t = t_num / denom > 0. Maximise 1/t = denom / t_num (no division per pair); where denom >= 0 it
-        # is <= 0 and loses to any real hit, so that test is folded into the range test below.
-        inv_t = denom * (1.0 / t_num[front]).astype(np.float32)
-        inv_t *= (s_num <= 0) & (s_num >= denom)
+        # (W, n) 1 / forward depth of each column's ray on each front face, <= 0 where it misses
+        inv_t, s_num, denom = inverse_depths(dirs, self._surfaces.e_perp_t[:, front], ap[front], t_num[front])
         k = np.zeros((2, self.rw), dtype=np.intp)
         if n_w > 0:
             k[0] = np.argmax(inv_t[:, :n_w], axis=1)

@@ -1,7 +1,7 @@
 """`vtr sim`: the simulator from the command line.
 
 vtr sim snapshot --out house.png [--x X --y Y --yaw YAW] [--start NAME]
-vtr sim serve --bind tcp://127.0.0.1:5555 [--noise 0.05]
+vtr sim serve --bind tcp://127.0.0.1:5555 [--noise 0.05] [--no-scan]
 vtr sim route --house random:SEED --seed K --out route.json   (a generated route to `vtr teach`)
 """
 
@@ -118,6 +118,7 @@ def run_serve(
     mode: str = "lockstep",
     cmd_vel_timeout: float = 0.5,
     changes: tuple[str, ...] = (),
+    scan: bool = True,
 ) -> int:
     from vtr.sim2d.config import CameraConfig, SimConfig
 
@@ -132,7 +133,8 @@ def run_serve(
     sim_cfg = SimConfig(house=house, noise=noise, changes=changes, camera=CameraConfig(brightness=brightness))
     try:
         return int(
-            serve(ServerConfig(bind=bind, sim=sim_cfg, mode=mode, cmd_vel_timeout=cmd_vel_timeout)) or 0
+            serve(ServerConfig(bind=bind, sim=sim_cfg, mode=mode, cmd_vel_timeout=cmd_vel_timeout, scan=scan))
+            or 0
         )
     except BindError as err:  # the port is taken, or the interface does not exist
         print(f"vtr sim serve: {err}; choose another --bind", file=sys.stderr)
@@ -184,6 +186,13 @@ def add_serve_arguments(parser: argparse.ArgumentParser) -> None:
         default=0.5,
         help="realtime: stop the robot when no step arrived for this many seconds; 0 disables (default: 0.5)",
     )
+    parser.add_argument(
+        "--no-scan",
+        dest="scan",
+        action="store_false",
+        help="serve a camera-only robot: no range scanner in hello, no scan in the replies (default: a 181-beam "
+        "270 deg scanner, 5 m, sim2d/rangefinder.py)",
+    )
 
 
 def add_route_arguments(parser: argparse.ArgumentParser) -> None:
@@ -203,6 +212,7 @@ def run_serve_cli(args: argparse.Namespace) -> int:
         args.mode,
         args.cmd_vel_timeout,
         tuple(args.change),
+        args.scan,
     )
 
 

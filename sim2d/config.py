@@ -5,9 +5,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from vtr.runtime.contracts import CAMERA, V_MAX, W_MAX, Pose
+from vtr.runtime.contracts import CAMERA, ROBOT_RADIUS, V_MAX, W_MAX, Pose
+from vtr.runtime.scan import MAX_BEAMS, MAX_SCAN_RANGE
 
-__all__ = ["V_MAX", "W_MAX", "CameraConfig", "Pose", "SimConfig"]
+__all__ = ["V_MAX", "W_MAX", "CameraConfig", "Pose", "RangefinderConfig", "SimConfig"]
 
 
 def _finite_positive(name: str, value: float) -> None:
@@ -69,6 +70,40 @@ class CameraConfig:
 
 
 @dataclass(frozen=True)
+class RangefinderConfig:
+    """A planar range scanner (a 2D lidar) on the robot's centreline, below every furniture top: it sees
+    walls, furniture and obstacles (sim2d.rangefinder)."""
+
+    beams: int = 181
+    """Number of beams, spread evenly over the field of view (1.5 deg apart by default)."""
+    fov_deg: float = 270.0
+    """Field of view in degrees, centred straight ahead; 360 gives a full turn without a repeated beam."""
+    range_max: float = 5.0
+    """Farther than this (m) counts as nothing seen."""
+    x_m: float = 0.1
+    """Mounting: metres forward of the robot's centre (inside its footprint)."""
+
+    def __post_init__(self) -> None:
+        if (
+            not isinstance(self.beams, int)
+            or isinstance(self.beams, bool)
+            or not 1 <= self.beams <= MAX_BEAMS
+        ):
+            raise ValueError(
+                f"RangefinderConfig.beams must be an integer in 1..{MAX_BEAMS}, got {self.beams!r}"
+            )
+        if not (isinstance(self.fov_deg, (int, float)) and 0.0 < self.fov_deg <= 360.0):
+            raise ValueError(f"RangefinderConfig.fov_deg must be in (0, 360], got {self.fov_deg!r}")
+        _finite_positive("RangefinderConfig.range_max", self.range_max)
+        if self.range_max > MAX_SCAN_RANGE:
+            raise ValueError(
+                f"RangefinderConfig.range_max must be <= {MAX_SCAN_RANGE:g} m, got {self.range_max!r}"
+            )
+        if not (isinstance(self.x_m, (int, float)) and math.isfinite(self.x_m)):
+            raise ValueError(f"RangefinderConfig.x_m must be a finite number, got {self.x_m!r}")
+
+
+@dataclass(frozen=True)
 class SimConfig:
     """The simulator: house, robot, physics and actuation noise."""
 
@@ -80,8 +115,10 @@ class SimConfig:
     "light:level=0.6"): the same house looking different between teach and repeat."""
     camera: CameraConfig = field(default_factory=CameraConfig)
     """Camera parameters."""
-    robot_radius: float = 0.17
+    robot_radius: float = ROBOT_RADIUS
     """Radius of the circular differential-drive robot (m)."""
+    rangefinder: RangefinderConfig = field(default_factory=RangefinderConfig)
+    """The range scanner ``Simulator.scan`` reads (built on first use: a camera-only run pays nothing)."""
     physics_dt: float = 0.02
     """Physics substep (s); a step of `duration` runs ceil(duration / physics_dt) equal substeps. At 0.5 m/s
     a substep moves 1 cm, far less than the robot radius and the wall thickness, so nothing tunnels."""
@@ -114,6 +151,13 @@ class SimConfig:
             _finite_positive(f"SimConfig.{name}", getattr(self, name))
         if not 0.05 <= self.robot_radius <= 0.5:
             raise ValueError(f"SimConfig.robot_radius must be in [0.05, 0.5] m, got {self.robot_radius!r}")
+        if not isinstance(self.rangefinder, RangefinderConfig):
+            raise ValueError(f"SimConfig.rangefinder must be a RangefinderConfig, got {self.rangefinder!r}")
+        if abs(self.rangefinder.x_m) >= self.robot_radius:
+            raise ValueError(
+                f"RangefinderConfig.x_m ({self.rangefinder.x_m} m) must lie inside the robot "
+                f"(|x_m| < robot_radius = {self.robot_radius} m)"
+            )
         if self.physics_dt > 0.05:
             raise ValueError(f"SimConfig.physics_dt must be <= 0.05 s (collisions), got {self.physics_dt!r}")
         if not (

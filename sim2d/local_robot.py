@@ -16,10 +16,13 @@ class LocalRobot:
 
     The simulator is lockstep, so ``stop`` only records the zero command: no simulated time passes
     between steps. ``commands`` keeps every (v, w, duration) applied, zero commands included.
+    ``scan`` True puts the simulator's range scan on every observation (``Simulator.scan``, as
+    ``vtr sim serve`` sends it); False (the default) is a camera-only robot.
     """
 
-    def __init__(self, simulator: Simulator) -> None:
+    def __init__(self, simulator: Simulator, scan: bool = False) -> None:
         self.sim = simulator
+        self.scan = bool(scan)
         self.commands: list[tuple[float, float, float]] = []
         #: The last observation handed out (evaluation scores with its true pose).
         self.last: Observation | None = None
@@ -30,6 +33,7 @@ class LocalRobot:
             stamp=float(self.sim.time),
             pose=_pose_tuple(self.sim.pose),
             collided=bool(self.sim.collided),
+            scan=self.sim.scan() if self.scan else None,  # type: ignore[attr-defined]
         )
         return self.last
 

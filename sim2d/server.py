@@ -14,7 +14,8 @@ Every request gets exactly one reply; a bad request, a request for another sessi
 robot before a restart) or any exception while handling one gets an error reply naming the problem, and
 the server keeps serving. The loop polls with a timeout and checks a stop flag, so SIGINT/SIGTERM shut it
 down cleanly. ``hello`` announces the camera, limits and clock (docs/PROTOCOL.md); it names the map, never
-its path on this machine.
+its path on this machine. With ``ServerConfig.scan`` (the default) it also announces the simulator's range
+scanner (sim2d.rangefinder), and every image reply carries a scan taken with the image.
 
 Only this module (and ``local_robot.py``) couples sim2d to the runtime; the simulator core never
 imports ZeroMQ.
@@ -97,6 +98,10 @@ class SimServer:
         #: Command of the last well-formed request (for logs and tests).
         self.last_cmd: str | None = None
         self.endpoint: str | None = None
+        #: The range scanner announced in hello and read for every image (None: camera only, or a simulator
+        #: without one).
+        rangefinder = getattr(simulator, "rangefinder", None) if self.cfg.scan else None
+        self.scan_spec = None if rangefinder is None else rangefinder.spec
         self._stop = threading.Event()
         self._ready = threading.Event()
 
@@ -203,8 +208,9 @@ class SimServer:
 
     def _image_reply(self, req: protocol.Request, image: Any) -> list[bytes]:
         collided, self._contact = bool(self.sim.collided) or self._contact, False
+        scan = self.sim.scan() if self.scan_spec is not None else None
         return protocol.encode_image_reply(
-            req.cmd, req.seq, self.session, float(self.sim.time), image, self.sim.pose, collided
+            req.cmd, req.seq, self.session, float(self.sim.time), image, self.sim.pose, collided, scan
         )
 
     def _dispatch(self, req: protocol.Request) -> list[bytes]:
@@ -249,6 +255,8 @@ class SimServer:
             "time": float(self.sim.time),
             "info": info,
         }
+        if self.scan_spec is not None:
+            fields["scan"] = self.scan_spec.to_dict()
         return fields
 
     # ------------------------------------------------------------------ socket loop

@@ -37,6 +37,8 @@ class ServerConfig:
     realtime_factor: float = 1.0
     #: "realtime" only: seconds without a new step after which the robot is brought to zero (0: never).
     cmd_vel_timeout: float = 0.5
+    #: Announce the simulator's range scanner and send a scan with every image (False: a camera-only robot).
+    scan: bool = True
 
     def __post_init__(self) -> None:
         check_endpoint(self.bind, bind=True)

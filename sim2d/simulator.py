@@ -1,4 +1,4 @@
-"""The simulator: a house, a differential-drive robot and its camera (numpy + pymunk only).
+"""The simulator: a house, a differential-drive robot, its camera and range scanner (numpy + pymunk only).
 
 A functional core, `sim_step(state, v, w, duration, rng, cfg) -> state`, advances physics (the pymunk
 world inside the state is updated in place: pymunk spaces cannot be copied cheaply); `Simulator` keeps
@@ -13,10 +13,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vtr.runtime.scan import Scan
 from vtr.sim2d.camera import Camera
 from vtr.sim2d.config import Pose, SimConfig
 from vtr.sim2d.house import House, load_house
 from vtr.sim2d.physics import World, advance, build_world, pose_of
+from vtr.sim2d.rangefinder import Rangefinder
 
 
 @dataclass
@@ -88,6 +90,7 @@ class Simulator:
         self.cfg = cfg if cfg is not None else SimConfig()
         self.house: House = load_house(self.cfg.house, self.cfg.changes)
         self.camera = Camera(self.house, self.cfg.camera)
+        self._rangefinder: Rangefinder | None = None
         self._rng = np.random.default_rng(0)
         self._state: SimState | None = None
         self.reset()
@@ -133,6 +136,18 @@ class Simulator:
         """The camera image at the current pose (no time advance)."""
         p = self.pose
         return self.camera.render(p.x, p.y, p.yaw)
+
+    @property
+    def rangefinder(self) -> Rangefinder:
+        """The range scanner of ``cfg.rangefinder``, built on first use."""
+        if self._rangefinder is None:
+            self._rangefinder = Rangefinder(self.house, self.cfg.rangefinder)
+        return self._rangefinder
+
+    def scan(self) -> Scan:
+        """The range scan at the current pose (no time advance); see sim2d.rangefinder."""
+        p = self.pose
+        return self.rangefinder.scan(p.x, p.y, p.yaw)
 
     # ------------------------------------------------------------------------------------------ state
     def _require(self) -> SimState:

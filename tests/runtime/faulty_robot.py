@@ -31,6 +31,9 @@ FAULTS = (
     "slow",  # every observe takes 40 ms
     "ignores_session",  # executes a step meant for another session
     "no_watchdog",  # realtime, announces cmd_vel_timeout 0.5 s but keeps driving
+    "scan_short",  # announces a scanner, sends one beam fewer
+    "scan_missing",  # announces a scanner, sends no scan
+    "scan_unannounced",  # sends scans without announcing a scanner
 )
 
 
@@ -116,6 +119,12 @@ class FaultyRobot:
         if cmd == "hello" and fault == "no_camera":
             header.pop("camera")
             header.pop("info")
+        if cmd == "hello" and fault == "scan_unannounced":
+            header.pop("scan")
+        if rest and "scan" in header and fault == "scan_short":
+            header["scan"]["ranges"] = header["scan"]["ranges"][:-1]
+        if rest and "scan" in header and fault == "scan_missing":
+            header.pop("scan")
         if cmd == "stop" and fault == "bare_stop":
             return _frames({"ok": True}, [])
         if rest and fault == "wrong_size":

@@ -31,6 +31,19 @@ def test_our_simulator_passes_every_check(simulator: Simulator, mode: str) -> No
     assert all(name == "latency" and status == WARN for name, status, _ in bad), bad
 
 
+def test_a_camera_only_robot_passes_the_scan_check_saying_so(simulator: Simulator) -> None:
+    with ServerThread(simulator, ServerConfig(bind="tcp://127.0.0.1:*", scan=False)) as server:
+        found = {r.name: r for r in run_checks(server.endpoint, timeout_s=2.0)}
+    assert (found["scan"].status, found["scan"].detail) == (PASS, "no range sensor: camera-only safety")
+
+
+def test_our_simulators_scan_is_reported(simulator: Simulator) -> None:
+    with ServerThread(simulator) as server:
+        found = {r.name: r for r in run_checks(server.endpoint, timeout_s=2.0)}
+    assert found["scan"].status == PASS
+    assert found["scan"].detail.startswith("181 beams over 270 deg, range_max 5 m, mounted 0.1 m ahead")
+
+
 def test_the_cli_prints_one_line_per_check_and_exits_zero(
     simulator: Simulator, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -58,6 +71,9 @@ def test_the_cli_prints_one_line_per_check_and_exits_zero(
         ("slow", "latency", WARN, "control step"),
         ("ignores_session", "session.guard", FAIL, "session_mismatch"),
         ("no_watchdog", "watchdog", FAIL, "still turning"),
+        ("scan_short", "scan", FAIL, "has 180 values, but hello announced 181 beams"),
+        ("scan_missing", "scan", FAIL, "the 'observe' reply carries no 'scan'"),
+        ("scan_unannounced", "scan", WARN, "hello announces no scanner"),
     ],
 )
 def test_each_fault_fails_its_check(

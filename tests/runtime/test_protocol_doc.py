@@ -10,6 +10,7 @@ import pytest
 
 from vtr.runtime import protocol
 from vtr.runtime.hello import parse_hello
+from vtr.runtime.scan import MAX_BEAMS, ScanSpec, spec_from_dict
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "PROTOCOL.md"
 BLOCK = re.compile(r"^```(json|json-refused)\n(.*?)^```", re.S | re.M)
@@ -34,6 +35,14 @@ def test_the_document_has_examples_of_every_command_and_reply_kind():
     assert {"hello", "reset", "step", "stop"} <= requests
     assert {("hello", True), ("step", True), ("stop", True), ("step", False), (None, False)} <= replies
     assert len(examples("json-refused")) >= 3
+    assert any("scan" in h for h in headers if h.get("cmd") == "hello" and "ok" in h)
+    assert any("scan" in h for h in headers if h.get("cmd") in protocol.IMAGE_COMMANDS and "ok" in h)
+
+
+def announced_scan() -> ScanSpec:
+    """The scanner of the document's hello example that announces one (its image example matches it)."""
+    hellos = [json.loads(t) for t in examples("json")]
+    return spec_from_dict(next(h["scan"] for h in hellos if h.get("cmd") == "hello" and "scan" in h))
 
 
 @pytest.mark.parametrize("text", examples("json"))
@@ -44,7 +53,11 @@ def test_every_example_decodes_through_the_codec(text):
         req = protocol.decode_request(frames)
         assert req.cmd == header["cmd"] and req.seq == header["seq"]
         return
-    reply = protocol.decode_reply(frames, expect_cmd=header["cmd"], expect_seq=header["seq"])
+    scan = header.get("scan")
+    expect_scan = announced_scan() if scan is not None and header.get("cmd") != "hello" else None
+    reply = protocol.decode_reply(
+        frames, expect_cmd=header["cmd"], expect_seq=header["seq"], expect_scan=expect_scan
+    )
     assert reply.ok is header["ok"] and reply.session == header["session"]
     if reply.cmd == "hello":
         hello = parse_hello(reply)
@@ -52,6 +65,9 @@ def test_every_example_decodes_through_the_codec(text):
             hello.camera.width == header["camera"]["width"]
             and hello.limits.v_max == header["limits"]["v_max"]
         )
+        assert (hello.scan is None) == (scan is None)
+    elif expect_scan is not None:
+        assert reply.scan is not None and reply.scan.beams == len(scan["ranges"]) == expect_scan.beams
 
 
 @pytest.mark.parametrize("text", examples("json-refused"))
@@ -67,3 +83,4 @@ def test_the_documented_limits_are_the_codec_constants():
     assert f"at most {protocol.MAX_DEPTH} levels" in doc
     assert f"1..{protocol.MAX_IMAGE_SIDE}" in doc
     assert f"1 to {protocol.MAX_SESSION_CHARS} characters" in doc
+    assert f"1..{MAX_BEAMS}" in doc and f"cap of {MAX_BEAMS} beams" in doc

@@ -1,0 +1,156 @@
+"""Stop for what is in the way: the range-scan half of the repeat's safety layer.
+
+The idea of Nav2's collision_monitor, on our robot: zones fixed to the robot, filled by the points of the
+latest range scan, each with an action. Given the commanded twist (v, w) and a :class:`Scan`,
+:func:`limit_twist` projects the scan's points into the robot frame (the scanner sits ``x_m`` ahead of the
+centre) and looks at the corridor the robot sweeps in its driving direction (ahead for v >= 0, behind for
+v < 0): as wide as the robot plus ``margin`` on each side, from the robot's edge onwards. Of the points in
+it, the nearest along the driving direction decides:
+
+- within ``stop_distance`` of the robot's edge: STOP, v := 0;
+- within ``slowdown_distance``: SLOW, v := v * ``slowdown_factor``;
+- else CLEAR, v unchanged.
+
+w is kept (a round robot turning in place sweeps nothing new), unless a point lies within the robot's own
+footprint grown by ``margin``: then v := 0 and w := 0 (something touches the robot or sits on the sensor).
+Nothing is remembered between calls: one scan, one decision; a point beside the corridor never stops the
+robot. The footprint is a disc of ``radius`` (our simulated robot; for another shape give the radius of
+the circle that encloses it), grown by ``margin``; distances are measured from that grown disc, so a
+stop at ``stop_distance`` leaves at least ``stop_distance + margin`` to the robot itself.
+
+``min_points`` (Nav2's ``min_points``) makes a zone count as occupied only when that many points lie in
+it, so that one spurious return does not stop a robot; 1 (the default) trusts every point.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from vtr.runtime.contracts import ROBOT_RADIUS
+from vtr.runtime.scan import Scan
+
+#: Zones, from the most to the least restrictive; NO_SCAN: no reading, the command passes unchanged.
+STOP, SLOW, CLEAR, NO_SCAN = "stop", "slow", "clear", "no_scan"
+
+
+@dataclass(frozen=True)
+class SafetyConfig:
+    """The robot's size and the zones ahead of it (metres unless said)."""
+
+    radius: float = ROBOT_RADIUS  # footprint: a disc (another shape: the radius of the circle enclosing it)
+    margin: float = 0.02  # added to the footprint on every side
+    stop_distance: float = 0.25  # from the (grown) footprint along the driving direction
+    slowdown_distance: float = 0.6
+    slowdown_factor: float = 0.5  # v scale in the slowdown zone
+    min_points: int = 1  # points a zone needs to count as occupied
+
+    def __post_init__(self) -> None:
+        for name in ("radius", "margin", "stop_distance", "slowdown_distance", "slowdown_factor"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+                raise ValueError(f"SafetyConfig.{name} must be a finite number, got {value!r}")
+        if not 0 < self.radius <= 5:
+            raise ValueError(f"SafetyConfig.radius must be in (0, 5] m, got {self.radius}")
+        if not 0 <= self.margin <= 1:
+            raise ValueError(f"SafetyConfig.margin must be in [0, 1] m, got {self.margin}")
+        if not 0 <= self.stop_distance <= self.slowdown_distance <= 10:
+            raise ValueError(
+                "SafetyConfig needs 0 <= stop_distance <= slowdown_distance <= 10 m, got "
+                f"{self.stop_distance} and {self.slowdown_distance}"
+            )
+        if not 0 <= self.slowdown_factor <= 1:
+            raise ValueError(f"SafetyConfig.slowdown_factor must be in [0, 1], got {self.slowdown_factor}")
+        if isinstance(self.min_points, bool) or not isinstance(self.min_points, int) or self.min_points < 1:
+            raise ValueError(f"SafetyConfig.min_points must be an integer >= 1, got {self.min_points!r}")
+
+
+@dataclass(frozen=True)
+class SafetyDecision:
+    """What :func:`limit_twist` let through, and the evidence for it.
+
+    ``distance``: how far the robot can still drive in its driving direction before its grown footprint
+    touches the nearest point of the corridor (m, 0 when one is already inside it); ``bearing``: that
+    point's direction from the robot's centre (rad, REP-103). Both None when the corridor is empty or
+    there is no scan. ``footprint``: a point lies within the grown footprint, so the turn was refused too.
+    ``reversing``: the driving direction was backwards (v < 0), so ``distance`` is behind the robot.
+    """
+
+    v: float
+    w: float
+    zone: str
+    commanded: tuple[float, float]  # (v, w) asked for
+    distance: float | None = None
+    bearing: float | None = None
+    footprint: bool = False
+    reversing: bool = False
+
+    @property
+    def blocked(self) -> bool:
+        """The motion asked for was refused: a stop while driving, or anything in the footprint (a turn in
+        place with the way ahead occupied is not blocked: it is allowed)."""
+        return self.footprint or (self.zone == STOP and self.commanded[0] != 0.0)
+
+    @property
+    def limited(self) -> bool:
+        return self.v != self.commanded[0] or self.w != self.commanded[1]
+
+    def describe(self) -> str:
+        """One line for logs and the run's evidence, e.g. ``blocked: obstacle 0.22 m ahead``."""
+        where = "behind" if self.reversing else "ahead"
+        seen = "" if self.distance is None else f"obstacle {self.distance:.2f} m {where}"
+        if self.zone == NO_SCAN:
+            return "no range scan: camera-only safety"
+        if self.footprint:
+            return f"blocked: something within the robot's footprint{', ' + seen if seen else ''}"
+        if self.zone == STOP:
+            return f"blocked: {seen}" if self.blocked else f"way {where} blocked: {seen}"
+        if self.zone == SLOW:
+            return f"slowing down: {seen}"
+        return f"clear: {seen}" if seen else f"clear {where}"
+
+
+def scan_points(scan: Scan) -> np.ndarray:
+    """(2, n) robot-frame points (row 0 x forward, row 1 y left, metres from the robot's centre) of the
+    beams that saw something."""
+    seen = scan.ranges < np.inf
+    pts = scan.directions()[:, seen] * scan.ranges[seen]
+    pts[0] += scan.x_m
+    return pts
+
+
+def limit_twist(v: float, w: float, scan: Scan | None, cfg: SafetyConfig = SafetyConfig()) -> SafetyDecision:
+    """The twist the robot may drive now, given the latest scan (None: unchanged, zone NO_SCAN)."""
+    reversing = v < 0
+    if scan is None:
+        return SafetyDecision(v, w, NO_SCAN, (v, w), reversing=reversing)
+    x, y = scan_points(scan)
+    if reversing:
+        x = -x  # along the driving direction
+    grown2 = (cfg.radius + cfg.margin) ** 2
+    k = cfg.min_points
+    y2 = y * y
+    footprint = int(np.count_nonzero(x * x + y2 < grown2)) >= k
+    # The corridor: points the grown disc meets when it moves along x (those with x <= 0 it moves away
+    # from); the gap is how far it moves before it touches one.
+    ahead = y2 <= grown2
+    ahead &= x > 0
+    distance = bearing = None
+    zone, v_out = CLEAR, v
+    if ahead.any():
+        xa, ya = x[ahead], y[ahead]
+        gaps = xa - np.sqrt(grown2 - y2[ahead])
+        np.maximum(gaps, 0.0, out=gaps)
+        nearest = int(np.argmin(gaps))
+        distance = float(gaps[nearest])
+        bearing = math.atan2(float(ya[nearest]), -float(xa[nearest]) if reversing else float(xa[nearest]))
+        deciding = float(np.partition(gaps, k - 1)[k - 1]) if gaps.size >= k else math.inf
+        if deciding <= cfg.stop_distance:
+            zone, v_out = STOP, 0.0
+        elif deciding <= cfg.slowdown_distance:
+            zone, v_out = SLOW, v * cfg.slowdown_factor
+    if footprint:
+        return SafetyDecision(0.0, 0.0, STOP, (v, w), distance, bearing, True, reversing)
+    return SafetyDecision(v_out, w, zone, (v, w), distance, bearing, False, reversing)

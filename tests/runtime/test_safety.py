@@ -1,0 +1,141 @@
+"""The range-scan safety layer: stop and slowdown zones in the driving direction, nothing else."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from vtr.runtime.safety import CLEAR, NO_SCAN, SLOW, STOP, SafetyConfig, limit_twist, scan_points
+from vtr.runtime.scan import Scan
+
+CFG = SafetyConfig()  # radius 0.17 + margin 0.02: the grown footprint has radius 0.19
+GROWN = CFG.radius + CFG.margin
+
+
+def scan_of(points: list[tuple[float, float]], x_m: float = 0.0, beams: int = 720) -> Scan:
+    """A 360 deg scan (0.5 deg beams) that sees exactly ``points`` (robot frame), nothing else."""
+    inc = 2 * math.pi / beams
+    ranges = np.full(beams, np.inf, dtype=np.float32)
+    for x, y in points:
+        dx = x - x_m
+        i = round((math.atan2(y, dx) + math.pi) / inc) % beams
+        ranges[i] = math.hypot(dx, y)
+    return Scan(-math.pi, inc, 10.0, ranges, x_m)
+
+
+def ahead(gap: float, y: float = 0.0) -> tuple[float, float]:
+    """The point a gap of ``gap`` m in front of the grown footprint, at lateral offset y."""
+    return (gap + math.sqrt(GROWN**2 - y**2), y)
+
+
+def test_no_scan_passes_the_command_unchanged():
+    d = limit_twist(0.3, 0.2, None)
+    assert (d.v, d.w, d.zone, d.distance) == (0.3, 0.2, NO_SCAN, None)
+    assert not d.blocked and "camera-only" in d.describe()
+
+
+def test_nothing_seen_is_clear():
+    d = limit_twist(0.3, 0.2, scan_of([]))
+    assert (d.v, d.w, d.zone, d.distance, d.bearing) == (0.3, 0.2, CLEAR, None, None)
+    assert not d.limited
+
+
+@pytest.mark.parametrize(
+    ("gap", "zone", "v"),
+    [(0.01, STOP, 0.0), (0.2, STOP, 0.0), (0.4, SLOW, 0.15), (1.0, CLEAR, 0.3)],
+)
+def test_a_point_ahead_stops_slows_or_not_by_its_distance(gap, zone, v):
+    d = limit_twist(0.3, 0.1, scan_of([ahead(gap)]))
+    assert d.zone == zone and d.v == pytest.approx(v)
+    assert d.w == 0.1  # the turn is kept
+    assert d.distance == pytest.approx(gap, abs=0.01) and d.bearing == pytest.approx(0.0, abs=0.01)
+
+
+def test_the_evidence_names_the_distance():
+    d = limit_twist(0.3, 0.0, scan_of([ahead(0.22)]))
+    assert d.blocked and d.describe() == "blocked: obstacle 0.22 m ahead"
+    assert limit_twist(0.3, 0.0, scan_of([ahead(0.5)])).describe() == "slowing down: obstacle 0.50 m ahead"
+
+
+def test_the_corridor_is_the_robots_width_plus_margin():
+    inside, outside = GROWN - 0.005, GROWN + 0.005
+    assert limit_twist(0.3, 0.0, scan_of([(0.2, inside)])).zone == STOP
+    assert limit_twist(0.3, 0.0, scan_of([(0.2, -inside)])).zone == STOP
+    beside = limit_twist(0.3, 0.0, scan_of([(0.2, outside), (0.3, -outside)]))
+    assert (beside.zone, beside.v, beside.distance) == (CLEAR, 0.3, None)
+
+
+def test_a_wall_alongside_the_path_does_not_stop_the_robot():
+    wall = [(x, 0.25) for x in np.arange(-1.0, 2.0, 0.02)]  # 6 cm beside the robot, all along
+    d = limit_twist(0.5, 0.0, scan_of(wall))
+    assert (d.zone, d.v, d.w) == (CLEAR, 0.5, 0.0)
+
+
+def test_behind_counts_only_when_reversing():
+    behind = [(-0.3, 0.0)]
+    assert limit_twist(0.3, 0.0, scan_of(behind)).zone == CLEAR
+    d = limit_twist(-0.2, 0.0, scan_of(behind))
+    assert d.zone == STOP and d.v == 0.0 and d.reversing
+    assert d.distance == pytest.approx(0.3 - GROWN, abs=0.01) and abs(d.bearing) == pytest.approx(
+        math.pi, abs=0.01
+    )
+    assert d.describe() == f"blocked: obstacle {0.3 - GROWN:.2f} m behind"
+    assert limit_twist(-0.2, 0.0, scan_of([ahead(0.1)])).zone == CLEAR  # reversing away from it
+
+
+def test_a_turn_in_place_is_allowed_with_the_way_ahead_occupied():
+    d = limit_twist(0.0, 0.8, scan_of([ahead(0.05)]))
+    assert (d.v, d.w, d.zone) == (0.0, 0.8, STOP)
+    assert not d.blocked and not d.limited and d.describe().startswith("way ahead blocked")
+
+
+def test_a_point_within_the_footprint_refuses_the_turn_too():
+    d = limit_twist(0.0, 0.8, scan_of([(-0.05, 0.15)]))  # inside the grown disc, behind the centre
+    assert (d.v, d.w, d.zone, d.footprint) == (0.0, 0.0, STOP, True)
+    assert d.blocked and "footprint" in d.describe()
+
+
+def test_the_mounting_offset_moves_the_points():
+    # the same 0.40 m reading: from the centre it is 0.21 m beyond the grown footprint, from 0.15 m ahead 0.36 m
+    for x_m, zone in ((0.0, STOP), (0.15, SLOW)):
+        ranges = np.full(3, np.inf, dtype=np.float32)
+        ranges[1] = 0.40
+        d = limit_twist(0.3, 0.0, Scan(-0.1, 0.1, 5.0, ranges, x_m))
+        assert d.zone == zone
+    assert scan_points(Scan(-0.1, 0.1, 5.0, ranges, 0.15)) == pytest.approx(np.array([[0.55], [0.0]]))
+
+
+def test_min_points_ignores_a_lone_return():
+    cfg = SafetyConfig(min_points=3)
+    lone = limit_twist(0.3, 0.0, scan_of([ahead(0.1)]), cfg)
+    assert lone.zone == CLEAR and lone.v == 0.3 and lone.distance == pytest.approx(0.1, abs=0.01)
+    three = [ahead(0.1, y) for y in (-0.05, 0.0, 0.05)]
+    assert limit_twist(0.3, 0.0, scan_of(three), cfg).zone == STOP
+    # two near points and a far one: the third nearest decides
+    assert limit_twist(0.3, 0.0, scan_of([three[0], three[2], ahead(0.5)]), cfg).zone == SLOW
+
+
+def test_the_slowdown_scales_and_zero_distances_are_allowed():
+    cfg = SafetyConfig(stop_distance=0.0, slowdown_distance=0.0, slowdown_factor=0.25)
+    assert limit_twist(0.3, 0.0, scan_of([ahead(0.05)]), cfg).zone == CLEAR
+    slow = SafetyConfig(slowdown_factor=0.25)
+    assert limit_twist(0.4, 0.0, scan_of([ahead(0.5)]), slow).v == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        {"radius": 0.0},
+        {"margin": -0.01},
+        {"stop_distance": 0.7},  # beyond the slowdown distance
+        {"slowdown_factor": 1.5},
+        {"min_points": 0},
+        {"radius": float("nan")},
+        {"min_points": True},
+    ],
+)
+def test_a_bad_config_is_refused(kwargs):
+    with pytest.raises(ValueError, match="SafetyConfig"):
+        SafetyConfig(**kwargs)
