@@ -15,6 +15,7 @@ class Action(str, enum.Enum):
     STALLED = "stalled"  # stall guard found nothing close: stop
     LOST = "lost"  # no subgoal near the current one matches the view: stop
     COLLIDED = "collided"  # the robot reported a contact: stop
+    BLOCKED = "blocked"  # something is in the way: hold still and wait for it to clear (not terminal)
 
 
 TERMINAL = (Action.FINISHED, Action.STALLED, Action.LOST, Action.COLLIDED)

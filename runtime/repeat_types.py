@@ -13,15 +13,32 @@ import numpy as np
 
 from vtr.runtime.cliargs import opt
 from vtr.runtime.controller import Action, ControllerConfig, Decision
+from vtr.runtime.safety import SafetyConfig
 
 
 class RepeatStatus(str, enum.Enum):
-    """How a repeat ended (see the module docstring for which are produced today)."""
+    """How a repeat ended.
+
+    Produced: ``finished``, ``stalled`` (the rules controller's stall guard), ``lost`` (no subgoal near the current one matches the view), ``collided`` (an observation
+    reported a contact; the controller decides on ``Observation.collided``), ``blocked`` (something stayed
+    in the way for ``RepeatConfig.wait_s``), ``step_limit``, ``interrupted``,
+    ``link_lost`` (no valid frame for ``frame_timeout_s``, or the link's ``LinkLost``: no reply even to the stop
+    sent after a missed one), ``robot_error`` (a ``RobotError``) and ``robot_restarted``. ``robot_restarted``
+    (the link saw a new server session: the robot rebooted and is somewhere else) ends the run, or with the
+    controller's ``localise`` the robot is stopped and the route searched again on its next frame (at most
+    ``MAX_RELOCALISATIONS`` times; the record's detail says so).
+
+    - a terminal controller action whose value names a status (``Action.STALLED`` -> ``stalled``,
+      ``Action.LOST`` -> ``lost``, ``Action.COLLIDED`` -> ``collided``) ends the run with that status;
+    - a ``RobotError`` whose class attribute ``status`` names one (default ``robot_error``) ends it with
+      that status, so a link can raise ``link_lost`` or ``robot_restarted``.
+    """
 
     FINISHED = "finished"  # past the last subgoal
     STALLED = "stalled"  # the stall guard found no subgoal close enough
     LOST = "lost"  # no subgoal near the current one matches the view (the controller)
     COLLIDED = "collided"  # an observation reported a contact (the controller)
+    BLOCKED = "blocked"  # something stayed in the way for wait_s (the range scan, or the camera)
     ROBOT_RESTARTED = "robot_restarted"  # the robot's session changed under us (it rebooted)
     LINK_LOST = "link_lost"  # no valid frame within frame_timeout_s
     INTERRUPTED = "interrupted"  # stop_event or KeyboardInterrupt
@@ -45,6 +62,12 @@ class RepeatConfig:
     frame_timeout_s: float = opt(5.0, "seconds without a valid frame before stopping", flag="--frame-timeout")
     #: Pause between re-polls after a bad frame, in seconds.
     bad_frame_backoff_s: float = 0.05
+    #: Stop and slowdown zones ahead of the robot, applied when the robot sends a range scan.
+    safety: SafetyConfig = field(default_factory=SafetyConfig)
+    #: Seconds to wait for the way to clear when something is in it, before the run ends as ``blocked``.
+    wait_s: float = opt(
+        10.0, "seconds to wait for an obstacle to clear before ending as blocked", flag="--wait"
+    )
 
     def __post_init__(self) -> None:
         if self.dt is not None and not (math.isfinite(self.dt) and self.dt > 0):
@@ -53,6 +76,8 @@ class RepeatConfig:
             raise ValueError(f"--max-steps must be >= 1, got {self.max_steps}")
         if not self.frame_timeout_s > 0:
             raise ValueError(f"--frame-timeout must be > 0 seconds, got {self.frame_timeout_s}")
+        if not (math.isfinite(self.wait_s) and self.wait_s >= 0):
+            raise ValueError(f"--wait must be >= 0 seconds, got {self.wait_s}")
         if self.bad_frame_backoff_s < 0:
             raise ValueError(f"bad_frame_backoff_s must be >= 0, got {self.bad_frame_backoff_s}")
 
@@ -133,6 +158,7 @@ class Summary:
     localised_to: int | None
     plateaus: int = 0  # subgoals the stall guard accepted next to, at error <= jump_factor * e_m
     robot_restarts: int = 0  # restarts survived by re-localising (localise only)
+    waited_steps: int = 0  # zero steps held while something was in the way
     mean_latency_ms: Mapping[str, float] = field(default_factory=dict)
 
     @property

@@ -2,11 +2,12 @@
 time. The daemon (`vtr repeat`), the demo, the evaluation and the latency benchmark all run this class;
 they differ only in the robot they hand it and in what they do with each :class:`StepRecord`.
 
-One :meth:`Repeater.step`: validate the frame, let the controller judge it (it applies its own subgoal
-switches and reports them as events), run the policy, take off its command on the subgoal itself (the zero
-bias, computed once per subgoal when the route is loaded), clip to the model's and the robot's limits, apply
-that (v, w) for dt, command zero unless continuous. The decisions are the controller's
-(``runtime.controller``), the velocities the policy's.
+One :meth:`Repeater.step`: validate the frame, let the controller judge it (``runtime.follower`` by
+default: where the robot is and which subgoal to steer to; its subgoal changes come back as events), run the
+policy, take off its command on the subgoal itself (the zero bias, computed once per subgoal when the route is
+loaded), blend in the taught command (the controller's feed-forward), clip to the model's and the robot's
+limits, let the range scan's zones stop or slow it (``runtime.safety``), apply that (v, w) for dt, command
+zero unless continuous.
 
 Safety rules, in order of precedence:
 
@@ -19,19 +20,9 @@ Safety rules, in order of precedence:
   re-polled with ``observe`` until a valid frame arrives, or ``frame_timeout_s`` passes without one;
 - the step limit ends a run whose robot is lost.
 
-How a run ends is a :class:`RepeatStatus`. Produced today: ``finished``, ``stalled`` (the controller's
-stall guard), ``lost`` (no subgoal near the current one matches the view), ``collided`` (an observation
-reported a contact; the controller decides on ``Observation.collided``), ``step_limit``, ``interrupted``,
-``link_lost`` (no valid frame for ``frame_timeout_s``, or the link's ``LinkLost``: no reply even to the stop
-sent after a missed one), ``robot_error`` (a ``RobotError``) and ``robot_restarted``. ``robot_restarted``
-(the link saw a new server session: the robot rebooted and is somewhere else) ends the run, or with the
-controller's ``localise`` the robot is stopped and the route searched again on its next frame (at most
-``MAX_RELOCALISATIONS`` times; the record's detail says so).
-
-- a terminal controller action whose value names a status (``Action.STALLED`` -> ``stalled``,
-  ``Action.LOST`` -> ``lost``, ``Action.COLLIDED`` -> ``collided``) ends the run with that status;
-- a ``RobotError`` whose class attribute ``status`` names one (default ``robot_error``) ends it with
-  that status, so a link can raise ``link_lost`` or ``robot_restarted``.
+How a run ends is a :class:`RepeatStatus` (its docstring lists when each is produced). Something in the way
+(the range scan's stop zone, or the controller's BLOCKED from the camera) holds the robot with zero steps until
+it clears, or ends the run as ``blocked`` after ``RepeatConfig.wait_s``.
 """
 
 from __future__ import annotations
@@ -48,8 +39,9 @@ from vtr.runtime.controller import Action, Verdict
 from vtr.runtime.follower import RouteController, controller_for_route
 from vtr.runtime.protocol import BadFrameError
 from vtr.runtime.repeat_types import RepeatConfig, RepeatStatus, StepRecord, Summary
-from vtr.runtime.robot import RobotError
+from vtr.runtime.robot import RobotError, safe_stop
 from vtr.runtime.route import Route
+from vtr.runtime.safety import limit_twist
 
 __all__ = ["RepeatConfig", "RepeatStatus", "Repeater", "StepRecord", "Summary", "safe_stop"]
 
@@ -60,15 +52,6 @@ MAX_RELOCALISATIONS = 3
 
 class _NoValidFrame(Exception):
     pass
-
-
-def safe_stop(robot: Robot) -> bool:
-    """Command zero velocity; never raises (the robot may be the thing that failed)."""
-    try:
-        robot.stop()
-        return True
-    except Exception:
-        return False
 
 
 def _status_of(value: str, default: RepeatStatus) -> RepeatStatus:
@@ -150,6 +133,9 @@ class Repeater:
         self._crashed = False
         #: Robot restarts survived by re-localising (``localise`` only).
         self.robot_restarts = 0
+        #: Zero steps held while something was in the way; when the current wait began (robot clock, wall).
+        self.waited_steps = 0
+        self._blocked_since: tuple[float, float] | None = None
 
     def _self_bias(self, weight: float) -> np.ndarray | None:
         """(L, 2) ``weight * policy(S, S)`` per subgoal S, or None when off: what the network commands with the
@@ -273,6 +259,8 @@ class Repeater:
         verdict = self.controller.judge(obs.image, obs.collided)
         t_error = time.perf_counter()
         decision = verdict.decision
+        if decision.action is Action.BLOCKED:  # the camera sees the way ahead blocked
+            return self._wait(obs, verdict, decision.note)
         if decision.action is not Action.COMMAND:
             status = _status_of(decision.action.value, RepeatStatus.STALLED)
             return self._end(status, decision.note if status is not RepeatStatus.FINISHED else "", verdict)
@@ -288,6 +276,11 @@ class Repeater:
             v, w = (1 - a) * v + a * pv, (1 - b) * w + b * pw
         v_max = min(decision.v_limit, self._v_max)  # v_limit 0: no translation in a taught turn in place
         v, w = max(-v_max, min(v_max, v)), max(-self._w_max, min(self._w_max, w))
+        guard = limit_twist(v, w, obs.scan, self.config.safety)  # stop / slow for what the range scan shows
+        if guard.blocked:
+            return self._wait(obs, verdict, guard.describe())
+        v, w = guard.v, guard.w
+        self._blocked_since = None
         t_policy = time.perf_counter()
         stage = dict(getattr(self.policy, "last_timing_ms", None) or {})
         stage["error"] = (t_error - t0) * 1e3
@@ -307,6 +300,24 @@ class Repeater:
             self._totals[k] = self._totals.get(k, 0.0) + x
         record = self._record(verdict, obs, v, w, True, stage)
         self.steps += 1
+        self._obs = new_obs
+        return record
+
+    def _wait(self, obs: Observation, verdict: Verdict, evidence: str) -> StepRecord:
+        """Something is in the way: hold still with a zero step (so that a lockstep robot's clock runs and a
+        new frame comes) until the way clears, or end as ``blocked`` after ``wait_s`` (the robot's clock, or
+        the wall clock where that ran longer: a robot whose clock stands still still ends)."""
+        now = (float(obs.stamp), time.monotonic())
+        since = self._blocked_since = self._blocked_since or now
+        waited = max(now[0] - since[0], now[1] - since[1])
+        if waited >= self.config.wait_s:
+            return self._end(RepeatStatus.BLOCKED, f"{evidence}; waited {waited:.1f} s", verdict)
+        new_obs = self._fetch(lambda: self.robot.step(0.0, 0.0, self.dt))
+        self.controller.commanded(0.0, 0.0, self.dt)
+        self.waited_steps += 1
+        record = self._record(
+            verdict, obs, 0.0, 0.0, False, {}, None, f"{evidence}; waiting up to {self.config.wait_s:g} s"
+        )
         self._obs = new_obs
         return record
 
@@ -380,5 +391,6 @@ class Repeater:
             localised_to=self.controller.localised_to,
             plateaus=self.controller.plateaus,
             robot_restarts=self.robot_restarts,
+            waited_steps=self.waited_steps,
             mean_latency_ms={k: round(x / steps, 4) for k, x in self._totals.items()} if steps else {},
         )

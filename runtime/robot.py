@@ -12,6 +12,7 @@ from vtr.runtime.contracts import Observation, ResettableRobot, Robot
 
 __all__ = [
     "Interrupted",
+    "safe_stop",
     "LinkLost",
     "Observation",
     "ResettableRobot",
@@ -47,3 +48,12 @@ class Interrupted(RobotError):
     """A wait for the robot was abandoned because the run was asked to stop (Ctrl-C, SIGTERM)."""
 
     status = "interrupted"
+
+
+def safe_stop(robot: Robot) -> bool:
+    """Command zero velocity; never raises (the robot may be the thing that failed)."""
+    try:
+        robot.stop()
+        return True
+    except Exception:
+        return False

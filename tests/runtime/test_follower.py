@@ -12,6 +12,7 @@ from vtr.runtime.contracts import Observation
 from vtr.runtime.controller import Action, Controller, ControllerConfig
 from vtr.runtime.follower import Follower, controller_for_route
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
+from vtr.runtime.scan import Scan
 
 
 class Corridor:
@@ -44,10 +45,10 @@ class TowardSubgoal:
         return np.array([[v, v], [0.0, 0.0]], dtype=np.float32)
 
 
-def _run(robot: Corridor, **cfg) -> tuple[Repeater, list]:
+def _run(robot: Corridor, wait_s: float = 10.0, **cfg) -> tuple[Repeater, list]:
     route = corridor_route(0.4, 0.05)
     records: list = []
-    config = RepeatConfig(controller=ControllerConfig(zero_bias=0.0, **cfg), max_steps=60)
+    config = RepeatConfig(controller=ControllerConfig(zero_bias=0.0, **cfg), max_steps=60, wait_s=wait_s)
     rep = Repeater(robot, TowardSubgoal(), route, config=config, on_step=records.append)
     rep.run()
     return rep, records
@@ -108,3 +109,33 @@ def test_no_translation_where_the_teach_turned_in_place():
     follower = Follower.for_route(route)
     decision = follower.judge(route.images[0]).decision
     assert decision.action is Action.COMMAND and decision.v_limit == 0.0
+
+
+class WithScan(Corridor):
+    """The corridor robot with a range scan: a box at ``box_x`` straight ahead until ``removed_after`` s."""
+
+    def __init__(self, box_x: float, removed_after: float = float("inf")) -> None:
+        super().__init__()
+        self.box_x, self.removed_after = box_x, removed_after
+
+    def observe(self) -> Observation:
+        obs = super().observe()
+        there = self.t < self.removed_after
+        ranges = np.array([self.box_x - self.x if there else np.inf] * 3, dtype=np.float32)
+        scan = Scan(angle_min=-0.1, angle_increment=0.1, range_max=5.0, ranges=ranges)
+        return replace(obs, scan=scan)
+
+
+def test_a_box_on_the_path_stops_the_robot_and_the_run_ends_blocked_after_the_wait():
+    robot = WithScan(box_x=0.55)  # robot radius 0.17 + margin 0.02 + stop 0.25: stops by x = 0.11
+    rep, records = _run(robot, wait_s=2.0)
+    assert rep.status is RepeatStatus.BLOCKED and "obstacle" in rep.detail
+    assert robot.x <= 0.55 - 0.17 - 0.2
+    assert rep.waited_steps >= 20 and any("waiting up to 2 s" in r.detail for r in records)
+
+
+def test_the_robot_resumes_when_the_box_is_removed_while_it_waits():
+    robot = WithScan(box_x=0.55, removed_after=2.0)
+    rep, _ = _run(robot, wait_s=10.0)
+    assert rep.status is RepeatStatus.FINISHED and rep.waited_steps > 0
+    assert robot.x == pytest.approx(0.4, abs=0.02)
