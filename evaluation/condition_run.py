@@ -45,18 +45,21 @@ CONDITIONS: dict[str, Condition] = {
 @dataclass(frozen=True)
 class Method:
     """How the runtime repeats: the controller's settings, and whether the current image is recoloured to
-    the subgoal's light before the policy sees it (runtime.light)."""
+    the subgoal's light before the policy sees it (runtime.light), and whether the robot has a range scanner
+    (its scan feeds runtime.safety's stop and slowdown zones)."""
 
     controller: ControllerConfig
     match_light: bool = False
     side_ramp: bool = True  # with match_light: also even out a left-to-right gain
+    scan: bool = False
 
 
-AFTER = ControllerConfig()  # patch matching, hybrid thresholds, zero bias, lost and contact stops, turns held
+AFTER = ControllerConfig()  # the route localiser and the follower, patch matching, zero bias, turns held
 CONTROLLERS: dict[str, Method] = {
     "paper": Method(ControllerConfig.paper()),  # Algorithm 1: raw error, e_m = 17
     "before": Method(ControllerConfig.before()),  # the previous default: raw error, one e_m per route
     "after": Method(AFTER, match_light=True),
+    "after_scan": Method(AFTER, match_light=True, scan=True),  # the same robot with a range scanner
     # the release before the route localiser: threshold switching, plateau, stall guard, progress gate
     "rules": Method(replace(AFTER, switching="rules"), match_light=True),
     "after_ff_0": Method(replace(AFTER, feed_forward=0.0), match_light=True),
@@ -142,7 +145,8 @@ def run_once(
 
     h, w = route.images.shape[1:3]
     robot: Any = LocalRobot(
-        Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=cond.noise, house=house))
+        Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=cond.noise, house=house)),
+        scan=method.scan,
     )
     if cond.light:
         robot = LitRobot(robot, LIGHTING[cond.light])

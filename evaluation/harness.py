@@ -164,7 +164,7 @@ def teach(
 
     if not isinstance(script, RouteScript):
         script = load_route_script(script)
-    robot = make_robot(0.0, image_size, house)
+    robot = make_robot(0.0, image_size, house, scan=True)  # the route keeps the free distance its scan saw
     return teach_route(robot, script, TeachConfig(dt=dt, seed=0)), script
 
 

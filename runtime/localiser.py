@@ -135,6 +135,10 @@ class RouteLocaliser:
         # the teach's own distances, subgoal k to k + o for every offset o of the widest window
         self._span = self.cfg.window_behind + self.cfg.window_ahead + 1
         self._band = self._self_distances(self._span)
+        # per window: the expected distances of its cells (the window moves a subgoal every few steps)
+        self._expected_of: dict[tuple[int, int], tuple[np.ndarray, bool]] = {}
+        for centre in range(self.n if self.n > 1 else 0):  # built with the route, not during the repeat
+            self._expectation(self._window_at(centre))
         self.belief = np.zeros(len(self.cells))
         self.start_at(0.0)
         self.last: Estimate | None = None
@@ -210,8 +214,19 @@ class RouteLocaliser:
         """The subgoals the next view is compared with."""
         if self._wide:
             return range(0, self.n)
-        centre = int(round(self.last.position if self.last is not None else self._mode()))
+        return self._window_at(int(round(self.last.position if self.last is not None else self._mode())))
+
+    def _window_at(self, centre: int) -> range:
         return range(max(0, centre - self.cfg.window_behind), min(self.n, centre + self.cfg.window_ahead + 1))
+
+    def _expectation(self, win: range) -> tuple[np.ndarray, bool]:
+        """The window's expected distances per cell (cached), and whether some are unknown (nan)."""
+        key = (win.start, win.stop)
+        if key not in self._expected_of:
+            k = self.cfg.cells_per_gap
+            table = self._expected(self.cells[win.start * k : (win.stop - 1) * k + 1], win)
+            self._expected_of[key] = (table, bool(np.isnan(table).any()))
+        return self._expected_of[key]
 
     def _mode(self) -> float:
         return float(self.cells[int(np.argmax(self.belief))])
@@ -226,11 +241,12 @@ class RouteLocaliser:
             return self.last
         k = self.cfg.cells_per_gap
         lo, hi = win.start * k, (win.stop - 1) * k + 1  # cells the window can judge
-        pos = self.cells[lo:hi]
-        expected = self._expected(pos, win)  # (cells, window)
+        expected, gaps = self._expectation(win)  # (cells, window)
         resid = errors[None, :] - expected
-        offset = np.nanmean(resid, axis=1)
-        sq = np.nanmean((resid - offset[:, None]) ** 2, axis=1)
+        mean = np.nanmean if gaps else np.mean  # subgoals beyond the band: only in a whole-route window
+        offset = mean(resid, axis=1)
+        resid -= offset[:, None]
+        sq = mean(resid * resid, axis=1)
         loglik = -0.5 * sq / self.sigma**2 * min(len(win), 4)
         like = np.exp(loglik - loglik.max())
         outside = like.min()  # a position the window cannot judge is taken as no better than its worst

@@ -41,7 +41,7 @@ from vtr.runtime.protocol import BadFrameError
 from vtr.runtime.repeat_types import RepeatConfig, RepeatStatus, StepRecord, Summary
 from vtr.runtime.robot import RobotError, safe_stop
 from vtr.runtime.route import Route
-from vtr.runtime.safety import limit_twist
+from vtr.runtime.safety import limit_twist, taught_zones
 
 __all__ = ["RepeatConfig", "RepeatStatus", "Repeater", "StepRecord", "Summary", "safe_stop"]
 
@@ -276,7 +276,9 @@ class Repeater:
             v, w = (1 - a) * v + a * pv, (1 - b) * w + b * pw
         v_max = min(decision.v_limit, self._v_max)  # v_limit 0: no translation in a taught turn in place
         v, w = max(-v_max, min(v_max, v)), max(-self._w_max, min(self._w_max, w))
-        guard = limit_twist(v, w, obs.scan, self.config.safety)  # stop / slow for what the range scan shows
+        guard = limit_twist(
+            v, w, obs.scan, taught_zones(self.config.safety, self.route.clearance, target)
+        )  # stop / slow for what the range scan shows
         if guard.blocked:
             return self._wait(obs, verdict, guard.describe())
         v, w = guard.v, guard.w

@@ -6,6 +6,9 @@ Arrays (L = number of subgoals):
 - ``poses``    (L, 3) float64 (x, y, yaw); NaN where the robot did not know its pose.
 - ``commands`` (L, 2) float64 (v, w): the command applied in the control step right after subgoal i was
   recorded (zeros for the last subgoal).
+- ``clearance`` (L,) float64, optional: the free distance (m) the teach's range scan showed ahead of each
+  subgoal in the taught driving direction (inf: nothing in range, NaN: no scan there); absent when the
+  teaching robot had no range sensor.
 - ``meta``     a 0-d unicode array holding a JSON object: ``format_version``, ``camera`` (dict),
   ``spacing`` (the subgoal spacing rule, see runtime.teach), ``map``, ``dt`` (s), ``created`` (ISO 8601
   UTC), ``name``.
@@ -56,11 +59,14 @@ class Route:
     dt: float = CONTROL_DT
     created: str = field(default_factory=_utc_now)
     format_version: int = ROUTE_FORMAT_VERSION
+    clearance: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.images = np.asarray(self.images)
         self.poses = np.asarray(self.poses, dtype=np.float64)
         self.commands = np.asarray(self.commands, dtype=np.float64)
+        if self.clearance is not None:
+            self.clearance = np.asarray(self.clearance, dtype=np.float64)
         self.validate()
 
     def __len__(self) -> int:
@@ -105,6 +111,8 @@ class Route:
             raise RouteError("route commands contain NaN or inf")
         if np.any(np.isinf(self.poses)):
             raise RouteError("route poses contain inf (unknown poses are NaN)")
+        if self.clearance is not None and (self.clearance.shape != (n,) or bool(np.any(self.clearance < 0))):
+            raise RouteError(f"route clearance must be ({n},) metres >= 0, got shape {self.clearance.shape}")
         if not (isinstance(self.dt, int | float) and np.isfinite(self.dt) and self.dt > 0):
             raise RouteError(f"route dt must be a positive number of seconds, got {self.dt!r}")
         if self.format_version != ROUTE_FORMAT_VERSION:
@@ -133,6 +141,7 @@ class Route:
                 poses=self.poses,
                 commands=self.commands,
                 meta=np.array(json.dumps(self.meta_dict())),
+                **({} if self.clearance is None else {"clearance": self.clearance}),
             )
             f.flush()
             os.fsync(f.fileno())
@@ -156,6 +165,7 @@ class Route:
                 if missing:
                     raise RouteError(f"{path}: not a route file, missing arrays {sorted(missing)}")
                 images, poses, commands = data["images"], data["poses"], data["commands"]
+                clearance = data["clearance"] if "clearance" in data.files else None
                 meta_raw = data["meta"]
         except RouteError:
             raise
@@ -190,6 +200,7 @@ class Route:
                 dt=meta.get("dt", CONTROL_DT),
                 created=str(meta.get("created", "")),
                 format_version=version,
+                clearance=clearance,
             )
         except RouteError as exc:
             raise RouteError(f"{path}: {exc}") from None

@@ -25,7 +25,7 @@ it, so that one spurious return does not stop a robot; 1 (the default) trusts ev
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -154,3 +154,22 @@ def limit_twist(v: float, w: float, scan: Scan | None, cfg: SafetyConfig = Safet
     if footprint:
         return SafetyDecision(0.0, 0.0, STOP, (v, w), distance, bearing, True, reversing)
     return SafetyDecision(v_out, w, zone, (v, w), distance, bearing, False, reversing)
+
+
+#: The repeat's zones stay this much (m) short of the free distance the teach's scan showed at a subgoal.
+CLEARANCE_SLACK = 0.05
+
+
+def taught_zones(cfg: SafetyConfig, clearance: np.ndarray | None, target: int) -> SafetyConfig:
+    """The zones toward subgoal ``target`` of a route taught with ``clearance`` (``Route.clearance``): never
+    longer than the free distance the teach drove up to there, less CLEARANCE_SLACK, so that a route taught
+    close to a counter or a wall can be repeated while anything new in the way still stops the robot."""
+    if clearance is None:
+        return cfg
+    near = clearance[max(0, target - 1) : target + 1]
+    near = near[np.isfinite(near)]
+    if near.size == 0 or float(near.min()) - CLEARANCE_SLACK >= cfg.slowdown_distance:
+        return cfg
+    free = max(0.0, float(near.min()) - CLEARANCE_SLACK)
+    stop = min(cfg.stop_distance, free)
+    return replace(cfg, stop_distance=stop, slowdown_distance=max(stop, min(cfg.slowdown_distance, free)))

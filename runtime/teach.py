@@ -33,6 +33,8 @@ from vtr.runtime.protocol import jsonable
 from vtr.runtime.robot import Observation, ResettableRobot, RobotError
 from vtr.runtime.route import Route
 from vtr.runtime.route_script import RouteScript
+from vtr.runtime.safety import limit_twist
+from vtr.runtime.scan import Scan
 
 SPACING_RULES = ("steps", "distance", "image")
 
@@ -120,6 +122,7 @@ def teach(robot: ResettableRobot, script: RouteScript, cfg: TeachConfig | None =
     images: list[np.ndarray] = []
     poses: list[tuple[float, float, float]] = []
     commands: list[list[float]] = []
+    scans: list[Scan | None] = []  # the range scan at each subgoal, when the robot has one
     pending = False  # the last subgoal still waits for the command that follows it
 
     def record(o: Observation) -> None:
@@ -127,6 +130,7 @@ def teach(robot: ResettableRobot, script: RouteScript, cfg: TeachConfig | None =
         images.append(np.array(o.image, dtype=np.uint8, copy=True))
         poses.append(o.pose if o.pose is not None else (math.nan, math.nan, math.nan))
         commands.append([0.0, 0.0])
+        scans.append(o.scan)
         pending = True
 
     record(obs)
@@ -157,7 +161,24 @@ def teach(robot: ResettableRobot, script: RouteScript, cfg: TeachConfig | None =
         spacing=cfg.rule(),
         map=info.get("map") if isinstance(info.get("map"), str) else None,
         dt=cfg.dt,
+        clearance=taught_clearance(scans, np.array(commands, dtype=np.float64)),
     )
+
+
+def taught_clearance(scans: list[Scan | None], commands: np.ndarray) -> np.ndarray | None:
+    """(L,) free distance (m) the teach's range scan showed at each subgoal in its driving direction (the
+    command after it, else the one before; inf: nothing in range), or None when the robot sent no scans.
+    The repeat's stop zone never reaches further than what the teach itself drove up to (runtime.safety)."""
+    if all(s is None for s in scans):
+        return None
+    out = np.full(len(scans), np.nan)
+    for i, scan in enumerate(scans):
+        if scan is None:
+            continue
+        v = commands[i, 0] if commands[i, 0] != 0 or i == 0 else commands[i - 1, 0]
+        seen = limit_twist(-1.0 if v < 0 else 1.0, 0.0, scan).distance
+        out[i] = math.inf if seen is None else seen
+    return out
 
 
 # ------------------------------------------------------------------------------------------------- CLI

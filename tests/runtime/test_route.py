@@ -183,3 +183,20 @@ def test_a_route_without_poses_is_still_gated():
     gated = Controller(route.images, ControllerConfig(), route.commands, route.poses, route.travel_poses())
     assert gated.gate is not None and gated.gate.distance[1] == pytest.approx(0.04)
     assert gated.gate.turn[5] == pytest.approx(0.1)
+
+
+def test_the_taught_clearance_travels_with_the_route(tmp_path):
+    from vtr.runtime.route import Route, RouteError
+
+    n = 3
+    images = np.zeros((n, 8, 8, 3), dtype=np.uint8)
+    clearance = np.array([1.2, np.inf, np.nan])
+    route = Route(images=images, poses=np.zeros((n, 3)), commands=np.zeros((n, 2)), clearance=clearance)
+    route.save(tmp_path / "r.npz")
+    back = Route.load(tmp_path / "r.npz")
+    np.testing.assert_array_equal(back.clearance, clearance)
+    plain = Route(images=images, poses=np.zeros((n, 3)), commands=np.zeros((n, 2)))
+    plain.save(tmp_path / "p.npz")
+    assert Route.load(tmp_path / "p.npz").clearance is None
+    with pytest.raises(RouteError, match="clearance"):
+        Route(images=images, poses=np.zeros((n, 3)), commands=np.zeros((n, 2)), clearance=np.array([-1.0] * n))

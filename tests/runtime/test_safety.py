@@ -139,3 +139,18 @@ def test_the_slowdown_scales_and_zero_distances_are_allowed():
 def test_a_bad_config_is_refused(kwargs):
     with pytest.raises(ValueError, match="SafetyConfig"):
         SafetyConfig(**kwargs)
+
+
+def test_taught_zones_never_reach_past_what_the_teach_drove_up_to():
+    from vtr.runtime.safety import CLEARANCE_SLACK, taught_zones
+
+    cfg = SafetyConfig(stop_distance=0.25, slowdown_distance=0.6)
+    assert taught_zones(cfg, None, 3) is cfg  # a route taught without a scan: the configured zones
+    far = np.array([2.0, 1.5, np.inf, np.nan])
+    assert taught_zones(cfg, far, 2) == cfg
+    near = np.array([1.0, 0.4, 0.135, 0.135])
+    capped = taught_zones(cfg, near, 3)
+    assert capped.stop_distance == pytest.approx(0.135 - CLEARANCE_SLACK)
+    assert capped.slowdown_distance == pytest.approx(0.135 - CLEARANCE_SLACK)
+    slowed = taught_zones(cfg, near, 1)  # 0.4 m free at subgoal 1: stop unchanged, slowdown shortened
+    assert slowed.stop_distance == 0.25 and slowed.slowdown_distance == pytest.approx(0.35)
