@@ -110,6 +110,17 @@ def taught_motion(travel_poses: np.ndarray | None, commands: np.ndarray, n: int,
     return out
 
 
+def _shifted(belief: np.ndarray, cells: float) -> np.ndarray:
+    """``belief`` moved by ``cells`` (a fraction split between the two cells it falls between), mass kept:
+    what would move past either end of the route piles up there (the robot is at the end, not beyond it)."""
+    n = len(belief)
+    whole = math.floor(cells)
+    frac = cells - whole
+    src = np.arange(n) + whole
+    near = np.bincount(np.clip(src, 0, n - 1), weights=belief * (1.0 - frac), minlength=n)
+    return near + np.bincount(np.clip(src + 1, 0, n - 1), weights=belief * frac, minlength=n)
+
+
 class RouteLocaliser:
     """A belief over the position along a route of ``len(feats)`` subgoals (see the module docstring)."""
 
@@ -186,13 +197,7 @@ class RouteLocaliser:
         shift = self.progress(v, w, dt, position)
         k = self.cfg.cells_per_gap
         std = (self.cfg.motion_noise * abs(shift) + self.cfg.motion_floor) * k  # in cells
-        grid = np.arange(len(self.belief))
-        moved = np.interp(grid - shift * k, grid, self.belief, left=0.0, right=0.0)
-        # what would move past either end piles up there: the robot cannot be beyond the route's ends
-        if shift > 0:
-            moved[-1] += max(0.0, 1.0 - moved.sum())
-        elif shift < 0:
-            moved[0] += max(0.0, 1.0 - moved.sum())
+        moved = _shifted(self.belief, shift * k)
         half = max(1, int(math.ceil(3 * std)))
         taps = np.exp(-0.5 * (np.arange(-half, half + 1) / max(std, 1e-6)) ** 2)
         self.belief = np.convolve(moved, taps / taps.sum(), mode="same")

@@ -82,6 +82,11 @@ class RepeatConfig:
             raise ValueError(f"bad_frame_backoff_s must be >= 0, got {self.bad_frame_backoff_s}")
 
 
+def _finite(x: float) -> float | None:
+    """A log number: rounded, or null where there is none (nan, inf: JSON has no such numbers)."""
+    return round(x, 4) if math.isfinite(x) else None
+
+
 @dataclass(frozen=True)
 class StepRecord:
     """One judged image: the command sent on it, or how the run ended on it.
@@ -130,8 +135,8 @@ class StepRecord:
             "from_subgoal": self.from_subgoal,
             "advanced": self.advanced,
             "jumped_to": self.jumped_to,
-            "error": round(self.error, 4),
-            "e_m": round(self.e_m, 4),
+            "error": _finite(self.error),
+            "e_m": _finite(self.e_m),
             "v": self.v,
             "w": self.w,
             "stamp": self.stamp,

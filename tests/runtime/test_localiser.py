@@ -74,3 +74,17 @@ def test_settings_are_checked_where_they_enter():
         LocaliserConfig(cells_per_gap=0)
     with pytest.raises(ValueError, match="obs_sigma"):
         LocaliserConfig(obs_sigma=float("nan"))
+
+
+def test_a_move_keeps_the_belief_where_the_route_is_and_piles_only_what_passes_an_end():
+    """At the start of a route half the belief sits on the first cells: a move forward must carry it along,
+    not lose it at the start and pile it at the end (a plain room's route 'finished' after 2 commands)."""
+    loc = _localiser()
+    before = float(loc.belief @ loc.cells)  # a half-normal at the first subgoal: mean 0.2 gaps
+    loc.predict(0.15, 0.0, 0.1)  # 0.3 gap (1.2 cells) forward from the start
+    assert loc.belief.sum() == pytest.approx(1.0)
+    assert loc.belief[-4:].sum() < 1e-3
+    assert float(loc.belief @ loc.cells) == pytest.approx(before + 0.3, abs=0.1)
+    loc.start_at(12.0)  # the last subgoal: a move forward stays there
+    loc.predict(0.25, 0.0, 0.1)
+    assert float(loc.belief @ loc.cells) == pytest.approx(12.0, abs=0.15)

@@ -199,4 +199,6 @@ def test_the_taught_clearance_travels_with_the_route(tmp_path):
     plain.save(tmp_path / "p.npz")
     assert Route.load(tmp_path / "p.npz").clearance is None
     with pytest.raises(RouteError, match="clearance"):
-        Route(images=images, poses=np.zeros((n, 3)), commands=np.zeros((n, 2)), clearance=np.array([-1.0] * n))
+        Route(
+            images=images, poses=np.zeros((n, 3)), commands=np.zeros((n, 2)), clearance=np.array([-1.0] * n)
+        )
