@@ -194,10 +194,13 @@ class Follower:
             return lost
         target = min(last, int(math.floor(est.position + self.cfg.lead)) + 1)
         gap = min(int(est.position), last - 1) if last > 0 else 0
-        prior = None
-        if (self.cfg.feed_forward > 0 or self.cfg.feed_forward_turn > 0) and last > 0:
-            prior = (self.cfg.feed_forward, self.cfg.feed_forward_turn, *map(float, self.commands[gap]))
         hold = self.holds_turn(gap + 1)  # the teach turned on the spot where the robot is
+        # In a taught turn in place the turn is the motion the route asks for: it is fed forward like the speed
+        # elsewhere (a policy that idles there, as in a plain room, would otherwise never finish the turn).
+        turn = self.cfg.feed_forward if hold else self.cfg.feed_forward_turn
+        prior = None
+        if (self.cfg.feed_forward > 0 or turn > 0) and last > 0:
+            prior = (self.cfg.feed_forward, turn, *map(float, self.commands[gap]))
         return Decision(
             Action.COMMAND,
             target,
