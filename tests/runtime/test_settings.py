@@ -235,3 +235,23 @@ def test_a_repeat_from_a_config_file_end_to_end(tmp_path: Path, capsys: pytest.C
         assert main(argv) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["completed"] and summary["subgoals_reached"] == summary["subgoals_total"]
+
+
+def test_teach_takes_the_address_timeout_and_retries_from_the_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    script = tmp_path / "r.json"
+    script.write_text(
+        '{"start": {"x": 0, "y": 0, "yaw": 0}, "segments": [{"v": 0.1, "w": 0, "duration": 1}]}'
+    )
+    text = '[robot]\naddress = "tcp://127.0.0.1:9"\n[teach]\ntimeout = 0.05\nretries = 1\n'  # nobody there
+    argv = [
+        "teach",
+        "--config",
+        _toml(tmp_path, text),
+        "--route",
+        str(script),
+        "--out",
+        str(tmp_path / "o.npz"),
+    ]
+    assert "no reply from tcp://127.0.0.1:9" in _usage_error(capsys, argv)
