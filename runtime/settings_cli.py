@@ -90,7 +90,8 @@ def add_arguments(
                 "the robot (file: [robot])" if s.section == "robot" else f"{command} (file: [{s.section}])"
             )
             groups[s.section] = parser.add_argument_group(title)
-        text = _help(s) if s.name not in (notes or {}) else f"{s.help} ({notes[s.name]})"  # type: ignore[index]
+        note = (notes or {}).get(s.name)
+        text = f"{s.help} ({note})" if note else _help(s)
         kwargs: dict[str, Any] = {"dest": s.name, "default": argparse.SUPPRESS, "help": text}
         if s.kind is bool:
             kwargs["action"] = argparse.BooleanOptionalAction
