@@ -5,7 +5,7 @@
 - ``loop-fuzz``: N fuzzed replies to the repeat loop: tracebacks, motion commands sent right after a bad one.
 - ``silent``: the robot goes silent mid-route; robot-side delay from the unanswered step to the zero command.
 - ``restart``: the robot reboots mid-route; how the repeat ends, motion executed by the rebooted robot.
-- ``sigkill``: `vtr repeat --continuous` on a realtime simulator is killed; delay until the robot is at rest.
+- ``sigkill``: `vtr repeat --motion continuous` on a realtime simulator is killed; delay until the robot is at rest.
 - ``files``: crafted routes, datasets and models: code run, peak memory against the file's size.
 
 Each prints one JSON object (and writes it with ``--out``). Faults come from a seeded generator.

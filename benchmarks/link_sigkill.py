@@ -1,4 +1,4 @@
-"""`vtr bench link sigkill`: SIGKILL `vtr repeat --continuous` mid-route on a realtime simulator and time how
+"""`vtr bench link sigkill`: SIGKILL `vtr repeat --motion continuous` mid-route on a realtime simulator and time how
 long the robot keeps moving (the simulator's cmd_vel_timeout watchdog must bring it to rest).
 
 An observer polls ``observe`` every ~10 ms on its own connection (``observe`` is not a motion command, so it
@@ -77,7 +77,7 @@ def sigkill(
     delays, moving_at_kill, at_rest = [], 0, 0
     with tempfile.TemporaryDirectory() as tmp:
         route_path = _teach(Path(tmp), route)
-        for trial in range(trials):
+        for _ in range(trials):
             cfg = ServerConfig(
                 bind="tcp://127.0.0.1:*", mode="realtime", cmd_vel_timeout=cmd_vel_timeout, poll_ms=20
             )
@@ -92,7 +92,7 @@ def sigkill(
                 "--model",
                 model,
             ]
-            cmd += ["--route", str(route_path), "--continuous", "--stall-steps", "0", "--seed", str(trial)]
+            cmd += ["--route", str(route_path), "--motion", "continuous"]
             runtime = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             ctx, sock = _observer(server.endpoint)
             seq, trace = 0, []  # (monotonic time, pose)

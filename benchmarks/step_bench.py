@@ -115,7 +115,7 @@ class BenchStep:
     ``route`` is the taught images (from :func:`sample_route`); a single (H, W, 3) image makes a route of
     ``ROUTE_LENGTH`` copies, on which the controller falls back to the raw error (``matching`` says which
     one is in force). The zero command after each step is sent, as the daemon does by default
-    (stop-and-go); ``continuous=True`` leaves it out (`vtr repeat --continuous`). ``match_light=True``
+    (stop-and-go); ``continuous=True`` leaves it out (`vtr repeat --motion continuous`). ``match_light=True``
     wraps the policy in ``LightMatchedPolicy`` as `vtr repeat` does by default.
     """
 
@@ -138,7 +138,7 @@ class BenchStep:
 
         self.policy = OnnxPolicy(model, threads=threads)
         policy: Any = self.policy
-        if match_light:  # as `vtr repeat` does by default (--match-light)
+        if match_light:  # as `vtr repeat` does by default (its default profile)
             from vtr.runtime.light import LightMatchedPolicy
 
             policy = LightMatchedPolicy(self.policy)

@@ -45,6 +45,10 @@ from vtr.runtime.check_motion import (
 from vtr.runtime.contracts import CAMERA, CONTROL_DT
 from vtr.runtime.hello import parse_hello
 from vtr.runtime.scan import scan_from_wire
+from vtr.runtime.setting_spec import REQUIRED
+from vtr.runtime.settings import BY_NAME, default
+from vtr.runtime.settings_cli import add_arguments as add_settings
+from vtr.runtime.settings_cli import from_text, resolve
 
 #: Image size (height, width) the shipped model takes.
 MODEL_IMAGE_SIZE = (CAMERA.height, CAMERA.width)
@@ -251,7 +255,11 @@ CHECKS: list[tuple[str, Check, tuple[str, ...]]] = [
 ]
 
 
-def run_checks(endpoint: str, timeout_s: float = 2.0, budget_s: float = 60.0) -> list[CheckResult]:
+def run_checks(
+    endpoint: str,
+    timeout_s: float = default("check-robot.timeout"),
+    budget_s: float = default("check-robot.budget"),
+) -> list[CheckResult]:
     """Run every check against ``endpoint``; never raises for a misbehaving robot, never hangs."""
     link = Link(endpoint, timeout_s)
     ctx = Context(link)
@@ -296,24 +304,31 @@ def format_report(endpoint: str, results: list[CheckResult], elapsed_s: float) -
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("addr", metavar="ADDR", help="the robot's endpoint, e.g. tcp://127.0.0.1:5555")
     parser.add_argument(
-        "--timeout", type=float, default=2.0, help="seconds to wait for each reply (default 2)"
+        "robot.address",
+        metavar="ADDR",
+        nargs="?",
+        type=from_text(BY_NAME["robot.address"]),
+        default=argparse.SUPPRESS,
+        help="the robot's endpoint, e.g. tcp://127.0.0.1:5555 (or address in the config file's [robot])",
     )
-    parser.add_argument("--budget", type=float, default=60.0, help="seconds for the whole run (default 60)")
+    add_settings(parser, "check-robot", skip=("robot.address",))  # --config, --timeout, --budget
     parser.add_argument("--json", default=None, help="also write the results to this JSON file")
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    if "://" not in args.addr:
-        print(f"vtr check-robot: ADDR must be a ZeroMQ endpoint like tcp://127.0.0.1:5555, got {args.addr!r}")
+    try:
+        settings = resolve(args, "check-robot", required=False)
+    except ValueError as exc:
+        print(f"vtr check-robot: {exc}", file=sys.stderr)
         return 2
-    if not (args.timeout > 0 and args.budget > 0):
-        print("vtr check-robot: --timeout and --budget must be > 0", file=sys.stderr)
+    addr = settings["robot.address"]
+    if addr is REQUIRED:
+        print("vtr check-robot: needs ADDR (or address in the config file's [robot])", file=sys.stderr)
         return 2
     t0 = time.monotonic()
-    results = run_checks(args.addr, args.timeout, args.budget)
-    print(format_report(args.addr, results, time.monotonic() - t0))
+    results = run_checks(addr, settings["check-robot.timeout"], settings["check-robot.budget"])
+    print(format_report(addr, results, time.monotonic() - t0))
     if args.json:
         from vtr.runtime.atomic import write_text_atomic
 

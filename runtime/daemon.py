@@ -22,19 +22,21 @@ import json
 import signal
 import sys
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import IO
+from typing import IO, Any
 
 import numpy as np
 
-from vtr.runtime.address import EXAMPLE, check_endpoint
-from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
-from vtr.runtime.controller import ControllerConfig
+from vtr.runtime.address import check_endpoint
 from vtr.runtime.hello import check_robot_fits
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus, StepRecord, Summary
 from vtr.runtime.robot import RobotError
 from vtr.runtime.run_outputs import RunOutputs
+from vtr.runtime.safety import SafetyConfig
+from vtr.runtime.settings import PROFILES, default
+from vtr.runtime.settings_cli import Resolved, resolve
+from vtr.runtime.settings_cli import add_arguments as add_settings
 
 
 def log_writer(stream: IO[str]) -> Callable[[StepRecord], None]:
@@ -53,42 +55,24 @@ def log_writer(stream: IO[str]) -> Callable[[StepRecord], None]:
 
 @dataclass
 class RepeatRunConfig:
-    """Everything `vtr repeat` needs."""
+    """Everything `vtr repeat` needs (built from the settings, ``runtime.settings``, by
+    :func:`config_from_settings`; docs/SETTINGS.md says what each is)."""
 
-    sim: str = opt(help=f"robot/simulator endpoint, e.g. {EXAMPLE}")
-    model: str = opt(help="VelocityNet ONNX file")
-    route: str = opt(help="taught route (.npz from `vtr teach`)")
-    log: str | None = opt(None, "write one JSON line per control step here, then the summary")
-    threads: int = opt(1, "onnxruntime intra-op threads")
-    timeout_s: float = opt(
-        0.3,
-        "seconds to wait for a reply beyond the step's own duration; then a stop is sent",
-        flag="--timeout",
-    )
-    retries: int = opt(3, "tries per request before giving up")
+    sim: str
+    model: str
+    route: str
+    log: str | None = None
+    mcap: str | None = None
+    foxglove: int | None = None
+    threads: int = default("repeat.threads")
+    timeout_s: float = default("repeat.timeout")
+    retries: int = 3  # tries per request before giving up
     #: "route": reset the simulator to the route's first pose before repeating; "here": start where it is
     #: (a real robot placed by hand, or a bridge that does not implement reset).
-    start: str = opt(
-        "route",
-        "route: reset the simulator to the route's first pose first; here: start where the robot is",
-        choices=("route", "here"),
-    )
-    seed: int | None = opt(1, "actuation-noise seed for the reset (--start route)")
-    match_light: bool = opt(
-        True,
-        "recolour the current image to the subgoal's light before the policy (runtime/light.py; off with --paper)",
-    )
-    mcap: str | None = opt(
-        None,
-        "also write the run as a ROS 2 MCAP bag for Foxglove and ros2 bag play (PATH.mcap: one file, else a "
-        "bag folder); needs pip install 'vtr-mpc[ros]'",
-        metavar="PATH",
-    )
-    foxglove: int | None = opt(
-        None,
-        "serve the run live to Foxglove on ws://127.0.0.1:PORT; needs pip install 'vtr-mpc[foxglove]'",
-        metavar="PORT",
-    )
+    start: str = "route"
+    seed: int | None = 1  # actuation-noise seed for the reset (start "route")
+    #: Recolour the current image to the subgoal's light before the policy (runtime/light.py; the profile's).
+    match_light: bool = True
     repeat: RepeatConfig = field(default_factory=RepeatConfig)
 
     def __post_init__(self) -> None:
@@ -96,11 +80,11 @@ class RepeatRunConfig:
         if self.start not in ("route", "here"):
             raise ValueError(f"start must be 'route' or 'here', got {self.start!r}")
         if self.threads < 1:
-            raise ValueError(f"--threads must be >= 1, got {self.threads}")
+            raise ValueError(f"threads must be >= 1, got {self.threads}")
         if not self.timeout_s > 0:
-            raise ValueError(f"--timeout must be > 0 seconds, got {self.timeout_s}")
+            raise ValueError(f"timeout_s must be > 0 seconds, got {self.timeout_s}")
         if self.retries < 1:
-            raise ValueError(f"--retries must be >= 1, got {self.retries}")
+            raise ValueError(f"retries must be >= 1, got {self.retries}")
 
 
 def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summary:
@@ -141,87 +125,46 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
         return summary
 
 
-#: ControllerConfig fields a flag sets as given (flag, field, type, help; the help gets the default appended).
-_OVERRIDES: tuple[tuple[str, str, type, str], ...] = (
-    ("--lost-steps", "lost_steps", int,
-     "stop as lost after this many steps with no nearby subgoal matching; 0 disables"),
-    ("--stall-steps", "stall_steps", int, "stall guard patience; 0 disables it"),
-    ("--settle", "settle_steps", int, "extra commands at a subgoal while the error still falls (paper: 0)"),
-    ("--progress-gate", "progress_gate", float,
-     "switch past a subgoal only after commanding this fraction of the taught travel into it; 0 disables"),
-    ("--taught-prior", "taught_prior", float,
-     "blend the taught command into each subgoal with the policy's at this weight, 0..1"),
-    ("--zero-bias", "zero_bias", float,
-     "subtract this fraction (0..1) of the policy's command on the subgoal image itself from each command toward it"),
-)  # fmt: skip
-
-
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    add_config_arguments(parser, RepeatRunConfig)
-    add_config_arguments(parser, RepeatConfig)
-    default = ControllerConfig()
-    parser.add_argument("--json", action="store_true", help="print the summary as JSON")
-    parser.add_argument(
-        "--e-m",
-        type=float,
-        default=None,
-        help="fixed switch threshold (paper: 17 with --match raw); default: calibrated from the route",
-    )
-    parser.add_argument(
-        "--match",
-        choices=("patch", "raw"),
-        default=None,
-        help=f"image comparison: patch-normalised median or the paper's raw mean abs error (default: {default.match.method})",
-    )
-    for flag, field_name, kind, text in _OVERRIDES:
-        parser.add_argument(
-            flag,
-            type=kind,
-            default=None,
-            dest=field_name,
-            metavar=flag[2:].upper().replace("-", "_"),
-            help=f"{text} (default: {getattr(default, field_name)})",
-        )
-    parser.add_argument(
-        "--thresholds",
-        choices=("calibrated", "per_subgoal", "hybrid"),
-        default=None,
-        help="calibrated: one switch threshold for the route; per_subgoal: one per subgoal, with the relative "
-        "switch; hybrid: the route's, raised where both gaps around a subgoal are wide "
-        f"(default: {default.e_m_mode})",
-    )
-    parser.add_argument(
-        "--paper",
-        action="store_true",
-        help="the paper's Algorithm 1 exactly: raw error, e_m 17, no settling, stall guard, lost or contact stop",
-    )
-    parser.add_argument("--localise", action="store_true", help="start at the best-matching subgoal")
-    parser.add_argument("--continuous", action="store_true", help="no zero command between control steps")
+    add_settings(parser, "repeat")  # runtime/settings.py declares them; docs/SETTINGS.md lists them
 
 
-def controller_from_args(args: argparse.Namespace) -> ControllerConfig:
-    base = ControllerConfig.paper() if args.paper else ControllerConfig()
-    if args.thresholds is not None and args.e_m is None:  # the relative switch goes with per-subgoal ones
-        per_subgoal = args.thresholds == "per_subgoal"
-        base = replace(base, e_m_mode=args.thresholds, pass_ratio=1.0 if per_subgoal else 0.0)
-    return replace(
-        base,
-        e_m_mode="fixed" if args.e_m is not None else base.e_m_mode,
-        e_m=args.e_m if args.e_m is not None else base.e_m,
-        match=replace(base.match, method=args.match) if args.match is not None else base.match,
-        **{f: getattr(args, f) for _, f, _, _ in _OVERRIDES if getattr(args, f) is not None},
-        localise=args.localise,
-        continuous=args.continuous,
+def config_from_settings(values: Resolved | Mapping[str, Any]) -> RepeatRunConfig:
+    """The run's configuration from `vtr repeat`'s settings (names as in ``runtime.settings``)."""
+    profile = PROFILES[values["repeat.profile"]]
+    controller = profile.controller()
+    motion = values["repeat.motion"]
+    controller = replace(
+        controller,
+        localise=values["repeat.start"] == "anywhere",
+        continuous=controller.continuous if motion is None else motion == "continuous",
+    )
+    safety = replace(
+        SafetyConfig(),
+        radius=values["robot.radius"],
+        stop_distance=values["repeat.stop_distance"],
+        slowdown_distance=values["repeat.slowdown_distance"],
+    )
+    return RepeatRunConfig(
+        sim=values["robot.address"],
+        model=values["repeat.model"],
+        route=values["repeat.route"],
+        log=values["repeat.log"],
+        mcap=values["repeat.mcap"],
+        foxglove=values["repeat.foxglove"],
+        threads=values["repeat.threads"],
+        timeout_s=values["repeat.timeout"],
+        start="route" if values["repeat.start"] == "route" else "here",
+        match_light=profile.match_light,
+        repeat=RepeatConfig(controller=controller, safety=safety, wait_s=values["repeat.wait"]),
     )
 
 
 def run_cli(args: argparse.Namespace) -> int:
     """0: the route was finished; 1: the repeat ended otherwise; 2: refused input; 130: interrupted."""
     try:
-        repeat_cfg = config_from_args(RepeatConfig, args, controller=controller_from_args(args))
-        cfg = config_from_args(RepeatRunConfig, args, repeat=repeat_cfg)
-        if args.paper:  # Algorithm 1 exactly: the network sees the camera image as it is
-            cfg = replace(cfg, match_light=False)
+        settings = resolve(args, "repeat")
+        cfg = config_from_settings(settings)
     except ValueError as exc:
         print(f"vtr repeat: {exc}", file=sys.stderr)
         return 2
@@ -237,7 +180,7 @@ def run_cli(args: argparse.Namespace) -> int:
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    if args.json:
+    if settings["repeat.json"]:
         print(json.dumps(summary.to_dict()))
     else:
         s = summary

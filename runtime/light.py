@@ -8,9 +8,9 @@ first evens out a left-to-right gain (one side of the view darker). DVMPC recolo
 way (there the subgoal towards the current image); we recolour the current image, so the network keeps
 seeing images lit as in training. It leaves geometry alone: where things are in the image does not move.
 
-``LightMatchedPolicy`` wraps any policy (``predict(current, subgoal)``) with it: the runtime's option
-``vtr repeat --match-light``. A model trained with augmentation and ``STANDARDISED`` preprocessing needs
-it less. The wrapper works on planar float32 (3, H, W), the layout the network takes, and hands the
+``LightMatchedPolicy`` wraps any policy (``predict(current, subgoal)``) with it: what `vtr repeat`'s default
+profile runs (``--profile paper`` leaves it out). A model trained with augmentation and ``STANDARDISED``
+preprocessing needs it less. The wrapper works on planar float32 (3, H, W), the layout the network takes, and hands the
 result to the policy's ``predict_planar`` (OnnxPolicy) without a uint8 round trip: the values are those of
 ``to_nchw(match_statistics(remove_side_ramp(current)))`` exactly. About 0.07 ms per step on 128x128 (0.17 ms
 before, 1.4 ms before its reductions went through BLAS; the condition-suite results were measured with

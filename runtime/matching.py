@@ -2,7 +2,7 @@
 
 Two methods, both "smaller is closer", both computed on features the caller can cache per subgoal:
 
-- ``raw`` (the paper's, ``--paper``): mean absolute pixel difference on 0..255 (``image_error``). A 30%
+- ``raw`` (the paper's, ``--profile paper``): mean absolute pixel difference on 0..255 (``image_error``). A 30%
   brightness change moves it by 30-40, more than any sensible switch threshold.
 - ``patch`` (the default): each image is averaged down by ``downsample``, cut into ``patch`` x ``patch``
   tiles, and every tile of every colour channel is normalised to zero mean and unit variance (QVPR

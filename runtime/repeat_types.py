@@ -11,7 +11,6 @@ from typing import Any
 
 import numpy as np
 
-from vtr.runtime.cliargs import opt
 from vtr.runtime.controller import Action, ControllerConfig, Decision
 from vtr.runtime.safety import SafetyConfig
 
@@ -54,30 +53,27 @@ class RepeatConfig:
     controller: ControllerConfig = field(default_factory=ControllerConfig)
     #: Seconds each command is applied for; None takes the model's metadata dt (the paper's 0.1 s).
     dt: float | None = None
-    #: Control steps (commands sent) before giving up: a lost robot must stop.
-    max_steps: int | None = opt(
-        None, "stop after this many control steps (default: 8 per subgoal + 50, so it scales with the route)"
-    )
+    #: Control steps (commands sent) before giving up: a lost robot must stop. None: 8 per subgoal + 50,
+    #: so that it scales with the route.
+    max_steps: int | None = None
     #: Seconds without a valid frame before the run ends.
-    frame_timeout_s: float = opt(5.0, "seconds without a valid frame before stopping", flag="--frame-timeout")
+    frame_timeout_s: float = 5.0
     #: Pause between re-polls after a bad frame, in seconds.
     bad_frame_backoff_s: float = 0.05
     #: Stop and slowdown zones ahead of the robot, applied when the robot sends a range scan.
     safety: SafetyConfig = field(default_factory=SafetyConfig)
     #: Seconds to wait for the way to clear when something is in it, before the run ends as ``blocked``.
-    wait_s: float = opt(
-        10.0, "seconds to wait for an obstacle to clear before ending as blocked", flag="--wait"
-    )
+    wait_s: float = 10.0
 
     def __post_init__(self) -> None:
         if self.dt is not None and not (math.isfinite(self.dt) and self.dt > 0):
             raise ValueError(f"dt must be a positive number of seconds, got {self.dt!r}")
         if self.max_steps is not None and self.max_steps < 1:
-            raise ValueError(f"--max-steps must be >= 1, got {self.max_steps}")
+            raise ValueError(f"max_steps must be >= 1, got {self.max_steps}")
         if not self.frame_timeout_s > 0:
-            raise ValueError(f"--frame-timeout must be > 0 seconds, got {self.frame_timeout_s}")
+            raise ValueError(f"frame_timeout_s must be > 0 seconds, got {self.frame_timeout_s}")
         if not (math.isfinite(self.wait_s) and self.wait_s >= 0):
-            raise ValueError(f"--wait must be >= 0 seconds, got {self.wait_s}")
+            raise ValueError(f"wait_s must be >= 0 seconds, got {self.wait_s}")
         if self.bad_frame_backoff_s < 0:
             raise ValueError(f"bad_frame_backoff_s must be >= 0, got {self.bad_frame_backoff_s}")
 

@@ -35,6 +35,10 @@ from vtr.runtime.route import Route
 from vtr.runtime.route_script import RouteScript
 from vtr.runtime.safety import limit_twist
 from vtr.runtime.scan import Scan
+from vtr.runtime.setting_spec import REQUIRED
+from vtr.runtime.settings import default
+from vtr.runtime.settings_cli import add_arguments as add_settings
+from vtr.runtime.settings_cli import resolve
 
 SPACING_RULES = ("steps", "distance", "image")
 
@@ -192,12 +196,10 @@ class TeachRunConfig:
     route: str = opt(help="ROUTE.json: start pose and (v, w, duration) segments")
     out: str = opt(help="where to write the route (.npz)")
     teach: TeachConfig = field(default_factory=TeachConfig)  # spacing and control step
-    timeout_s: float = opt(
-        5.0,
-        "seconds to wait for hello and reset; a step waits its duration + 0.3 s, then a stop",
-        flag="--timeout",
-    )
-    retries: int = opt(3, "tries per request before giving up")
+    #: Seconds to wait for hello and reset (a step waits its duration + 0.3 s, then a stop); the settings
+    #: (runtime/settings.py) give these two and the robot's address, from a flag or the config file.
+    timeout_s: float = default("teach.timeout")
+    retries: int = default("teach.retries")
 
     def __post_init__(self) -> None:
         check_endpoint(self.sim)
@@ -223,17 +225,28 @@ def run(cfg: TeachRunConfig) -> Route:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_config_arguments(parser, TeachRunConfig, skip=("sim", "route"))  # optional with --bag
-    parser.add_argument("--sim", default=None, help=f"robot endpoint, e.g. {EXAMPLE} (or --bag)")
     parser.add_argument("--route", default=None, help="ROUTE.json: start pose and (v, w, duration) segments")
     add_config_arguments(parser, TeachConfig)
+    add_settings(
+        parser, "teach", notes={"robot.address": "or --bag"}
+    )  # --config, --sim (or --bag), --timeout, --retries
 
 
 def run_cli(args: argparse.Namespace) -> int:
     try:
+        settings = resolve(args, "teach", required=False)
         teach_cfg = config_from_args(TeachConfig, args)
-        if not (args.sim and args.route):
+        sim = settings["robot.address"]
+        if sim is REQUIRED or not args.route:
             raise ValueError("needs --sim and --route (a live robot), or --bag (a recorded drive)")
-        cfg = config_from_args(TeachRunConfig, args, teach=teach_cfg)
+        cfg = config_from_args(
+            TeachRunConfig,
+            args,
+            sim=sim,
+            teach=teach_cfg,
+            timeout_s=settings["teach.timeout"],
+            retries=settings["teach.retries"],
+        )
     except ValueError as exc:
         print(f"vtr teach: {exc}", file=sys.stderr)
         return 2

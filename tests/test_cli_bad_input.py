@@ -55,9 +55,11 @@ CASES = {
     "repeat: no port": (_repeat(sim="tcp://127.0.0.1"), "no port"),
     "repeat: no transport": (_repeat(sim="127.0.0.1:5555"), "tcp://"),
     "repeat: threads 0": (_repeat("--threads", "0"), "--threads"),
-    "repeat: max steps -1": (_repeat("--max-steps", "-1"), "--max-steps"),
+    "repeat: wait -1": (_repeat("--wait", "-1"), "--wait"),
     "repeat: timeout 0": (_repeat("--timeout", "0"), "--timeout"),
-    "repeat: frame timeout 0": (_repeat("--frame-timeout", "0"), "--frame-timeout"),
+    "repeat: stop beyond slowdown": (_repeat("--stop-distance", "0.9"), "--stop-distance"),
+    "repeat: bad config file": (_repeat("--config", "{garbage.json}"), "garbage.json"),
+    "repeat: a removed ablation flag": (_repeat("--stall-steps", "0"), "--stall-steps"),
     "repeat: garbage model": (_repeat(model="{garbage.onnx}"), "garbage.onnx"),
     "repeat: garbage route": (_repeat("--log", "{tmp}/run.jsonl", route="{garbage.npz}"), "garbage.npz"),
     "teach: timeout 0": (

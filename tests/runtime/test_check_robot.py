@@ -103,5 +103,8 @@ def test_cli_exit_code_is_one_on_failure(capsys: pytest.CaptureFixture[str]) -> 
 
 
 def test_cli_refuses_an_address_that_is_not_an_endpoint(capsys: pytest.CaptureFixture[str]) -> None:
-    assert cli.main(["check-robot", "localhost:5555"]) == 2
-    assert "ZeroMQ endpoint" in capsys.readouterr().out
+    with pytest.raises(SystemExit) as exit_:  # argparse's usage error: one line, exit 2
+        cli.main(["check-robot", "localhost:5555"])
+    assert exit_.value.code == 2 and "has no transport" in capsys.readouterr().err
+    assert cli.main(["check-robot"]) == 2  # no address from the command line or a config file
+    assert "needs ADDR" in capsys.readouterr().err

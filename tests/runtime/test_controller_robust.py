@@ -227,8 +227,6 @@ def test_a_route_too_plain_for_patch_matching_falls_back_to_the_raw_error():
 
 
 def test_paper_is_still_algorithm_1_and_turns_every_extension_off():
-    from vtr.runtime.daemon import controller_from_args
-
     cfg = ControllerConfig.paper()
     assert (cfg.match.method, cfg.e_m_mode, cfg.e_m, cfg.pass_ratio, cfg.stall_steps, cfg.settle_steps) == (
         "raw",
@@ -244,12 +242,16 @@ def test_paper_is_still_algorithm_1_and_turns_every_extension_off():
     assert d.action is Action.COMMAND and d.v_limit == np.inf and d.error > 17
     import argparse
 
-    from vtr.runtime.daemon import add_arguments
+    from vtr.runtime.daemon import add_arguments, config_from_settings
+    from vtr.runtime.settings_cli import resolve
 
     parser = argparse.ArgumentParser()
     add_arguments(parser)
-    args = parser.parse_args(["--sim", "tcp://127.0.0.1:1", "--model", "m", "--route", "r", "--paper"])
-    assert controller_from_args(args) == ControllerConfig.paper()
+    args = parser.parse_args(
+        ["--sim", "tcp://127.0.0.1:1", "--model", "m", "--route", "r", "--profile", "paper"]
+    )
+    run = config_from_settings(resolve(args, "repeat"))
+    assert run.repeat.controller == ControllerConfig.paper() and not run.match_light
 
 
 def test_a_subgoal_reached_partly_by_driving_is_not_held() -> None:

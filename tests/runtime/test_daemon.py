@@ -267,7 +267,8 @@ def test_teach_then_repeat_over_zeromq_through_the_cli(policy_path, tmp_path, ca
             "--log",
             str(log),
             "--json",
-            "--no-match-light",  # the fake policy steers on brightness, which light matching evens out
+            "--profile",  # the fake policy steers on brightness, which light matching would even out
+            "paper",
         ]
         assert main(argv) == 0
     summary = json.loads(capsys.readouterr().out)
@@ -294,11 +295,11 @@ def test_teach_spacing_rules(tmp_path):
 
 
 def test_repeat_config_validation():
-    with pytest.raises(ValueError, match="max-steps"):
+    with pytest.raises(ValueError, match="max_steps"):
         RepeatConfig(max_steps=0)
     with pytest.raises(ValueError, match="dt"):
         RepeatConfig(dt=-0.1)
-    with pytest.raises(ValueError, match="frame-timeout"):
+    with pytest.raises(ValueError, match="frame_timeout_s"):
         RepeatConfig(frame_timeout_s=0)
 
 
@@ -360,26 +361,41 @@ def test_teach_against_nothing_gives_up_after_one_round_of_tries():
             teach(client, script)  # hello's tries only: reset is not tried again against nobody
 
 
-def test_threshold_choice_on_the_command_line():
+def _settings(*argv: str):
     import argparse
 
-    from vtr.runtime.daemon import add_arguments, controller_from_args
+    from vtr.runtime.daemon import add_arguments, config_from_settings
+    from vtr.runtime.settings_cli import resolve
 
     parser = argparse.ArgumentParser()
     add_arguments(parser)
     common = ["--sim", "tcp://127.0.0.1:5555", "--model", "m.onnx", "--route", "r.npz"]
-    per = controller_from_args(parser.parse_args([*common, "--thresholds", "per_subgoal", "--settle", "0"]))
-    assert (per.e_m_mode, per.pass_ratio, per.settle_steps) == ("per_subgoal", 1.0, 0)
-    default = controller_from_args(parser.parse_args(common))
-    assert (default.e_m_mode, default.pass_ratio) == (
-        ControllerConfig().e_m_mode,
-        ControllerConfig().pass_ratio,
+    return config_from_settings(resolve(parser.parse_args([*common, *argv]), "repeat"))
+
+
+def test_profiles_and_settings_reach_the_run_config():
+    default = _settings()
+    assert default.repeat.controller == ControllerConfig() and default.match_light
+    assert default.start == "route" and not default.repeat.controller.localise
+    paper = _settings("--profile", "paper")
+    assert paper.repeat.controller == ControllerConfig.paper() and not paper.match_light  # Algorithm 1
+    anywhere = _settings("--start", "anywhere", "--motion", "continuous", "--profile", "paper")
+    assert anywhere.start == "here" and anywhere.repeat.controller.localise  # no reset, the route searched
+    assert anywhere.repeat.controller.continuous and anywhere.repeat.controller.switching == "rules"
+    assert (
+        _settings("--start", "here").start == "here"
+        and not _settings("--start", "here").repeat.controller.localise
     )
-    fixed = controller_from_args(parser.parse_args([*common, "--thresholds", "per_subgoal", "--e-m", "20"]))
-    assert (fixed.e_m_mode, fixed.e_m) == ("fixed", 20.0)  # an explicit e_m wins
-    hybrid = controller_from_args(
-        parser.parse_args([*common, "--thresholds", "hybrid", "--zero-bias", "0.5"])
+    run = _settings(
+        "--wait", "3", "--stop-distance", "0.3", "--slowdown-distance", "0.5", "--robot-radius", "0.2"
     )
-    assert (hybrid.e_m_mode, hybrid.pass_ratio, hybrid.zero_bias) == ("hybrid", 0.0, 0.5)
-    paper = controller_from_args(parser.parse_args([*common, "--paper"]))
-    assert (paper.e_m_mode, paper.zero_bias, paper.progress_gate) == ("fixed", 0.0, 0.0)  # Algorithm 1
+    assert run.repeat.wait_s == 3.0
+    assert (
+        run.repeat.safety.stop_distance,
+        run.repeat.safety.slowdown_distance,
+        run.repeat.safety.radius,
+    ) == (
+        0.3,
+        0.5,
+        0.2,
+    )

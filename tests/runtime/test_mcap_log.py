@@ -131,9 +131,7 @@ def test_vtr_repeat_mcap_writes_the_whole_run(tmp_path: Path, capsys: pytest.Cap
     out = tmp_path / "run.mcap"
     with ServerThread(FakeSim()) as server:
         argv = ["repeat", "--sim", server.endpoint, "--model", model, "--route", str(route_path), "--json"]
-        argv.append(
-            "--no-match-light"
-        )  # the fake policy steers on brightness, which light matching evens out
+        argv += ["--profile", "paper"]  # the fake policy steers on brightness, which light matching evens out
         assert cli.main([*argv, "--mcap", str(out)]) == 0
     summary = json.loads(capsys.readouterr().out)
     run = read_run(out)

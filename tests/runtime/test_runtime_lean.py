@@ -43,6 +43,7 @@ class FrozenSim(FakeSim):
     def step(self, v: float, w: float, duration: float):
         self.calls.append(("step", v, w, duration))
         self.time += duration
+        time.sleep(0.005)  # a robot's pace: the run outlasts the test's signal
         return self.observe()
 
 
@@ -65,11 +66,18 @@ def files(tmp_path_factory):
     model = build_velocitynet_onnx(str(folder / "tiny.onnx"))
     route = folder / "route.npz"
     corridor_route().save(route)
+    corridor_route(length_m=10.0).save(folder / "long.npz")
     script = folder / "corridor.json"
     script.write_text(
         json.dumps({"start": {"x": 0, "y": 0, "yaw": 0}, "segments": [{"v": 0.25, "w": 0, "duration": 1.0}]})
     )
-    return {"model": model, "route": str(route), "script": str(script), "folder": folder}
+    return {
+        "model": model,
+        "route": str(route),
+        "long_route": str(folder / "long.npz"),
+        "script": str(script),
+        "folder": folder,
+    }
 
 
 def test_teach_and_repeat_run_with_torch_pymunk_cv2_blocked(files):
@@ -80,9 +88,7 @@ def test_teach_and_repeat_run_with_torch_pymunk_cv2_blocked(files):
         assert teach.returncode == 0, err
         assert "LEAKED []" in err
         args = ["repeat", "--sim", server.endpoint, "--model", files["model"], "--route", taught, "--json"]
-        args.append(
-            "--no-match-light"
-        )  # the fake policy steers on brightness, which light matching evens out
+        args += ["--profile", "paper"]  # the fake policy steers on brightness, which light matching evens out
         proc = _run_vtr(args)
         out, err = proc.communicate(timeout=60)
     assert proc.returncode == 0, err
@@ -97,23 +103,10 @@ def test_signal_commands_zero_velocity_and_exits_with_a_summary(files, sig):
     log = files["folder"] / f"run-{sig.name}.jsonl"
     with ServerThread(sim) as server:
         args = ["repeat", "--sim", server.endpoint, "--model", files["model"], "--route", files["route"]]
-        args += [
-            "--log",
-            str(log),
-            "--json",
-            "--continuous",
-            "--stall-steps",
-            "0",
-            "--settle",
-            "0",
-            "--lost-steps",
-            "0",
-            "--match",  # the fake camera encodes position in brightness, which patch matching ignores
-            "raw",
-            "--no-match-light",  # ... and which light matching would even out before the fake policy
-            "--max-steps",
-            "1000000",
-        ]
+        # Algorithm 1 neither stalls nor gets lost: the robot is commanded until the signal, or the step
+        # limit of this long route (8 per subgoal, at 5 ms a step); raw error, no light matching: the fake
+        # camera encodes position in brightness
+        args += ["--log", str(log), "--json", "--motion", "continuous", "--profile", "paper"]
         proc = _run_vtr(args)
         try:
             deadline = time.monotonic() + 60
