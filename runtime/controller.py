@@ -29,7 +29,7 @@ now ``runtime.follower``, which steers from ``runtime.localiser``'s estimate ins
 
 These rules advance the subgoal without seeing the robot get there (the plateau, the stall guard's jumps, the
 gate's patience): issue 19 measured boxes driven into and runs "finished" beside the route because of them,
-which is why the follower replaced them as the default. They stay for ``--paper`` and for the ablation
+which is why the follower replaced them as the default. They stay for ``--profile paper`` and for the ablation
 (``vtr eval --suite conditions --controllers rules``); the matching study is ``studies/matching_study.py`` and
 ``python -m vtr.evaluation.trace_run`` traces a run against the true pose.
 """
