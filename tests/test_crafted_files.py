@@ -356,6 +356,12 @@ def build(tmp: Path) -> dict[str, tuple[list[str], int, list[str], Path]]:
                 tmp / "bomb_data.npz", {"images.npy": (_npy_header((10**6, 8, 8, 3), "|u1"), 192 * 10**6)}
             ),
         ),
+        "train: sharded index with a bad entry": (
+            ["train", "viewnet", "--preset", "tiny", "--data", "{f}", "--out", "{out}"],
+            2,
+            ["index.json"],
+            tmp / "shards",
+        ),
         "export: checkpoint zip bomb": (
             ["export", "--checkpoint", "{f}", "--out", "{out}"],
             2,
@@ -375,6 +381,10 @@ def build(tmp: Path) -> dict[str, tuple[list[str], int, list[str], Path]]:
             _cut(ROOT / "models" / "velocitynet.onnx", tmp / "cut.onnx", 0.5),
         ),
     }
+    (tmp / "shards").mkdir()
+    (tmp / "shards" / "index.json").write_text(
+        json.dumps({"format": "vtr-shards", "format_version": 1, "shards": [5]})
+    )
     (tmp / "folder").mkdir()
     (tmp / "yaml_bag").mkdir()
     (tmp / "yaml_bag" / "metadata.yaml").write_text("rosbag2_bagfile_information: [1, 2\n")
@@ -433,6 +443,7 @@ CASE_NAMES = [
     "collect: garbage ROS 1 bag",
     "collect: garbage metadata.yaml",
     "train: dataset zip bomb",
+    "train: sharded index with a bad entry",
     "export: checkpoint zip bomb",
     "export: cut checkpoint",
     "bench latency: cut model",
