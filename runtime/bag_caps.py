@@ -99,13 +99,21 @@ class _CappedStream:
         self.inner, self.limit, self.total = inner, limit, 0
 
     def read(self, size: int = -1) -> bytes:
-        data = self.inner.read(min(size, MIB) if size >= 0 else MIB)
-        self.total += len(data)
-        if self.total > self.limit:
-            raise CapError(
-                f"a zstd-compressed bag file expands past {mib(self.limit)} ({FILE_EXPANSION}x its size)"
-            )
-        return data
+        """Up to ``size`` bytes (all when negative), read a MiB at a time; CapError past the limit."""
+        parts: list[bytes] = []
+        left = size if size >= 0 else self.limit + 1
+        while left > 0:
+            data = self.inner.read(min(left, MIB))
+            if not data:
+                break
+            self.total += len(data)
+            if self.total > self.limit:
+                raise CapError(
+                    f"a zstd-compressed bag file expands past {mib(self.limit)} ({FILE_EXPANSION}x its size)"
+                )
+            parts.append(data)
+            left -= len(data)
+        return b"".join(parts)
 
     def __enter__(self) -> _CappedStream:
         return self

@@ -171,3 +171,22 @@ def test_a_written_run_carries_a_crc_in_every_chunk(tmp_path: Path) -> None:
             crcs.append(struct.unpack_from("<I", data, pos + 9 + 24)[0])
         pos += 9 + length
     assert len(crcs) == 2 and all(crcs)
+
+
+@pytest.mark.parametrize("mode", ["FILE", "MESSAGE", "STORAGE"])
+def test_honest_compressed_bags_read_through_the_caps(tmp_path: Path, mode: str) -> None:
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode
+
+    vec = STORE.types["geometry_msgs/msg/Vector3"]
+    twist = STORE.types["geometry_msgs/msg/Twist"](
+        linear=vec(x=0.2, y=0.0, z=0.0), angular=vec(x=0.0, y=0.0, z=0.1)
+    )
+    writer = Writer(tmp_path / "bag", version=9, storage_plugin=StoragePlugin.MCAP)
+    writer.set_compression(CompressionMode[mode], CompressionFormat.ZSTD)
+    with writer:
+        conn = writer.add_connection("/cmd_vel", "geometry_msgs/msg/Twist", typestore=STORE)
+        for k in range(30):
+            writer.write(conn, k * 10**8, STORE.serialize_cdr(twist, "geometry_msgs/msg/Twist"))
+    with GuardedBag([tmp_path / "bag"], typestore=STORE) as bag:
+        got = [bag.deserialize(c, i, raw).linear.x for c, i, _, raw in bag.messages(bag.connections)]
+    assert got == [0.2] * 30 and bag.warnings == []
