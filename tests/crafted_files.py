@@ -7,6 +7,8 @@ A bomb is real: decompressed, it is the size it declares (zeros), so a reader th
 
 from __future__ import annotations
 
+import io
+import shutil
 import struct
 import zlib
 from pathlib import Path
@@ -15,7 +17,10 @@ import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
+from vtr.runtime.mcap_log import McapRunWriter
+
 STORE = get_typestore(Stores.ROS2_HUMBLE)
+BAG_TOPICS = {"/camera/image": "sensor_msgs/msg/Image", "/cmd_vel": "geometry_msgs/msg/Twist"}
 MAGIC = b"\x89MCAP0\r\n"
 T0 = 1_700_000_000 * 10**9
 
@@ -176,3 +181,100 @@ def zip_bomb(path: Path, members: dict[str, bytes | tuple[bytes, int]]) -> Path:
     end = b"PK\x05\x06" + struct.pack("<HHHHIIH", 0, 0, n, n, len(central), len(local), 0)
     path.write_bytes(bytes(local) + bytes(central) + end)
     return path
+
+
+def run_steps(path: Path, steps: int = 9, side: int = 8, extra: list[str] | None = None) -> Path:
+    with McapRunWriter(path) as writer:
+        for k in range(steps):
+            image = np.full((side, side, 3), k, np.uint8)
+            writer.record(
+                {
+                    "stamp": 0.1 * k,
+                    "image": image,
+                    "subgoal_image": image,
+                    "v": 0.25,
+                    "w": 0.0,
+                    "pose": (0.025 * k, 0.0, 0.0),
+                    "error": 5.0,
+                    "subgoal": k // 2,
+                }
+            )
+        for text in extra or []:
+            writer._write("/vtr/step", writer._last_ns + 1, STORE.types["std_msgs/msg/String"](data=text))
+        writer.record_summary({"status": "finished", "subgoals_reached": 5, "steps": steps})
+    return path
+
+
+def pose_of_another_type(path: Path) -> Path:
+    string = STORE.types["std_msgs/msg/String"](data="x")
+    raw = bytes(STORE.serialize_cdr(string, "std_msgs/msg/String"))
+    folder = raw_bag(path.with_suffix(""), {"/vtr/pose": "std_msgs/msg/String"}, [("/vtr/pose", T0, raw)])
+    shutil.move(folder / f"{folder.name}.mcap", path)
+    shutil.rmtree(folder)
+    return path
+
+
+def cut(source: Path, path: Path, keep: float) -> Path:
+    data = source.read_bytes()
+    path.write_bytes(data[: int(len(data) * keep)])
+    return path
+
+
+def corrupt_middle(source: Path, path: Path) -> Path:
+    data = bytearray(source.read_bytes())
+    mid = len(data) // 2
+    data[mid - 2048 : mid + 2048] = np.random.default_rng(4).integers(0, 256, 4096, dtype=np.uint8).tobytes()
+    path.write_bytes(bytes(data))
+    return path
+
+
+def bag_with(path: Path, bad: str) -> Path:
+    """A 10-frame bag whose frame or command 2..4 is bad: a cut image, random bytes, a non-UTF-8 encoding."""
+    messages = []
+    for k in range(10):
+        t = T0 + k * 10**8
+        image = STORE.types["sensor_msgs/msg/Image"](
+            header=STORE.types["std_msgs/msg/Header"](
+                stamp=STORE.types["builtin_interfaces/msg/Time"](sec=t // 10**9, nanosec=t % 10**9),
+                frame_id="c",
+            ),
+            height=4,
+            width=4,
+            encoding="rgb8",
+            is_bigendian=0,
+            step=12,
+            data=np.zeros(48, np.uint8),
+        )
+        raw_image = bytes(STORE.serialize_cdr(image, "sensor_msgs/msg/Image"))
+        raw_cmd = twist()
+        if bad == "cut image" and k == 3:
+            raw_image = raw_image[: len(raw_image) // 2]
+        if bad == "random twist" and k == 4:
+            raw_cmd = np.random.default_rng(k).integers(0, 256, 16, dtype=np.uint8).tobytes()
+        if bad == "encoding" and k == 2:
+            raw_image = raw_image.replace(b"rgb8", b"\xff\xfe\x80\x81")
+        messages += [("/camera/image", t, raw_image), ("/cmd_vel", t, raw_cmd)]
+    return raw_bag(path, BAG_TOPICS, messages)
+
+
+def npy_header(shape: tuple[int, ...], dtype: str) -> bytes:
+    from numpy.lib import format as npy_format
+
+    out = io.BytesIO()
+    npy_format.write_array_header_1_0(out, {"descr": dtype, "fortran_order": False, "shape": shape})
+    return out.getvalue()
+
+
+def checkpoint_bomb(path: Path, small: Path) -> Path:
+    """A torch checkpoint whose tensor's storage is a 100 MB member deflated to a few KB (``small``: the
+    checkpoint it came from)."""
+    import zipfile
+
+    import torch
+
+    torch.save({"kind": "velocitynet", "w": torch.zeros(4)}, small)
+    with zipfile.ZipFile(small) as z:
+        members = {i.filename: z.read(i) for i in z.infolist()}
+    name = next(n for n in members if n.endswith("data/0"))
+    members[name] = (b"", 100 * 2**20)
+    return zip_bomb(path, members)
