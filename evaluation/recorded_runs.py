@@ -2,6 +2,8 @@
 
 The run's poses (where the robot reported them) are compared with the taught route's poses by the same metrics
 as the simulator evaluation (evaluation.metrics.route_metrics); completion comes from the run's summary.
+A file that is not such a run is one line and exit 2 (runtime.mcap_read); a damaged one is scored as far as it
+reads, with a warning on stderr.
 """
 
 from __future__ import annotations
@@ -14,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from vtr.evaluation import metrics
-from vtr.runtime.mcap_log import RecordedRun, read_run
+from vtr.runtime.mcap_read import RecordedRun, read_run
 from vtr.runtime.route import Route
 
 
@@ -27,6 +29,11 @@ def score_recorded_run(run: RecordedRun, route: Route) -> dict[str, Any]:
         raise ValueError("the taught route has unknown poses: nothing to compare the run with")
     summary = run.summary or {}
     reached = int(summary.get("subgoals_reached", max((s.get("subgoal", 0) for s in run.steps), default=0)))
+    if reached > len(route):
+        raise ValueError(
+            f"the run reached {reached} subgoals but the taught route has {len(route)}: is --taught the route "
+            "it repeated?"
+        )
     out = metrics.route_metrics(route.poses, run.poses[known], run.commands, reached)
     out.update(
         status=summary.get("status"),
@@ -36,6 +43,8 @@ def score_recorded_run(run: RecordedRun, route: Route) -> dict[str, Any]:
         poses_known=int(known.sum()),
         images=run.image_count,
     )
+    if run.warnings:
+        out["warnings"] = list(run.warnings)  # damage: scored as far as the file reads
     return out
 
 
@@ -44,10 +53,19 @@ def run_cli(args: Any) -> int:
         print("vtr eval: --run needs --taught ROUTE.npz (the route the run repeated)", file=sys.stderr)
         return 2
     try:
-        result = score_recorded_run(read_run(args.run), Route.load(args.taught))
+        route = Route.load(args.taught)
+        run = read_run(args.run)
     except (OSError, ValueError) as exc:
         print(f"vtr eval: {exc}", file=sys.stderr)
         return 2
+    try:
+        result = score_recorded_run(run, route)
+    except ValueError as exc:  # one line: the run's damage, when there was some, said in it
+        damage = f" ({'; '.join(run.warnings)})" if run.warnings else ""
+        print(f"vtr eval: {args.run}: {exc}{damage}", file=sys.stderr)
+        return 2
+    for warning in run.warnings:
+        print(f"vtr eval: warning: {warning}", file=sys.stderr)
     text = json.dumps(result, indent=2, default=float)
     if args.json_path is not None:
         from vtr.runtime.atomic import write_text_atomic

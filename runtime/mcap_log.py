@@ -19,10 +19,11 @@ writer opened, so a run shows a real date and keeps the robot's spacing.
 ``PATH`` ending in ``.mcap`` is one MCAP file (Foxglove, `ros2 bag play PATH`, rosbags); any other ``PATH`` is a
 bag folder with metadata.yaml (format 8) as `ros2 bag record -s mcap` makes it (for Humble, whose rosbag2
 predates that format, its maintainers suggest deleting metadata.yaml and `ros2 bag reindex PATH`; not tried here).
-The bag is written into a temporary folder beside ``PATH`` and moved into place by :meth:`McapRunWriter.close`.
+The bag is written into a temporary folder beside ``PATH`` and moved into place by :meth:`McapRunWriter.close`,
+which first fills in each chunk's CRC-32 (runtime.mcap_walk), so a reader tells a damaged chunk from a good one.
 
 Needs the optional extra ``[ros]`` (the pure-Python ``rosbags``), imported only when a run is written or read: a
-robot board that never records runs never needs it.
+robot board that never records runs never needs it. runtime.mcap_read reads a run back (`vtr eval --run`).
 """
 
 from __future__ import annotations
@@ -34,11 +35,12 @@ import shutil
 import tempfile
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from vtr.runtime import mcap_walk
 
 TOPICS = {
     "/vtr/camera/image": "sensor_msgs/msg/Image",
@@ -191,6 +193,8 @@ class McapRunWriter:
         try:
             self._writer.close()
             source = self._bag_dir / f"{self._bag_dir.name}.mcap" if self.single_file else self._bag_dir
+            for part in [source] if self.single_file else sorted(source.glob("*.mcap")):
+                mcap_walk.add_chunk_crcs(part)  # so a reader sees a damaged chunk (rosbags writes none)
             if self.path.is_dir() and not self.single_file:
                 shutil.rmtree(self.path)
             os.replace(source, self.path)
@@ -211,65 +215,6 @@ def _plain(obj: Any) -> Any:
     if hasattr(obj, "name"):  # enums (a controller decision)
         return obj.name
     return str(obj)
-
-
-@dataclass
-class RecordedRun:
-    """A run read back from MCAP: one row per control step (times in seconds from the first step)."""
-
-    times: np.ndarray  # (S,)
-    commands: np.ndarray  # (S, 2) v, w
-    poses: np.ndarray  # (S, 3), NaN where unknown
-    errors: np.ndarray  # (S,), NaN where absent
-    steps: list[dict[str, Any]] = field(default_factory=list)  # the JSON channel
-    summary: dict[str, Any] | None = None
-    image_count: int = 0
-
-
-def read_run(path: str | os.PathLike[str]) -> RecordedRun:
-    """Read a run written by :class:`McapRunWriter` (a .mcap file or a bag folder)."""
-    try:
-        from rosbags.highlevel import AnyReader
-    except ModuleNotFoundError:
-        raise ModuleNotFoundError(_MISSING, name="rosbags") from None
-    rows: dict[int, dict[str, Any]] = {}
-    steps: list[dict[str, Any]] = []
-    summary, images = None, 0
-    with AnyReader([Path(path)]) as reader:
-        for conn, ns, raw in reader.messages():
-            if conn.topic == "/vtr/camera/image":
-                images += 1
-                continue
-            if conn.topic not in ("/vtr/cmd_vel", "/vtr/pose", "/vtr/image_error", "/vtr/step"):
-                continue
-            msg = reader.deserialize(raw, conn.msgtype)
-            if conn.topic == "/vtr/step":
-                data = json.loads(msg.data)
-                if "summary" in data:
-                    summary = data["summary"]
-                else:
-                    steps.append(data)
-                continue
-            row = rows.setdefault(ns, {})
-            if conn.topic == "/vtr/cmd_vel":
-                row["cmd"] = (msg.twist.linear.x, msg.twist.angular.z)
-            elif conn.topic == "/vtr/pose":
-                q = msg.pose.orientation
-                yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
-                row["pose"] = (msg.pose.position.x, msg.pose.position.y, yaw)
-            else:
-                row["error"] = msg.data
-    times = sorted(t for t, r in rows.items() if "cmd" in r)
-    t0 = times[0] if times else 0
-    return RecordedRun(
-        times=np.array([(t - t0) * 1e-9 for t in times]),
-        commands=np.array([rows[t]["cmd"] for t in times], np.float64).reshape(-1, 2),
-        poses=np.array([rows[t].get("pose", (np.nan,) * 3) for t in times], np.float64).reshape(-1, 3),
-        errors=np.array([rows[t].get("error", np.nan) for t in times], np.float64),
-        steps=steps,
-        summary=summary,
-        image_count=images,
-    )
 
 
 def step_fields(rec: Any, route_images: np.ndarray) -> dict[str, Any] | None:

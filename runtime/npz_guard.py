@@ -1,10 +1,13 @@
-"""Size caps for ``.npz`` files (routes here; datasets can use the same check) before anything is decompressed.
+"""Size caps for ``.npz`` files (routes, datasets) and other zip archives (torch checkpoints) before anything is
+decompressed.
 
 A compressed ``.npz`` can expand a thousandfold (0.29 MB of zeros became 295 MB), and a ``.npy`` header can
 declare a shape far larger than its data. :func:`check_npz` reads only the zip directory and each array's
 header, and refuses a file whose arrays would take more than ``max_expansion`` times the file's size, whose
 arrays hold Python objects (pickles: code), or whose members are not plain ``.npy`` arrays. ``np.load`` then
-never allocates more than was checked: zipfile stops each member at its declared size.
+never allocates more than was checked: zipfile stops each member at its declared size. :func:`check_zip` is
+the directory-only half, for archives whose members are not ``.npy`` (a torch checkpoint is a zip whose
+reader allocates each member's declared size).
 """
 
 from __future__ import annotations
@@ -26,32 +29,45 @@ class NpzTooLargeError(ValueError):
     """An .npz whose arrays exceed the cap or that is not a plain array archive; the message says why."""
 
 
-def check_npz(path: str | os.PathLike[str], max_expansion: float = MAX_EXPANSION) -> int:
-    """Raise NpzTooLargeError unless every member is a plain .npy array and their total size is at most
-    ``max_expansion`` times the file size; returns that total in bytes."""
+def check_zip(
+    path: str | os.PathLike[str],
+    max_expansion: float = MAX_EXPANSION,
+    max_members: int = MAX_MEMBERS,
+    what: str = "an .npz archive",
+) -> int:
+    """Raise NpzTooLargeError unless ``path`` is a zip archive of at most ``max_members`` members whose
+    declared sizes total at most ``max_expansion`` times the file size; returns that total in bytes. Reads
+    the zip directory only."""
     path = os.fspath(path)
     size = os.path.getsize(path)
     try:
-        archive = zipfile.ZipFile(path)
-    except (zipfile.BadZipFile, OSError) as exc:
-        raise NpzTooLargeError(f"{path}: not an .npz archive ({exc})") from None
-    with archive:
-        members = archive.infolist()
-        if len(members) > MAX_MEMBERS:
-            raise NpzTooLargeError(f"{path}: {len(members)} members, more than {MAX_MEMBERS}")
-        total = 0
-        for info in members:
+        with zipfile.ZipFile(path) as archive:
+            members = archive.infolist()
+    except (zipfile.BadZipFile, OSError, ValueError) as exc:
+        raise NpzTooLargeError(f"{path}: not {what} ({exc})") from None
+    if len(members) > max_members:
+        raise NpzTooLargeError(f"{path}: {len(members)} members, more than {max_members}")
+    total = sum(info.file_size for info in members)
+    if total > max_expansion * size:
+        raise NpzTooLargeError(
+            f"{path}: its contents take {total / 1e6:.1f} MB, more than {max_expansion:g}x the file's "
+            f"{size / 1e6:.2f} MB; refusing to decompress it"
+        )
+    return total
+
+
+def check_npz(path: str | os.PathLike[str], max_expansion: float = MAX_EXPANSION) -> int:
+    """Raise NpzTooLargeError unless every member is a plain .npy array and their total size is at most
+    ``max_expansion`` times the file size (:func:`check_zip`); returns that total in bytes."""
+    total = check_zip(path, max_expansion)
+    path = os.fspath(path)
+    with zipfile.ZipFile(path) as archive:
+        for info in archive.infolist():
             nbytes = _array_bytes(archive, info, path)
             if nbytes > info.file_size:
                 raise NpzTooLargeError(
                     f"{path}: {info.filename} declares {nbytes} bytes of data in a {info.file_size}-byte member"
                 )
-            total += info.file_size
-    if total > max_expansion * size:
-        raise NpzTooLargeError(
-            f"{path}: its arrays take {total / 1e6:.1f} MB, more than {max_expansion:g}x the file's "
-            f"{size / 1e6:.2f} MB; refusing to decompress it"
-        )
     return total
 
 

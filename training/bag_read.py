@@ -17,6 +17,11 @@ received; older than ``cmd_timeout`` means the robot's controller has stopped it
 ``cmd_vel_timeout`` does). A frame without a camera frame, before the first command, with a command beyond the
 limits or a picture that does not decode is skipped, with the reason counted; a skipped frame splits the drive
 into segments (a training pair never spans a gap). Images are centre-cropped to a square and resized.
+
+Bad files (runtime.bag_reader, training/bag_images.py): sizes are checked before anything is decompressed or
+decoded (a chunk, a message, an image over its cap refuses the bag); a message that does not decode as its
+type is a BagError naming the file, topic and message index; a damaged file is read as far as it goes, its
+damage in ``BagDrive.warnings``.
 """
 
 from __future__ import annotations
@@ -31,19 +36,15 @@ from typing import Any
 import numpy as np
 
 from vtr.runtime import protocol
+from vtr.runtime.bag_caps import BagFileError
+from vtr.runtime.bag_reader import GuardedBag, shown
+from vtr.training.bag_images import ImageTooLargeError, NoDecoderError, decode_image, square_resize
 
 IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
 COMMAND_TYPES = ("geometry_msgs/msg/Twist", "geometry_msgs/msg/TwistStamped")
 POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped")
 #: Largest median gap between a topic's header stamps and its receive times that still counts as one clock, s.
 CLOCK_TOLERANCE_S = 1.0
-_CHANNELS = {
-    "rgb8": (3, False),
-    "bgr8": (3, True),
-    "rgba8": (4, False),
-    "bgra8": (4, True),
-    "mono8": (1, False),
-}
 
 
 class BagError(ValueError):
@@ -51,12 +52,12 @@ class BagError(ValueError):
 
 
 def import_rosbags() -> Any:
-    """The rosbags modules, or a one-line error naming the extra to install."""
+    """rosbags' type system, or a one-line error naming the extra to install."""
     try:
-        from rosbags import highlevel, typesys
+        from rosbags import typesys
     except ModuleNotFoundError:
         raise BagError("reading ROS bags needs the package rosbags: pip install 'vtr-mpc[ros]'") from None
-    return highlevel, typesys
+    return typesys
 
 
 @dataclass
@@ -72,6 +73,7 @@ class BagDrive:
     source: dict[str, Any] = field(
         default_factory=dict
     )  # bag paths, topics, types, message counts, camera size
+    warnings: list[str] = field(default_factory=list)  # damage found while reading (read as far as it goes)
 
     def __len__(self) -> int:
         return int(self.images.shape[0])
@@ -103,74 +105,24 @@ class BagDrive:
         return "\n".join(lines)
 
 
-def _connections(reader: Any, topic: str | None, types: tuple[str, ...], role: str) -> list[Any]:
+def _connections(bag: GuardedBag, topic: str | None, types: tuple[str, ...], role: str) -> list[Any]:
     if topic is None:
         return []
-    found = [c for c in reader.connections if c.topic == topic]
+    found = [c for c in bag.connections if c.topic == topic]
     if not found:
-        known = ", ".join(sorted(f"{c.topic} ({c.msgtype})" for c in reader.connections)) or "none"
-        raise BagError(f"no topic {topic!r} in the bag for the {role}; topics: {known}")
+        known = sorted({f"{shown(c.topic)} ({shown(c.msgtype)})" for c in bag.connections})
+        listed = ", ".join(known[:12]) + (f" and {len(known) - 12} more" if len(known) > 12 else "")
+        raise BagError(f"{bag.name()}: no topic {topic!r} for the {role}; topics: {listed or 'none'}")
     wrong = [c.msgtype for c in found if c.msgtype not in types]
     if wrong:
-        raise BagError(f"{role} topic {topic!r} carries {wrong[0]}; expected one of {', '.join(types)}")
+        raise BagError(
+            f"{bag.name()}: {role} topic {topic!r} carries {shown(wrong[0])}; expected one of {', '.join(types)}"
+        )
     return found
 
 
 def _yaw(q: Any) -> float:
     return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
-
-
-def _square_resize(image: np.ndarray, size: int) -> np.ndarray:
-    """Centre-crop to a square, then resize to size x size (area averaging when OpenCV is there)."""
-    h, w = image.shape[:2]
-    side = min(h, w)
-    image = image[(h - side) // 2 : (h - side) // 2 + side, (w - side) // 2 : (w - side) // 2 + side]
-    if side == size:
-        return np.ascontiguousarray(image)
-    try:
-        import cv2
-
-        return cv2.resize(image, (size, size), interpolation=cv2.INTER_AREA)
-    except ImportError:
-        idx = ((np.arange(size) + 0.5) * side / size).astype(int)  # nearest neighbour, numpy only
-        return np.ascontiguousarray(image[idx][:, idx])
-
-
-def decode_image(msg: Any, msgtype: str) -> np.ndarray:
-    """A ROS image message as (H, W, 3) uint8 RGB; ValueError naming what cannot be read."""
-    if msgtype.endswith("CompressedImage"):
-        data = np.asarray(msg.data, dtype=np.uint8).tobytes()
-        try:
-            import cv2
-
-            bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
-            if bgr is None:
-                raise ValueError(f"a {msg.format!r} CompressedImage that does not decode")
-            return bgr[:, :, ::-1]
-        except ImportError:
-            pass
-        try:
-            import io
-
-            from PIL import Image
-        except ImportError:
-            raise BagError("CompressedImage needs opencv-python-headless or pillow installed") from None
-        try:
-            return np.asarray(Image.open(io.BytesIO(data)).convert("RGB"))
-        except Exception as exc:
-            raise ValueError(f"a {msg.format!r} CompressedImage that does not decode") from exc
-    if msg.encoding not in _CHANNELS:
-        raise ValueError(f"image encoding {msg.encoding!r} (supported: {', '.join(_CHANNELS)})")
-    channels, bgr = _CHANNELS[msg.encoding]
-    data = np.asarray(msg.data, dtype=np.uint8)
-    if msg.step < msg.width * channels or data.size < msg.step * msg.height:
-        raise ValueError(f"an image whose data ({data.size} bytes) does not fit {msg.height}x{msg.width}")
-    rows = data[: msg.step * msg.height].reshape(msg.height, msg.step)[:, : msg.width * channels]
-    image = rows.reshape(msg.height, msg.width, channels)
-    if channels == 1:
-        return np.repeat(image, 3, axis=2)
-    image = image[:, :, :3]
-    return image[:, :, ::-1] if bgr else image
 
 
 def read_bag(
@@ -187,52 +139,33 @@ def read_bag(
     if not (dt > 0 and image_size > 0 and cmd_timeout > 0):
         raise BagError(f"dt, image_size and cmd_timeout must be > 0, got {dt}, {image_size}, {cmd_timeout}")
     limits = limits or protocol.Limits()  # the model's limits: commands beyond them make no training pairs
-    highlevel, typesys = import_rosbags()
+    typesys = import_rosbags()
     store = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
-    missing = [str(p) for p in paths if not Path(p).exists()]
-    if missing:
-        raise BagError(f"no bag at {', '.join(missing)}")
     try:
-        reader = highlevel.AnyReader([Path(p) for p in paths], default_typestore=store)
-        reader.open()
-    except Exception as exc:  # rosbags raises its own errors for unreadable files
-        raise BagError(f"cannot open {', '.join(map(str, paths))} as a ROS bag: {exc}") from None
-    try:
-        image_conns = _connections(reader, image_topic, IMAGE_TYPES, "camera")
-        cmd_conns = _connections(reader, cmd_topic, COMMAND_TYPES, "command")
-        pose_conns = _connections(reader, odom_topic, POSE_TYPES, "pose")
-        times: dict[str, list[tuple[float, float | None]]] = {"image": [], "cmd": [], "pose": []}
-        cmds, poses = [], []
-        for conn, stamp, raw in reader.messages(connections=image_conns + cmd_conns + pose_conns):
-            msg = reader.deserialize(raw, conn.msgtype)
-            header = getattr(msg, "header", None)
-            pair = (
-                stamp * 1e-9,
-                header.stamp.sec + header.stamp.nanosec * 1e-9 if header is not None else None,
+        with GuardedBag(paths, typestore=store) as bag:
+            image_conns = _connections(bag, image_topic, IMAGE_TYPES, "camera")
+            cmd_conns = _connections(bag, cmd_topic, COMMAND_TYPES, "command")
+            pose_conns = _connections(bag, odom_topic, POSE_TYPES, "pose")
+            times, cmds, poses = _first_pass(
+                bag, image_conns + cmd_conns + pose_conns, image_topic, cmd_topic
             )
-            if conn.topic == image_topic:
-                times["image"].append(pair)
-            elif conn.topic == cmd_topic:
-                twist = msg.twist if conn.msgtype.endswith("TwistStamped") else msg
-                times["cmd"].append(pair)
-                cmds.append((twist.linear.x, twist.angular.z))
-            else:
-                pose = msg.pose.pose if conn.msgtype.endswith("Odometry") else msg.pose
-                times["pose"].append(pair)
-                poses.append((pose.position.x, pose.position.y, _yaw(pose.orientation)))
-        if not times["image"] or not times["cmd"]:
-            raise BagError(
-                f"the bag has {len(times['image'])} camera frames and {len(times['cmd'])} commands: nothing to use"
-            )
-        clocks = {topic: _message_times(pairs) for topic, pairs in times.items()}
-        image_t, image_order = _sorted(clocks["image"][0])
-        cmd_t, cmd_order = _sorted(clocks["cmd"][0])
-        pose_t, pose_order = _sorted(clocks["pose"][0])
-        plan, skipped = _plan(image_t, cmd_t, np.array(cmds)[cmd_order], dt, cmd_timeout, limits)
-        plan = {k: (t, int(image_order[j]), c) for k, (t, j, c) in plan.items()}  # j: the message's position
-        images, native = _decode_planned(reader, image_conns, plan, image_size, skipped)
-    finally:
-        reader.close()
+            if not times["image"] or not times["cmd"]:
+                raise BagError(
+                    f"the bag has {len(times['image'])} camera frames and {len(times['cmd'])} commands: "
+                    "nothing to use" + "".join(f"; {w}" for w in bag.warnings)
+                )
+            clocks = {topic: _message_times(pairs) for topic, pairs in times.items()}
+            image_t, image_order = _sorted(clocks["image"][0])
+            cmd_t, cmd_order = _sorted(clocks["cmd"][0])
+            pose_t, pose_order = _sorted(clocks["pose"][0])
+            plan, skipped = _plan(image_t, cmd_t, np.array(cmds)[cmd_order], dt, cmd_timeout, limits)
+            plan = {
+                k: (t, int(image_order[j]), c) for k, (t, j, c) in plan.items()
+            }  # j: the message's position
+            images, native = _decode_planned(bag, image_conns, plan, image_size, skipped)
+            warnings = list(bag.warnings)
+    except BagFileError as exc:
+        raise BagError(str(exc)) from None
     keep = [k for k in sorted(plan) if k in images]
     seg = np.cumsum([1] + [int(b - a != 1) for a, b in zip(keep, keep[1:], strict=False)]) - 1 if keep else []
     frame_t = np.array([plan[k][0] for k in keep])
@@ -255,6 +188,7 @@ def read_bag(
             "stamps": {topic: clock for topic, (_, clock) in clocks.items() if times[topic]},
             "camera": {"width": native[1], "height": native[0]} if native else {},
         },
+        warnings=warnings,
     )
 
 
@@ -316,23 +250,55 @@ def _plan(
     return plan, Counter({r: n for r, n in skipped.items() if n})
 
 
+def _first_pass(
+    bag: GuardedBag, conns: list[Any], image_topic: str, cmd_topic: str
+) -> tuple[dict[str, list[tuple[float, float | None]]], list[tuple[float, float]], list[tuple[float, ...]]]:
+    """Every message's (receive time, header stamp or None) by role, the commands and the poses."""
+    times: dict[str, list[tuple[float, float | None]]] = {"image": [], "cmd": [], "pose": []}
+    cmds, poses = [], []
+    for conn, i, stamp, raw in bag.messages(conns):
+        msg = bag.deserialize(conn, i, raw)
+        header = getattr(msg, "header", None)
+        pair = (
+            stamp * 1e-9,
+            header.stamp.sec + header.stamp.nanosec * 1e-9 if header is not None else None,
+        )
+        if conn.topic == image_topic:
+            times["image"].append(pair)
+        elif conn.topic == cmd_topic:
+            twist = msg.twist if conn.msgtype.endswith("TwistStamped") else msg
+            times["cmd"].append(pair)
+            cmds.append((float(twist.linear.x), float(twist.angular.z)))
+        else:
+            pose = msg.pose.pose if conn.msgtype.endswith("Odometry") else msg.pose
+            xyt = (float(pose.position.x), float(pose.position.y), _yaw(pose.orientation))
+            times["pose"].append(pair)
+            poses.append(xyt if all(math.isfinite(p) for p in xyt) else (math.nan,) * 3)
+    return times, cmds, poses
+
+
 def _decode_planned(
-    reader: Any, conns: list[Any], plan: dict, size: int, skipped: Counter
+    bag: GuardedBag, conns: list[Any], plan: dict, size: int, skipped: Counter
 ) -> tuple[dict[int, np.ndarray], tuple[int, int] | None]:
-    """Second pass over the camera topic: decode only the frames the plan uses."""
+    """Second pass over the camera topic: decode only the frames the plan uses. A picture that does not decode
+    is skipped (counted); one over the size cap refuses the bag."""
     wanted = {j: k for k, (_, j, _) in plan.items()}
     images: dict[int, np.ndarray] = {}
     native = None
-    for j, (conn, _, raw) in enumerate(reader.messages(connections=conns)):
+    for conn, j, _, raw in bag.messages(conns):
         if j not in wanted:
             continue
         try:
-            image = decode_image(reader.deserialize(raw, conn.msgtype), conn.msgtype)
+            image = decode_image(bag.deserialize(conn, j, raw), conn.msgtype)
+        except (ImageTooLargeError, NoDecoderError) as exc:
+            raise BagError(
+                f"{bag.where(conn, j)} is {exc}" if isinstance(exc, ImageTooLargeError) else str(exc)
+            ) from None
         except ValueError as exc:
             skipped[f"camera frame not usable: {exc}"] += 1
             continue
         native = native or image.shape[:2]
-        images[wanted[j]] = _square_resize(image, size)
+        images[wanted[j]] = square_resize(image, size)
     return images, native
 
 

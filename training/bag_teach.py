@@ -85,6 +85,8 @@ def run_cli(args: Any, cfg: TeachConfig) -> int:
         return 2
     try:
         drive = read_bag_args(args, cfg.dt, getattr(args, "image_size", 128))
+        for warning in drive.warnings:
+            print(f"vtr teach: warning: {warning}", file=sys.stderr)
         print(drive.report())
         name = os.path.splitext(os.path.basename(args.out))[0]
         camera = drive.camera(args.camera_fov, args.camera_height)

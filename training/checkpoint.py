@@ -3,13 +3,17 @@
 A checkpoint holds tensors and plain data only (str, int, float, bool, None, lists, tuples and dicts of
 them): ``save_checkpoint`` refuses anything else, so every file we write loads without unpickling
 arbitrary objects, and ``read_checkpoint`` refuses a file that would need it (a crafted pickle runs no
-code here). Readers (export, evaluation, the latency benchmark) import this module, not the training loop.
+code here). Before torch reads a file, its zip directory is checked (runtime.npz_guard.check_zip): torch
+allocates each member's declared size, so a 400 KB file could take 400 MB; members may total at most 4x the
+file's size (``torch.save`` stores them uncompressed). Readers (export, evaluation, the latency benchmark)
+import this module, not the training loop.
 """
 
 from __future__ import annotations
 
 import os
 import pickle
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -19,6 +23,7 @@ import torch
 from torch import nn
 
 from vtr.runtime.atomic import atomic_path
+from vtr.runtime.npz_guard import MAX_EXPANSION, NpzTooLargeError, check_zip
 from vtr.training.config import VelocityNetConfig, ViewNetConfig, from_dict
 from vtr.training.models import VelocityNet, ViewNet
 
@@ -26,6 +31,8 @@ CHECKPOINT = "checkpoint.pt"
 MODEL = "model.pt"
 METRICS = "metrics.jsonl"
 REPORT = "report.json"
+#: More zip members than this is not one of our checkpoints (one per tensor, optimizer state included).
+MAX_MEMBERS = 100_000
 
 
 class CheckpointError(ValueError):
@@ -61,6 +68,15 @@ def read_checkpoint(path: str | os.PathLike[str], map_location: str | torch.devi
         path = path / MODEL
     if not path.is_file():
         raise FileNotFoundError(f"no model checkpoint at {path}")
+    if not zipfile.is_zipfile(path):
+        raise CheckpointError(
+            f"{path} is not a torch checkpoint (not the zip archive torch.save writes); pass a model.pt "
+            "written by `vtr train`"
+        )
+    try:
+        check_zip(path, MAX_EXPANSION, MAX_MEMBERS, what="a torch checkpoint")
+    except NpzTooLargeError as exc:
+        raise CheckpointError(f"{exc}; pass a model.pt written by `vtr train`") from None
     try:
         data = torch.load(path, map_location=map_location, weights_only=True)
     except pickle.UnpicklingError as exc:

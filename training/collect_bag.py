@@ -55,6 +55,8 @@ def run_cli(args: Any) -> int:
     """`vtr collect --bag PATH --image-topic T --cmd-topic T [--odom-topic T] --out data.npz`."""
     try:
         drive = read_bag_args(args, 0.1, args.image_size)
+        for warning in drive.warnings:
+            print(f"vtr collect: warning: {warning}", file=sys.stderr)
         data = dataset_from_drive(drive, drive.camera(args.camera_fov, args.camera_height))
         save_dataset(args.out, data)
     except (BagError, OSError) as exc:

@@ -126,6 +126,12 @@ def load_sharded(path: str | os.PathLike, image_size: int | None = None) -> Fram
     shards = doc.get("shards") or []
     if not shards:
         raise DatasetError(f"dataset {root}: the index lists no shards (collection unfinished?)")
+    if not isinstance(shards, list) or not all(
+        isinstance(e, dict) and isinstance(e.get("name"), str) for e in shards
+    ):
+        raise DatasetError(
+            f'dataset {root}: {INDEX} lists shards that are not {{"name": ..., "frames": ...}}'
+        )
     house_names: list[str] = []
     maps, small = [], {k: [] for k in ARRAYS[1:]}
     houses, episode_offset = [], 0
@@ -137,8 +143,8 @@ def load_sharded(path: str | os.PathLike, image_size: int | None = None) -> Fram
             raise DatasetError(
                 f"dataset {root}: shard {entry['name']} is missing or corrupt ({err})"
             ) from None
-        n = len(arrays["images"])
-        if n != entry.get("frames") or any(len(a) != n for a in arrays.values()):
+        n = len(arrays["images"]) if all(a.ndim for a in arrays.values()) else 0
+        if n < 1 or n != entry.get("frames") or any(len(a) != n for a in arrays.values()):
             raise DatasetError(
                 f"dataset {root}: shard {entry['name']} does not hold {entry.get('frames')} frames"
             )

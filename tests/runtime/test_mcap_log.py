@@ -16,7 +16,8 @@ from rosbags.typesys import Stores, get_typestore
 from runtime_fakes import FakeSim, build_velocitynet_onnx, corridor_route
 
 from vtr import cli
-from vtr.runtime.mcap_log import TOPICS, McapRunWriter, read_run
+from vtr.runtime.mcap_log import TOPICS, McapRunWriter
+from vtr.runtime.mcap_read import read_run
 from vtr.sim2d.server import ServerThread
 
 
