@@ -195,9 +195,11 @@ class Follower:
         target = min(last, int(math.floor(est.position + self.cfg.lead)) + 1)
         gap = min(int(est.position), last - 1) if last > 0 else 0
         hold = self.holds_turn(gap + 1)  # the teach turned on the spot where the robot is
-        # In a taught turn in place the turn is the motion the route asks for: it is fed forward like the speed
-        # elsewhere (a policy that idles there, as in a plain room, would otherwise never finish the turn).
-        turn = self.cfg.feed_forward if hold else self.cfg.feed_forward_turn
+        # In a taught turn in place the route's turn is replayed as taught until the views place the robot past
+        # it: the policy, aiming at the view after the turn, eased off before the estimate got there and both
+        # then waited for the other (a plain room; a held-out route's start); a heading off by the last bit of
+        # the turn is the policy's to correct on the drive that follows.
+        turn = 1.0 if hold else self.cfg.feed_forward_turn
         prior = None
         if (self.cfg.feed_forward > 0 or turn > 0) and last > 0:
             prior = (self.cfg.feed_forward, turn, *map(float, self.commands[gap]))

@@ -109,6 +109,9 @@ def test_no_translation_where_the_teach_turned_in_place():
     follower = Follower.for_route(route)
     decision = follower.judge(route.images[0]).decision
     assert decision.action is Action.COMMAND and decision.v_limit == 0.0
+    # the taught turn is replayed whole until the views place the robot past it (a policy easing off next to
+    # the end of the turn had left the estimate and the robot waiting for each other)
+    assert decision.prior is not None and decision.prior[1] == 1.0 and decision.prior[3] == 0.5
 
 
 class WithScan(Corridor):
