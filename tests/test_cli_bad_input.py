@@ -71,7 +71,10 @@ CASES = {
         "garbage.json",
     ),
     "collect: frames 0": (["collect", "--frames", "0", "--out", "{tmp}/d.npz"], "frames"),
-    "collect: too few frames to train on": (["collect", "--frames", "10", "--out", "{tmp}/d.npz"], "at least 123"),
+    "collect: too few frames to train on": (
+        ["collect", "--frames", "10", "--out", "{tmp}/d.npz"],
+        "at least 123",
+    ),
     "eval: unknown route": (["eval", "--routes", "nowhere", "--quick"], "nowhere"),
     "eval: garbage route file": (["eval", "--routes", "{garbage.json}", "--quick"], "garbage.json"),
     "eval: garbage model": (["eval", "--model", "{garbage.onnx}", "--quick"], "garbage.onnx"),

@@ -79,12 +79,23 @@ def test_same_seed_same_dataset(collected: tuple[Path, dict], tmp_path: Path) ->
 
 def test_collect_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from vtr import cli
-
     from vtr.training.collect import MIN_FRAMES
 
     out = tmp_path / "c.npz"
-    frames = str(MIN_FRAMES)  # the fewest frames training accepts (fewer is refused: tests/test_cli_bad_input.py)
-    args = ["collect", "--out", str(out), "--frames", frames, "--image-size", "32", "--no-progress", "--noise"]
+    frames = str(
+        MIN_FRAMES
+    )  # the fewest frames training accepts (fewer is refused: tests/test_cli_bad_input.py)
+    args = [
+        "collect",
+        "--out",
+        str(out),
+        "--frames",
+        frames,
+        "--image-size",
+        "32",
+        "--no-progress",
+        "--noise",
+    ]
     assert cli.main(args) == 0
     assert load_dataset(out).meta["noise"] == 0.05
     assert f'"frames": {frames}' in capsys.readouterr().out
