@@ -90,6 +90,8 @@ class EvalConfig:
             raise ValueError(f"offset must be three finite numbers (dx m, dy m, dyaw deg), got {self.offset}")
         for name in ("ablation_model", "viewnet"):
             value = getattr(self, name)
+            if value is not None and Path(value).is_dir():
+                raise ValueError(f"--{name.replace('_', '-')} {value} is a folder, not a model file")
             if value is not None and not Path(value).is_file():
                 raise ValueError(f"{name} not found: {value}")
         self.int8_model = find_int8(self.model, self.int8_model)
