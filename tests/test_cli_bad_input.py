@@ -221,3 +221,22 @@ def test_the_robot_board_entry_refuses_a_bad_address_in_one_line() -> None:
         [sys.executable, "-c", code, *args], cwd=ROOT, env=env, capture_output=True, text=True, timeout=30
     )
     assert proc.returncode == 2 and "no port" in _one_line(proc.stderr)
+
+
+@pytest.mark.parametrize("example", ["minimal_robot_server.py", "apartment_robot_server.py"])
+def test_an_example_robot_on_a_busy_port_is_one_line(example: str) -> None:
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        address = f"tcp://127.0.0.1:{busy.getsockname()[1]}"
+        proc = subprocess.run(
+            [sys.executable, str(ROOT / "examples" / example), "--bind", address],
+            capture_output=True,
+            text=True,
+            timeout=30,
+        )
+    assert proc.returncode == 2 and f"cannot bind --bind {address}: Address already in use" in _one_line(
+        proc.stderr
+    )
