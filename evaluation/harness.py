@@ -30,6 +30,7 @@ import numpy as np
 from vtr.benchmarks.results import write_json
 from vtr.evaluation.mpc import ViewNetMPC
 from vtr.evaluation.plots import write_plots
+from vtr.evaluation.pool import process_pool
 from vtr.evaluation.runs import PoseOracle, repeat_closed_loop, repeat_open_loop
 from vtr.evaluation.scoring import PAPER, PAPER_ROUTES, aggregate, bar_checks, score
 from vtr.evaluation.tables import markdown_report
@@ -244,13 +245,7 @@ def run(cfg: EvalConfig) -> dict[str, Any]:
     files = route_files(names)
     t0 = time.perf_counter()
     if cfg.workers > 1 and len(files) > 1:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor
-
-        # spawn: a fresh interpreter per worker, no forked onnxruntime or torch thread pools.
-        with ProcessPoolExecutor(
-            max_workers=min(cfg.workers, len(files)), mp_context=mp.get_context("spawn")
-        ) as ex:
+        with process_pool(min(cfg.workers, len(files))) as ex:  # Ctrl-C stops it at once
             routes = list(ex.map(evaluate_route, files, [cfg] * len(files)))
     else:
         routes = [evaluate_route(f, cfg) for f in files]
