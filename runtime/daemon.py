@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from vtr.runtime.address import check_endpoint
-from vtr.runtime.hello import check_robot_fits
+from vtr.runtime.hello import accept_hello, check_robot_fits
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus, Summary
 from vtr.runtime.robot import RobotError
 from vtr.runtime.run_log import LogWriteError
@@ -92,8 +92,12 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
     with SimClient(
         cfg.sim, cfg.timeout_s, cfg.retries, expect_shape=policy.image_shape, cancel=stop_event
     ) as client:
-        # what the robot announces: its limits check every step, its camera must match route and model
-        for note in check_robot_fits(client.handshake(), route.camera, policy.meta):
+        # what the robot announces: its limits check every step, its camera must match route and model; an
+        # older hello is accepted as `vtr teach` accepts it (runtime.hello.accept_hello), with a warning
+        hello, warnings = accept_hello(client.handshake(), route.dt)
+        for warning in warnings:
+            print(f"vtr repeat: warning: {warning}", file=sys.stderr)
+        for note in check_robot_fits(hello, route.camera, policy.meta):
             print(f"vtr repeat: note: {note}", file=sys.stderr)
         if cfg.start == "route":
             pose = route.poses[0]
