@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from vtr.runtime.address import check_endpoint
-from vtr.runtime.hello import accept_hello, check_robot_fits
+from vtr.runtime.hello import accept_hello, check_robot_fits, require_known_fov
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus, Summary
 from vtr.runtime.robot import RobotError
 from vtr.runtime.run_log import LogWriteError
@@ -84,6 +84,7 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
     check_outputs(cfg.log, cfg.mcap)  # before anything is loaded or created: a bad path is refused first
     policy = OnnxPolicy(cfg.model, threads=cfg.threads)
     route = Route.load(cfg.route)
+    require_known_fov(route.camera, cfg.route)
     policy.check_route(route)
     if cfg.match_light:
         from vtr.runtime.light import LightMatchedPolicy

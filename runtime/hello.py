@@ -247,6 +247,17 @@ def check_camera(
     return notes
 
 
+def require_known_fov(camera: Any, where: str) -> None:
+    """Refuse (CameraMismatchError, one line with the fix) a route that records its camera's field of view as
+    unknown (``"unknown": ["fov_deg", ...]``: taught from a bag without CameraInfo): the camera check that
+    protects a repeat could not run."""
+    if isinstance(camera, dict) and "fov_deg" in (camera.get("unknown") or ()):
+        raise CameraMismatchError(
+            f"{where}: the route's camera field of view is unknown (taught from a bag without "
+            "sensor_msgs/CameraInfo), so the robot's camera cannot be checked; re-teach it with --camera-fov DEG"
+        )
+
+
 def route_camera(camera: Any) -> CameraSpec | None:
     """The camera a route records in its metadata (None when it records none)."""
     if not isinstance(camera, dict) or "width" not in camera:
