@@ -2,7 +2,8 @@
 repeat loop (``runtime.repeater.Repeater``: its docstring has the safety rules) and writes the log; the
 loop itself, its decisions and its safety handling live in the Repeater.
 
-The log (``--log``) has one JSON object per control step (a command sent), then ``{"summary": {...}}``:
+The log (``--log``) has one JSON object per control step (a command sent), then ``{"summary": {...}}``, each
+line written whole or not at all (runtime/run_log.py; a full disk ends the run, exit 1, naming the file):
 
 - ``step``: control step number; ``stamp``/``pose``: the robot's clock and pose (null when unknown) of
   the image the decisions were taken on;
