@@ -81,7 +81,11 @@ def check_hello(ctx: Context) -> tuple[str, str]:
     return PASS, (
         f"session {hello.session}; limits v_max {lim.v_max} m/s, w_max {lim.w_max} rad/s, "
         f"max_duration {lim.max_duration} s"
-        + (" (not announced correctly: the paper's, for the checks)" if "limits" in ctx.hello_problems else "")
+        + (
+            " (not announced correctly: the paper's, for the checks)"
+            if "limits" in ctx.hello_problems
+            else ""
+        )
     )
 
 
