@@ -189,10 +189,9 @@ def run(cfg: SuiteConfig) -> dict[str, Any]:
         )
 
     if cfg.workers > 1 and len(tasks) > 1:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor
+        from vtr.evaluation.pool import process_pool
 
-        with ProcessPoolExecutor(max_workers=cfg.workers, mp_context=mp.get_context("spawn")) as ex:
+        with process_pool(cfg.workers) as ex:  # Ctrl-C stops it at once
             for k, out in enumerate(ex.map(evaluate_task, tasks), 1):
                 runs += out
                 progress(k)

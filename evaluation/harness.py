@@ -30,6 +30,7 @@ import numpy as np
 from vtr.benchmarks.results import write_json
 from vtr.evaluation.mpc import ViewNetMPC
 from vtr.evaluation.plots import write_plots
+from vtr.evaluation.pool import process_pool
 from vtr.evaluation.runs import PoseOracle, repeat_closed_loop, repeat_open_loop
 from vtr.evaluation.scoring import PAPER, PAPER_ROUTES, aggregate, bar_checks, score
 from vtr.evaluation.tables import markdown_report
@@ -90,6 +91,8 @@ class EvalConfig:
             raise ValueError(f"offset must be three finite numbers (dx m, dy m, dyaw deg), got {self.offset}")
         for name in ("ablation_model", "viewnet"):
             value = getattr(self, name)
+            if value is not None and Path(value).is_dir():
+                raise ValueError(f"--{name.replace('_', '-')} {value} is a folder, not a model file")
             if value is not None and not Path(value).is_file():
                 raise ValueError(f"{name} not found: {value}")
         self.int8_model = find_int8(self.model, self.int8_model)
@@ -242,13 +245,7 @@ def run(cfg: EvalConfig) -> dict[str, Any]:
     files = route_files(names)
     t0 = time.perf_counter()
     if cfg.workers > 1 and len(files) > 1:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor
-
-        # spawn: a fresh interpreter per worker, no forked onnxruntime or torch thread pools.
-        with ProcessPoolExecutor(
-            max_workers=min(cfg.workers, len(files)), mp_context=mp.get_context("spawn")
-        ) as ex:
+        with process_pool(min(cfg.workers, len(files))) as ex:  # Ctrl-C stops it at once
             routes = list(ex.map(evaluate_route, files, [cfg] * len(files)))
     else:
         routes = [evaluate_route(f, cfg) for f in files]

@@ -250,11 +250,11 @@ def run(cfg: HouseSuiteConfig, progress: bool = True) -> dict[str, Any]:
             _write(cfg, _result(cfg, routes, len(tasks), t0))
 
     if cfg.workers > 1 and len(tasks) > 1:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor, as_completed
+        from concurrent.futures import as_completed
 
-        # spawn: a fresh interpreter per worker, no forked onnxruntime thread pools
-        with ProcessPoolExecutor(min(cfg.workers, len(tasks)), mp_context=mp.get_context("spawn")) as ex:
+        from vtr.evaluation.pool import process_pool
+
+        with process_pool(min(cfg.workers, len(tasks))) as ex:  # Ctrl-C stops it at once
             for fut in as_completed([ex.submit(evaluate_route, t) for t in tasks]):
                 finished(fut.result())
     else:

@@ -375,7 +375,10 @@ def main():
     server = Server(args.noise)
     sock = zmq.Context().socket(zmq.REP)
     sock.setsockopt(zmq.MAXMSGSIZE, MAX_MSG)  # a peer sending a larger frame is disconnected
-    sock.bind(args.bind)
+    try:
+        sock.bind(args.bind)
+    except zmq.ZMQError as exc:  # a port in use, an address not of this machine: one line, exit 2
+        ap.exit(2, f"apartment_robot_server.py: cannot bind --bind {args.bind}: {zmq.strerror(exc.errno)}\n")
     print(f"apartment robot: session {server.session} on {args.bind}, noise {args.noise}", flush=True)
     try:
         while True:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import sys
 import uuid
 
 import numpy as np
@@ -144,7 +145,14 @@ def handle(world: World, session: str, frames: list[bytes]) -> list[bytes]:
 
 def serve(bind: str, noise: float = 0.0) -> None:
     sock = zmq.Context.instance().socket(zmq.REP)
-    sock.bind(bind)
+    try:
+        sock.bind(bind)
+    except zmq.ZMQError as exc:  # a port in use, an address not of this machine: one line, exit 2
+        sock.close(linger=0)
+        print(
+            f"minimal_robot_server.py: cannot bind --bind {bind}: {zmq.strerror(exc.errno)}", file=sys.stderr
+        )
+        raise SystemExit(2) from None
     world, session = World(noise), uuid.uuid4().hex[:12]
     print(f"minimal robot server on {sock.getsockopt_string(zmq.LAST_ENDPOINT)}", flush=True)
     while True:

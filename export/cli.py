@@ -1,9 +1,11 @@
 """`vtr export`: a VelocityNet checkpoint -> ONNX (fp32, optionally int8), with its metadata and checks.
 
-    vtr export --checkpoint runs/default/velocitynet/model.pt --out models/velocitynet.onnx \
+    vtr export --checkpoint runs/default/velocitynet/model.pt --out models/velocitynet.onnx --force \
         [--int8 --data data/house.npz] [--viewnet runs/default/viewnet/model.pt --viewnet-out models/viewnet.onnx]
 
 The int8 model goes next to the fp32 one as ``<name>-int8.onnx``; it needs --data for calibration frames.
+``--out`` is required and an existing file (fp32, int8 or ViewNet) is replaced only with ``--force``: an
+export never overwrites a model it was not told to (the shipped models/velocitynet.onnx among them).
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ class ExportConfig:
     """What `vtr export` writes."""
 
     checkpoint: str = opt(help="VelocityNet model.pt / checkpoint.pt (or its run folder)")
-    out: str = opt("models/velocitynet.onnx", "the fp32 ONNX file")
+    out: str = opt(help="the fp32 ONNX file (the int8 and ViewNet files go beside it)")
     data: str | None = opt(None, "dataset: real-frame parity check and int8 calibration")
     int8: bool = opt(False, "also write <out stem>-int8.onnx (needs --data)")
     opset: int = opt(17, "ONNX opset (>= 16 so ViewNet's GridSample exports too)")
@@ -34,6 +36,7 @@ class ExportConfig:
     viewnet: str | None = opt(None, "also export this ViewNet checkpoint")
     viewnet_out: str | None = opt(None, "where the ViewNet ONNX goes (default: viewnet.onnx next to --out)")
     dt: float | None = opt(None, "seconds each command lasts, for a checkpoint whose dataset records no dt")
+    force: bool = opt(False, "replace output files that exist (without it they are refused)")
 
     def __post_init__(self) -> None:
         if self.opset < 13:
@@ -159,8 +162,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_config_arguments(parser, ExportConfig)
 
 
+def outputs(cfg: ExportConfig) -> list[Path]:
+    """The files an export writes."""
+    out = Path(cfg.out)
+    paths = [out] + ([int8_path(out)] if cfg.int8 else [])
+    if cfg.viewnet:
+        paths.append(Path(cfg.viewnet_out) if cfg.viewnet_out else out.with_name("viewnet.onnx"))
+    return paths
+
+
+def check_outputs(cfg: ExportConfig) -> None:
+    """ValueError (one line) for an output that is a folder, or a file that exists when --force is not given."""
+    for path in outputs(cfg):
+        if path.is_dir():
+            raise ValueError(f"{path} is a folder; name the .onnx file to write")
+        if path.exists() and not cfg.force:
+            raise ValueError(f"{path} exists; pass --force to replace it, or name another --out")
+
+
 def run_cli(args: argparse.Namespace) -> int:
     """A bad checkpoint or dataset is a ValueError: one line, exit 2 (``runtime.commands``)."""
-    result = run(config_from_args(ExportConfig, args))
+    cfg = config_from_args(ExportConfig, args)
+    check_outputs(cfg)  # before the checkpoint is read: nothing is replaced unasked
+    result = run(cfg)
     print(json.dumps(result, indent=2))
     return 0

@@ -14,6 +14,8 @@ def find_model(explicit: str | Path | None = None, name: str = VELOCITYNET) -> P
     shipped one. FileNotFoundError names where it looked and what to do."""
     if explicit is not None:
         path = Path(explicit)
+        if path.is_dir():
+            raise IsADirectoryError(f"{path} is a folder, not a model file; pass the .onnx file itself")
         if not path.is_file():
             raise FileNotFoundError(f"model file not found: {path}")
         return path
@@ -34,6 +36,10 @@ def int8_path(model: str | Path) -> Path:
 def find_int8(model: Path, explicit: str | Path | None = None) -> Path | None:
     """``explicit`` if given (it must exist), else the int8 twin beside ``model`` if there is one, else None."""
     if explicit is not None:
+        if Path(explicit).is_dir():
+            raise IsADirectoryError(
+                f"{explicit} is a folder, not an int8 model file; pass the .onnx file itself"
+            )
         if not Path(explicit).is_file():
             raise FileNotFoundError(f"int8 model not found: {explicit}")
         return Path(explicit)

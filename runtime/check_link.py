@@ -137,6 +137,7 @@ class Context:
 
     link: Link
     hello: Hello | None = None
+    hello_problems: dict[str, str] = field(default_factory=dict)  # hello field -> what is wrong with it
     camera: tuple[int, int] | None = None  # (height, width) announced
     limits: protocol.Limits | None = None
     dt: float = CONTROL_DT  # step duration used by the checks

@@ -43,7 +43,7 @@ from vtr.runtime.check_motion import (
     check_zero_step,
 )
 from vtr.runtime.contracts import CAMERA, CONTROL_DT
-from vtr.runtime.hello import parse_hello
+from vtr.runtime.hello import hello_warnings, read_hello
 from vtr.runtime.scan import scan_from_wire
 from vtr.runtime.setting_spec import REQUIRED
 from vtr.runtime.settings import BY_NAME, default
@@ -62,26 +62,50 @@ class CheckResult:
 
 
 def check_hello(ctx: Context) -> tuple[str, str]:
+    """The hello reply arrives and is one; its fields are read one by one (``hello.fields`` reports each that is
+    wrong, and the checks after it go on with a fallback for it: the shipped camera, the paper's limits)."""
     reply = ctx.link.ask("hello")
     if not reply.ok:
         raise CheckFailed(f"hello was refused: {reply.error}; hello must always succeed")
     ctx.note_stamp(reply)
     try:
-        ctx.hello = parse_hello(reply)
+        ctx.hello, ctx.hello_problems = read_hello(reply)
     except protocol.BadFrameError as exc:
         raise CheckFailed(f"hello: {exc} (docs/PROTOCOL.md, 'hello', lists what to announce)") from None
     hello = ctx.hello
-    ctx.camera, ctx.limits = (hello.camera.height, hello.camera.width), hello.limits
-    ctx.dt = min(max(CONTROL_DT, hello.dt), hello.limits.max_duration)
+    if "camera" not in ctx.hello_problems:  # else image sizes are not checked against it
+        ctx.camera = (hello.camera.height, hello.camera.width)
+    ctx.limits = hello.limits
+    ctx.dt = min(max(CONTROL_DT, hello.dt or CONTROL_DT), hello.limits.max_duration)
     lim = hello.limits
     return PASS, (
         f"session {hello.session}; limits v_max {lim.v_max} m/s, w_max {lim.w_max} rad/s, "
         f"max_duration {lim.max_duration} s"
+        + (
+            " (not announced correctly: the paper's, for the checks)"
+            if "limits" in ctx.hello_problems
+            else ""
+        )
     )
+
+
+def check_hello_fields(ctx: Context) -> tuple[str, str]:
+    """Every hello field that is wrong, each named; fields version 1 gained after its first text (optional)
+    and deprecated names are warnings."""
+    assert ctx.hello is not None
+    if ctx.hello_problems:
+        problems = "; ".join(ctx.hello_problems.values())
+        raise CheckFailed(f"{problems} (docs/PROTOCOL.md, 'hello', lists what to announce)")
+    warnings = hello_warnings(ctx.hello)
+    if warnings:
+        return WARN, "; ".join(warnings)
+    return PASS, "every field announced, none deprecated"
 
 
 def check_hello_camera(ctx: Context) -> tuple[str, str]:
     assert ctx.hello is not None
+    if "camera" in ctx.hello_problems:
+        return SKIP, "the camera is not announced correctly (hello.fields)"
     cam = ctx.hello.camera
     text = f"{cam.width}x{cam.height}"
     missing = [k for k in ("fov_deg", "height_m") if getattr(cam, k) is None]
@@ -96,6 +120,8 @@ def check_hello_camera(ctx: Context) -> tuple[str, str]:
 def check_hello_clock(ctx: Context) -> tuple[str, str]:
     assert ctx.hello is not None
     h = ctx.hello
+    if h.mode is None or h.dt is None or {"mode", "dt"} & set(ctx.hello_problems):
+        return SKIP, "mode or dt not announced (hello.fields)"
     text = f"mode {h.mode}, dt {h.dt} s"
     if h.mode == "realtime":
         if not h.cmd_vel_timeout:
@@ -237,6 +263,7 @@ def check_latency(ctx: Context, count: int = 30) -> tuple[str, str]:
 # (name, function, needs): a check is skipped when a check it needs did not pass or warn.
 CHECKS: list[tuple[str, Check, tuple[str, ...]]] = [
     ("hello", check_hello, ()),
+    ("hello.fields", check_hello_fields, ("hello",)),
     ("hello.camera", check_hello_camera, ("hello",)),
     ("hello.clock", check_hello_clock, ("hello",)),
     ("reset", check_reset, ("hello",)),

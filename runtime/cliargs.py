@@ -83,9 +83,9 @@ def add_config_arguments(
                 kwargs["type"] = tp if tp in (int, float, str, Path) else str
             if required:
                 kwargs["required"] = True
-            elif default is not None:
+            elif default is not None and "(default" not in kwargs["help"]:  # the help may word it itself
                 shown = " ".join(map(str, default)) if isinstance(default, tuple) else default
-                kwargs["help"] += f" (default: {shown})"
+                kwargs["help"] += f" (default: {shown or 'none'})"
         if not required:
             kwargs["default"] = default
         parser.add_argument(flag_of(f), **kwargs)

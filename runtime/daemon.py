@@ -2,7 +2,8 @@
 repeat loop (``runtime.repeater.Repeater``: its docstring has the safety rules) and writes the log; the
 loop itself, its decisions and its safety handling live in the Repeater.
 
-The log (``--log``) has one JSON object per control step (a command sent), then ``{"summary": {...}}``:
+The log (``--log``) has one JSON object per control step (a command sent), then ``{"summary": {...}}``, each
+line written whole or not at all (runtime/run_log.py; a full disk ends the run, exit 1, naming the file):
 
 - ``step``: control step number; ``stamp``/``pose``: the robot's clock and pose (null when unknown) of
   the image the decisions were taken on;
@@ -22,33 +23,22 @@ import json
 import signal
 import sys
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import IO, Any
+from typing import Any
 
 import numpy as np
 
 from vtr.runtime.address import check_endpoint
-from vtr.runtime.hello import check_robot_fits
-from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus, StepRecord, Summary
+from vtr.runtime.hello import accept_hello, check_robot_fits, require_known_fov
+from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus, Summary
 from vtr.runtime.robot import RobotError
-from vtr.runtime.run_outputs import RunOutputs
+from vtr.runtime.run_log import LogWriteError
+from vtr.runtime.run_outputs import OutputWriteError, RunOutputs, check_outputs
 from vtr.runtime.safety import SafetyConfig
 from vtr.runtime.settings import PROFILES, default
 from vtr.runtime.settings_cli import Resolved, resolve
 from vtr.runtime.settings_cli import add_arguments as add_settings
-
-
-def log_writer(stream: IO[str]) -> Callable[[StepRecord], None]:
-    """An ``on_step`` callback writing one JSON line per command sent."""
-
-    def write(record: StepRecord) -> None:
-        if record.commanded:
-            stream.write(json.dumps(record.to_log(), allow_nan=False, default=float) + "\n")
-            stream.flush()
-
-    return write
-
 
 # ------------------------------------------------------------------------------------------------- CLI
 
@@ -92,8 +82,10 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
     from vtr.runtime.policy import OnnxPolicy
     from vtr.runtime.route import Route
 
+    check_outputs(cfg.log, cfg.mcap)  # before anything is loaded or created: a bad path is refused first
     policy = OnnxPolicy(cfg.model, threads=cfg.threads)
     route = Route.load(cfg.route)
+    require_known_fov(route.camera, cfg.route)
     policy.check_route(route)
     if cfg.match_light:
         from vtr.runtime.light import LightMatchedPolicy
@@ -102,8 +94,12 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
     with SimClient(
         cfg.sim, cfg.timeout_s, cfg.retries, expect_shape=policy.image_shape, cancel=stop_event
     ) as client:
-        # what the robot announces: its limits check every step, its camera must match route and model
-        for note in check_robot_fits(client.handshake(), route.camera, policy.meta):
+        # what the robot announces: its limits check every step, its camera must match route and model; an
+        # older hello is accepted as `vtr teach` accepts it (runtime.hello.accept_hello), with a warning
+        hello, warnings = accept_hello(client.handshake(), route.dt)
+        for warning in warnings:
+            print(f"vtr repeat: warning: {warning}", file=sys.stderr)
+        for note in check_robot_fits(hello, route.camera, policy.meta):
             print(f"vtr repeat: note: {note}", file=sys.stderr)
         if cfg.start == "route":
             pose = route.poses[0]
@@ -111,16 +107,10 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
                 raise ValueError("the route's first pose is unknown; use --start here")
             client.reset(pose=(float(pose[0]), float(pose[1]), float(pose[2])), seed=cfg.seed)
         repeater = Repeater(client, policy, route, config=cfg.repeat, stop_event=stop_event)
-        with RunOutputs(cfg.mcap, cfg.foxglove, route.images) as outputs:  # MCAP bag, live view
-            if cfg.log is None:
-                repeater.on_step = outputs.chain()
-                summary = repeater.run()
-            else:
-                # opened only now, with the model, route and robot checked: a refused start leaves no empty log
-                with open(cfg.log, "w", encoding="utf-8") as log_file:
-                    repeater.on_step = outputs.chain(log_writer(log_file))
-                    summary = repeater.run()
-                    log_file.write(json.dumps({"summary": summary.to_dict()}, default=float) + "\n")
+        # opened only now, with the model, route and robot checked: a refused start leaves no empty file
+        with RunOutputs(route.images, cfg.log, cfg.mcap, cfg.foxglove) as outputs:  # log, MCAP bag, live view
+            repeater.on_step = outputs.chain()
+            summary = repeater.run()
             outputs.finish(summary.to_dict())
         return summary
 
@@ -174,6 +164,9 @@ def run_cli(args: argparse.Namespace) -> int:
     }
     try:
         summary = run(cfg, stop_event)
+    except (LogWriteError, OutputWriteError) as exc:  # a full disk mid-run: the robot was stopped first
+        print(f"vtr repeat: {exc}", file=sys.stderr)
+        return 1
     except (OSError, ValueError, RobotError) as exc:  # bad model/route files, refusals: say so, no traceback
         print(f"vtr repeat: {' '.join(str(exc).split())}", file=sys.stderr)
         return 2

@@ -32,7 +32,14 @@ class FoxgloveLive:
             raise ModuleNotFoundError(_MISSING, name="foxglove") from None
         self._m = messages
         self.context = context if context is not None else foxglove.Context()
-        self.server = foxglove.start_server(name="vtr repeat", host=HOST, port=port, context=self.context)
+        try:
+            self.server = foxglove.start_server(name="vtr repeat", host=HOST, port=port, context=self.context)
+        except RuntimeError as exc:  # the SDK's FoxgloveError: a port in use, or one not ours to bind
+            why = str(exc).removeprefix("FoxgloveError: ").strip() or "the server did not start"
+            raise OSError(
+                f"--foxglove {port}: cannot serve the live view on {HOST}:{port} ({why}); "
+                "pick a free port, or 0 for any"
+            ) from None
         self.port = int(self.server.port)
         ctx = self.context
         self._camera = channels.RawImageChannel("/vtr/camera/image", context=ctx)

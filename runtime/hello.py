@@ -1,18 +1,23 @@
 """What a robot announces in ``hello`` (docs/PROTOCOL.md, "hello"), and whether robot, route and model agree.
 
-:func:`parse_hello` validates a hello reply into a :class:`Hello`; :func:`check_camera` compares the
-robot's camera with the camera a route was taught with and the camera a model was trained on, and raises
+:func:`read_hello` reads every field of a hello reply on its own (a field that is wrong takes a fallback and
+its problem is listed, so `vtr check-robot` reports them all); :func:`parse_hello` is the strict form, raising
+on the first problem. Fields hello gained within protocol version 1 after its first text (``ADDED_FIELDS``) are
+optional with documented defaults, and :func:`accept_hello` is the one check `vtr teach` and `vtr repeat` apply:
+the defaults filled in, a warning naming what the robot should add. :func:`check_camera` compares the robot's
+camera with the camera a route was taught with and the camera a model was trained on, and raises
 :class:`CameraMismatchError` with a one-line message naming the first difference; :func:`check_robot_fits`
 adds the limits and the control step (:class:`RobotMismatchError`, of which a camera mismatch is one kind).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
+from typing import Any, TypeVar
 
-from vtr.runtime.contracts import CameraSpec
-from vtr.runtime.protocol import MAX_IMAGE_SIDE, BadFrameError, Limits, Reply, integer, number
+from vtr.runtime.contracts import CAMERA, CameraSpec
+from vtr.runtime.protocol import MAX_IMAGE_SIDE, VERSION, BadFrameError, Limits, Reply, integer, number
 from vtr.runtime.scan import ScanSpec, spec_from_dict
 
 #: Cameras whose horizontal fields of view differ by more than this (degrees) see different images.
@@ -21,6 +26,21 @@ FOV_TOLERANCE_DEG = 2.0
 HEIGHT_TOLERANCE_M = 0.02
 #: Clock modes a robot may announce.
 MODES = ("lockstep", "realtime")
+#: Fields hello gained within version 1 after its first text, each optional, and what leaving it out means
+#: (docs/PROTOCOL.md, "Versioning": a field added to version 1 is optional, a breaking change bumps it).
+ADDED_FIELDS = {
+    "dt": "the route's control step (the robot is taken to execute it faithfully)",
+    "mode": "not said: the clock checks of a realtime robot are skipped",
+    "cmd_vel_timeout": "not said (a realtime robot must announce it)",
+    "realtime_factor": "1",
+    "scan": "no range scanner: camera-only safety",
+}
+#: Of those, the ones every robot should announce: a warning names them when left out.
+SHOULD_ANNOUNCE = ("dt", "mode")
+#: Older names still read, each with the name to use instead; a hello using one gets a warning.
+DEPRECATED = {"camera.camera_height": "camera.height_m"}
+
+T = TypeVar("T")
 
 
 class RobotMismatchError(ValueError):
@@ -32,8 +52,8 @@ class CameraMismatchError(RobotMismatchError):
 
 
 def camera_from_dict(d: Any, err: type[ValueError] = BadFrameError, where: str = "camera.") -> CameraSpec:
-    """Read ``{"width", "height", "fov_deg"?, "height_m"?}``; ``camera_height`` (the simulator's and older
-    routes' name) is read as ``height_m``. A field not given is None (unknown)."""
+    """Read ``{"width", "height", "fov_deg"?, "height_m"?}``; ``camera_height`` (deprecated: the simulator's
+    and older routes' name) is read as ``height_m``. A field not given is None (unknown)."""
     if not isinstance(d, dict):
         raise err(f"{where.rstrip('.')} must be an object with width and height, got {d!r:.60}")
     width, height = integer(d, "width", err, where), integer(d, "height", err, where)
@@ -56,10 +76,11 @@ class Hello:
     protocol_version: int
     camera: CameraSpec
     limits: Limits
-    #: The robot's control period in seconds (the shortest step it executes faithfully).
-    dt: float
-    #: "lockstep" (time advances only in steps) or "realtime".
-    mode: str
+    #: The robot's control period in seconds (the shortest step it executes faithfully); None: not announced
+    #: (a bridge older than the field; :func:`accept_hello` puts the route's in).
+    dt: float | None
+    #: "lockstep" (time advances only in steps) or "realtime"; None: not announced.
+    mode: str | None
     #: Seconds after which the robot stops by itself when no command arrives (0: never); None: not said.
     cmd_vel_timeout: float | None = None
     #: Robot-clock seconds per wall-clock second in realtime mode (a simulator may run faster).
@@ -69,37 +90,87 @@ class Hello:
     info: dict[str, Any] = field(default_factory=dict)
     #: The range scanner every image reply may carry a reading of (None: camera only).
     scan: ScanSpec | None = None
+    #: Deprecated names the robot used (keys of ``DEPRECATED``).
+    deprecated: tuple[str, ...] = ()
+
+    @property
+    def missing(self) -> list[str]:
+        """The fields every robot should announce that this one did not (``SHOULD_ANNOUNCE``)."""
+        return [k for k in SHOULD_ANNOUNCE if getattr(self, k) is None]
 
 
-def parse_hello(reply: Reply) -> Hello:
-    """Validate the fields a hello reply must carry; BadFrameError names the first missing or wrong one."""
+def _limits(h: dict[str, Any]) -> Limits:
+    raw = h.get("limits")
+    if not isinstance(raw, dict):
+        raise BadFrameError(f"hello field 'limits' must be an object, got {raw!r:.60}")
+    values = [number(raw, k, BadFrameError, "limits.") for k in ("v_max", "w_max", "max_duration")]
+    try:
+        return Limits(*values)
+    except ValueError as exc:  # a negative or zero bound
+        raise BadFrameError(f"hello field 'limits': {exc}") from None
+
+
+def _optional(h: dict[str, Any], key: str) -> float | None:
+    return number(h, key, BadFrameError) if h.get(key) is not None else None
+
+
+def _positive(h: dict[str, Any], key: str) -> float | None:
+    value = _optional(h, key)
+    if value is not None and value <= 0:
+        raise BadFrameError(f"hello field {key!r} must be > 0, got {value}")
+    return value
+
+
+def _mode(h: dict[str, Any]) -> str | None:
+    mode = h.get("mode")
+    if mode is not None and mode not in MODES:
+        raise BadFrameError(f"hello field 'mode' must be one of {MODES}, got {mode!r:.60}")
+    return mode
+
+
+def _version(h: dict[str, Any]) -> int:
+    version = integer(h, "protocol_version", BadFrameError)
+    if version != VERSION:
+        raise BadFrameError(
+            f"the robot speaks protocol_version {version}; this runtime needs version {VERSION}"
+        )
+    return version
+
+
+def read_hello(reply: Reply) -> tuple[Hello, dict[str, str]]:
+    """Every field of a hello reply read on its own: the Hello (a wrong field takes its fallback: the shipped
+    camera, the paper's limits, not announced) and each problem by field name. BadFrameError when the reply is
+    no ok hello at all."""
     h = reply.header
     if reply.cmd != "hello" or not reply.ok or reply.session is None or reply.stamp is None:
         raise BadFrameError("not an ok hello reply")
-    version = integer(h, "protocol_version", BadFrameError)
-    camera = camera_from_dict(h.get("camera"))
-    limits_raw = h.get("limits")
-    if not isinstance(limits_raw, dict):
-        raise BadFrameError(f"hello field 'limits' must be an object, got {limits_raw!r:.60}")
-    limits = Limits(
-        *(number(limits_raw, k, BadFrameError, "limits.") for k in ("v_max", "w_max", "max_duration"))
-    )
-    dt = number(h, "dt", BadFrameError)
-    if dt <= 0:
-        raise BadFrameError(f"hello field 'dt' must be > 0, got {dt}")
-    mode = h.get("mode")
-    if mode not in MODES:
-        raise BadFrameError(f"hello field 'mode' must be one of {MODES}, got {mode!r:.60}")
-    timeout = number(h, "cmd_vel_timeout", BadFrameError) if h.get("cmd_vel_timeout") is not None else None
+    problems: dict[str, str] = {}
+
+    def read(name: str, parse: Callable[[], T], fallback: T) -> T:
+        try:
+            return parse()
+        except BadFrameError as exc:
+            problems[name] = str(exc)
+            return fallback
+
+    version = read("protocol_version", lambda: _version(h), VERSION)
+    camera = read("camera", lambda: camera_from_dict(h.get("camera")), CAMERA)
+    limits = read("limits", lambda: _limits(h), Limits())
+    dt = read("dt", lambda: _positive(h, "dt"), None)
+    mode = read("mode", lambda: _mode(h), None)
+    timeout = read("cmd_vel_timeout", lambda: _optional(h, "cmd_vel_timeout"), None)
     if mode == "realtime" and (timeout is None or timeout < 0):
-        raise BadFrameError("a realtime robot must announce 'cmd_vel_timeout' (seconds, 0 when it has none)")
-    rate = number(h, "realtime_factor", BadFrameError) if h.get("realtime_factor") is not None else 1.0
-    if rate <= 0:
-        raise BadFrameError(f"hello field 'realtime_factor' must be > 0, got {rate}")
+        problems.setdefault(
+            "cmd_vel_timeout",
+            "a realtime robot must announce 'cmd_vel_timeout' (seconds, 0 when it has none)",
+        )
+    rate = read("realtime_factor", lambda: _positive(h, "realtime_factor"), None) or 1.0
+    scan = read("scan", lambda: spec_from_dict(h["scan"]) if h.get("scan") is not None else None, None)
+    cam = h.get("camera") if isinstance(h.get("camera"), dict) else {}
+    deprecated = ("camera.camera_height",) if "camera_height" in cam and "height_m" not in cam else ()
     names = {k: h.get(k) if isinstance(h.get(k), str) else None for k in ("robot", "map")}
     info = h.get("info") if isinstance(h.get("info"), dict) else {}
-    scan = spec_from_dict(h["scan"]) if h.get("scan") is not None else None
-    return Hello(
+    hello = Hello(
         reply.session,
         reply.stamp,
         version,
@@ -111,8 +182,40 @@ def parse_hello(reply: Reply) -> Hello:
         rate,
         info=info,
         scan=scan,
+        deprecated=deprecated,
         **names,
     )
+    return hello, problems
+
+
+def parse_hello(reply: Reply) -> Hello:
+    """Validate the fields a hello reply must carry; BadFrameError names the first missing or wrong one."""
+    hello, problems = read_hello(reply)
+    if problems:
+        raise BadFrameError(next(iter(problems.values())))
+    return hello
+
+
+def hello_warnings(hello: Hello, dt: float | None = None) -> list[str]:
+    """What the robot should add or rename (fields left out get their defaults, ``dt`` the route's)."""
+    warnings = []
+    if hello.missing:
+        names = " and ".join(f"'{k}'" for k in hello.missing)
+        route_dt = f" {dt:g} s" if dt is not None else ""
+        assumed = f"; until then dt is taken as the route's{route_dt}" if hello.dt is None else ""
+        warnings.append(
+            f"the robot's hello does not announce {names}, which protocol version 1 gained after its first "
+            f"text: add {'them' if len(hello.missing) > 1 else 'it'} (docs/PROTOCOL.md, 'hello'){assumed}"
+        )
+    for old in hello.deprecated:
+        warnings.append(f"the robot's hello says '{old}', a deprecated name: say '{DEPRECATED[old]}'")
+    return warnings
+
+
+def accept_hello(hello: Hello, dt: float) -> tuple[Hello, list[str]]:
+    """The one check `vtr teach` and `vtr repeat` apply to a parsed hello: the fields version 1 gained after its
+    first text take their defaults (``dt``: the route's control step) and the warnings say what to add."""
+    return replace(hello, dt=hello.dt if hello.dt is not None else dt), hello_warnings(hello, dt)
 
 
 def check_camera(
@@ -144,6 +247,17 @@ def check_camera(
     return notes
 
 
+def require_known_fov(camera: Any, where: str) -> None:
+    """Refuse (CameraMismatchError, one line with the fix) a route that records its camera's field of view as
+    unknown (``"unknown": ["fov_deg", ...]``: taught from a bag without CameraInfo): the camera check that
+    protects a repeat could not run."""
+    if isinstance(camera, dict) and "fov_deg" in (camera.get("unknown") or ()):
+        raise CameraMismatchError(
+            f"{where}: the route's camera field of view is unknown (taught from a bag without "
+            "sensor_msgs/CameraInfo), so the robot's camera cannot be checked; re-teach it with --camera-fov DEG"
+        )
+
+
 def route_camera(camera: Any) -> CameraSpec | None:
     """The camera a route records in its metadata (None when it records none)."""
     if not isinstance(camera, dict) or "width" not in camera:
@@ -162,9 +276,10 @@ def check_robot_fits(hello: Hello, route_cam: dict[str, Any] | None, model: Any)
             raise RobotMismatchError(
                 f"the model commands up to {name}={mine:g} {unit} but the robot accepts at most {robots:g} {unit}"
             )
-    if not hello.dt <= model.dt <= hello.limits.max_duration:
+    dt = hello.dt if hello.dt is not None else model.dt  # not announced: taken to fit (accept_hello warns)
+    if not dt <= model.dt <= hello.limits.max_duration:
         raise RobotMismatchError(
             f"the model's control step is {model.dt:g} s but the robot runs steps of "
-            f"{hello.dt:g}..{hello.limits.max_duration:g} s"
+            f"{dt:g}..{hello.limits.max_duration:g} s"
         )
     return notes

@@ -98,11 +98,16 @@ class McapRunWriter:
         self._tmp = Path(tempfile.mkdtemp(prefix=f".{self.path.name}.", dir=self.path.parent))
         bag_dir = self._tmp / (self.path.stem if self.single_file else self.path.name)
         self._bag_dir = bag_dir
-        self._writer = rosbag2.Writer(bag_dir, version=8, storage_plugin=rosbag2.StoragePlugin.MCAP)
-        self._writer.open()
-        self._conns = {
-            topic: self._writer.add_connection(topic, t, typestore=self.store) for topic, t in TOPICS.items()
-        }
+        try:
+            self._writer = rosbag2.Writer(bag_dir, version=8, storage_plugin=rosbag2.StoragePlugin.MCAP)
+            self._writer.open()
+            self._conns = {
+                topic: self._writer.add_connection(topic, t, typestore=self.store)
+                for topic, t in TOPICS.items()
+            }
+        except BaseException:
+            shutil.rmtree(self._tmp, ignore_errors=True)
+            raise
         self._wall0 = time.time()
         self._stamp0: float | None = None
         self.messages = 0
@@ -201,6 +206,17 @@ class McapRunWriter:
         finally:
             shutil.rmtree(self._tmp, ignore_errors=True)
         return self.path
+
+    def abort(self) -> None:
+        """Drop the bag unwritten (a run that never started): nothing is moved into place."""
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            self._writer.close()
+        except Exception:  # noqa: BLE001 - the bag is being thrown away
+            pass
+        shutil.rmtree(self._tmp, ignore_errors=True)
 
     def __enter__(self) -> McapRunWriter:
         return self

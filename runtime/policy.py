@@ -14,6 +14,7 @@ import numpy as np
 import onnxruntime as ort
 
 from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
+from vtr.runtime.paths import require_file
 from vtr.runtime.preprocess import PREPROCESSINGS, clip_ufunc, nchw_into, normalise_planar, to_nchw
 
 if TYPE_CHECKING:
@@ -40,9 +41,7 @@ class OnnxPolicy:
     ) -> None:
         if threads < 1:
             raise ValueError(f"threads must be >= 1, got {threads}")
-        self.path = os.fspath(path)
-        if not os.path.isfile(self.path):
-            raise FileNotFoundError(f"model file {self.path!r} does not exist")
+        self.path = require_file(path, "model file")
         size = os.path.getsize(self.path)
         if size > max_bytes:
             raise ModelMismatchError(

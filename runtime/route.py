@@ -33,6 +33,7 @@ from vtr.runtime.atomic import atomic_path
 from vtr.runtime.contracts import CONTROL_DT
 from vtr.runtime.kinematics import unicycle
 from vtr.runtime.npz_guard import MAX_EXPANSION, NpzTooLargeError, check_npz
+from vtr.runtime.paths import require_file
 
 ROUTE_FORMAT_VERSION = 1
 
@@ -152,9 +153,7 @@ class Route:
 
         A file whose arrays would take more than ``max_expansion`` times its size is refused unread.
         """
-        path = os.fspath(path)
-        if not os.path.isfile(path):
-            raise FileNotFoundError(f"route file {path!r} does not exist")
+        path = require_file(path, "route file")
         try:
             check_npz(path, max_expansion)
         except NpzTooLargeError as exc:

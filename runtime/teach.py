@@ -17,6 +17,7 @@ The start image is always subgoal 0 and the final image is always the last subgo
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import os
 import sys
@@ -28,6 +29,7 @@ import numpy as np
 from vtr.runtime.address import EXAMPLE, check_endpoint
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT
+from vtr.runtime.hello import accept_hello
 from vtr.runtime.preprocess import image_error
 from vtr.runtime.protocol import jsonable
 from vtr.runtime.robot import Observation, ResettableRobot, RobotError
@@ -96,14 +98,26 @@ def _wrap(angle: float) -> float:
     return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
-def _robot_info(robot: Any) -> dict[str, Any]:
-    """Camera/map description from the robot, when it offers one (SimClient.hello, LocalRobot.sim.info)."""
+def _robot_info(robot: Any, dt: float) -> dict[str, Any]:
+    """Camera/map description from the robot, when it offers one (SimClient's hello, LocalRobot.sim.info).
+
+    A protocol robot's hello is checked as `vtr repeat` checks it (``runtime.hello.accept_hello``): a broken
+    hello is refused, an older one accepted with a warning naming what it should add."""
+    if hasattr(robot, "handshake"):
+        hello, warnings = accept_hello(robot.handshake(), dt)
+        for warning in warnings:
+            print(f"vtr teach: warning: {warning}", file=sys.stderr)
+        info = dict(hello.info)
+        # the hello schema (docs/PROTOCOL.md) puts camera and map at the top level; info is free-form
+        info["camera"] = {k: v for k, v in dataclasses.asdict(hello.camera).items() if v is not None}
+        if hello.map is not None:
+            info["map"] = hello.map
+        return info
     timeouts = getattr(robot, "timeouts", 0)
     try:
         if hasattr(robot, "hello"):
             header = robot.hello()
             info = dict(header.get("info") or {})
-            # the hello schema (docs/PROTOCOL.md) puts camera and map at the top level; info is free-form
             info.update({k: header[k] for k in ("camera", "map") if header.get(k) is not None})
             return info
         sim = getattr(robot, "sim", None)
@@ -121,7 +135,7 @@ def _robot_info(robot: Any) -> dict[str, Any]:
 def teach(robot: ResettableRobot, script: RouteScript, cfg: TeachConfig | None = None) -> Route:
     """Drive ``script`` on ``robot`` and return the recorded Route (not yet saved)."""
     cfg = cfg or TeachConfig()
-    info = _robot_info(robot)
+    info = _robot_info(robot, cfg.dt)
     obs = robot.reset(pose=script.start, seed=cfg.seed)
     images: list[np.ndarray] = []
     poses: list[tuple[float, float, float]] = []

@@ -9,6 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from vtr.cli import main
@@ -24,6 +25,24 @@ def _garbage(tmp_path: Path, name: str) -> str:
     path = tmp_path / name
     path.write_bytes(bytes(range(256)) * 3)
     return str(path)
+
+
+def _inputs(tmp_path: Path) -> dict[str, str]:
+    """The files the cases name: garbage of each kind, and real files given where another kind is wanted."""
+    from vtr.runtime.route import Route
+
+    subs = {
+        f"{{garbage.{ext}}}": _garbage(tmp_path, f"garbage.{ext}") for ext in ("onnx", "npz", "pt", "json")
+    }
+    (tmp_path / "run.jsonl").write_text('{"step": 0, "v": 0.1, "w": 0.0}\n{"summary": {"steps": 1}}\n')
+    (tmp_path / "run.png").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(64))
+    zeros = np.zeros
+    Route(zeros((2, 8, 8, 3), np.uint8), zeros((2, 3)), zeros((2, 2)), name="r", dt=0.1).save(
+        tmp_path / "r.npz"
+    )
+    for name in ("run.jsonl", "run.png", "r.npz"):
+        subs[f"{{{name}}}"] = str(tmp_path / name)
+    return subs
 
 
 def _one_line(err: str) -> str:
@@ -71,6 +90,10 @@ CASES = {
         "garbage.json",
     ),
     "collect: frames 0": (["collect", "--frames", "0", "--out", "{tmp}/d.npz"], "frames"),
+    "collect: too few frames to train on": (
+        ["collect", "--frames", "10", "--out", "{tmp}/d.npz"],
+        "at least 123",
+    ),
     "eval: unknown route": (["eval", "--routes", "nowhere", "--quick"], "nowhere"),
     "eval: garbage route file": (["eval", "--routes", "{garbage.json}", "--quick"], "garbage.json"),
     "eval: garbage model": (["eval", "--model", "{garbage.onnx}", "--quick"], "garbage.onnx"),
@@ -93,6 +116,40 @@ CASES = {
     "sim snapshot: jpeg": (["sim", "snapshot", "--out", "{tmp}/x.jpg"], ".png"),
     "demo: unknown route": (["demo", "--route", "nowhere", "--out", "{tmp}/demo"], "nowhere"),
     "demo: garbage model": (["demo", "--model", "{garbage.onnx}", "--out", "{tmp}/demo"], "garbage.onnx"),
+    # careless inputs (issue 21): outputs checked before any is created, folders named as folders
+    "repeat: a folder as --log": (_repeat("--log", "{tmp}"), "is a folder; name a file"),
+    "repeat: --log under a file": (
+        _repeat("--log", "{tmp}/garbage.json/run.jsonl"),
+        "is a file, not a folder",
+    ),
+    "repeat: a file where the --mcap folder goes": (
+        _repeat("--mcap", "{garbage.json}"),
+        "a file is in the way",
+    ),
+    "repeat: --log and --mcap the same file": (
+        _repeat("--log", "{tmp}/r.mcap", "--mcap", "{tmp}/r.mcap"),
+        "same",
+    ),
+    "repeat: a folder as --model": (_repeat(model="{tmp}"), "is a folder, not a model file"),
+    "repeat: a folder as --route": (_repeat(route="{tmp}"), "is a folder, not a route file"),
+    "eval: a folder as --model": (["eval", "--model", "{tmp}", "--quick"], "is a folder, not a model file"),
+    "eval: a folder as --viewnet": (["eval", "--viewnet", "{tmp}", "--quick"], "is a folder, not a model"),
+    "eval: the repeat's own --log as --run": (
+        ["eval", "--run", "{run.jsonl}", "--taught", "{r.npz}"],
+        "--log",
+    ),
+    "eval: a PNG as --run": (["eval", "--run", "{run.png}", "--taught", "{r.npz}"], "PNG image"),
+    "eval: a PNG as --taught": (["eval", "--run", "{run.png}", "--taught", "{run.png}"], "run.png"),
+    "bench latency: a folder as --model": (["bench", "latency", "--model", "{tmp}"], "is a folder"),
+    "export: a folder as --checkpoint": (
+        ["export", "--checkpoint", "{tmp}", "--out", "{tmp}/o.onnx"],
+        "folder",
+    ),
+    "export: no --out": (["export", "--checkpoint", "{garbage.pt}"], "--out"),
+    "export: an existing --out": (
+        ["export", "--checkpoint", "{garbage.pt}", "--out", "{garbage.onnx}"],
+        "--force",
+    ),
     "unknown command": (["fly"], "unknown command"),
     "unknown option": (_repeat("--speed", "3"), "--speed"),
 }
@@ -103,14 +160,13 @@ def test_bad_input_is_one_line_and_exit_code_2(
     name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     argv, words = CASES[name]
-    subs = {"{tmp}": str(tmp_path)}
-    for ext in ("onnx", "npz", "pt", "json"):
-        subs[f"{{garbage.{ext}}}"] = _garbage(tmp_path, f"garbage.{ext}")
+    subs = _inputs(tmp_path)
+    given = {Path(p).name for p in subs.values()}
     argv = [subs.get(a, a).replace("{tmp}", str(tmp_path)) for a in argv]
     code, line = _in_process(capsys, argv)
     assert code == 2, line
     assert words in line and "allow_pickle" not in line
-    left = sorted(p.name for p in tmp_path.iterdir() if not p.name.startswith("garbage."))
+    left = sorted(p.name for p in tmp_path.iterdir() if p.name not in given)
     assert left == [], f"{name} left {left} behind"
 
 
@@ -165,3 +221,22 @@ def test_the_robot_board_entry_refuses_a_bad_address_in_one_line() -> None:
         [sys.executable, "-c", code, *args], cwd=ROOT, env=env, capture_output=True, text=True, timeout=30
     )
     assert proc.returncode == 2 and "no port" in _one_line(proc.stderr)
+
+
+@pytest.mark.parametrize("example", ["minimal_robot_server.py", "apartment_robot_server.py"])
+def test_an_example_robot_on_a_busy_port_is_one_line(example: str) -> None:
+    import socket
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        address = f"tcp://127.0.0.1:{busy.getsockname()[1]}"
+        proc = subprocess.run(
+            [sys.executable, str(ROOT / "examples" / example), "--bind", address],
+            capture_output=True,
+            text=True,
+            timeout=30,
+        )
+    assert proc.returncode == 2 and f"cannot bind --bind {address}: Address already in use" in _one_line(
+        proc.stderr
+    )

@@ -38,6 +38,7 @@ import numpy as np
 from vtr.runtime import protocol
 from vtr.runtime.bag_caps import BagFileError
 from vtr.runtime.bag_reader import GuardedBag, shown
+from vtr.training.bag_camera import read_camera_info
 from vtr.training.bag_images import ImageTooLargeError, NoDecoderError, decode_image, square_resize
 
 IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
@@ -80,14 +81,23 @@ class BagDrive:
 
     def camera(self, fov_deg: float | None = None, height_m: float | None = None) -> dict[str, Any]:
         """The camera of the resampled images (docs/PROTOCOL.md's hello camera): the square crop narrows the
-        horizontal field of view of a wide camera, so ``fov_deg`` (the native one) is converted."""
+        horizontal field of view of a wide camera, so the native one is converted. The native field of view is
+        ``fov_deg`` (--camera-fov) when given, else the bag's CameraInfo's (training/bag_camera.py); ``fov_from``
+        says which, and a field known from neither is listed in ``unknown`` (`vtr repeat` refuses a route whose
+        field of view is unknown)."""
         size = int(self.images.shape[2]) if len(self) else 0
         native = self.source.get("camera") or {}
+        info = self.source.get("camera_info") or {}
+        source = "--camera-fov" if fov_deg is not None else f"sensor_msgs/CameraInfo on {info.get('topic')}"
+        fov_deg = fov_deg if fov_deg is not None else info.get("fov_deg")
         fov = None
         if fov_deg is not None and native:
             ratio = min(native["width"], native["height"]) / native["width"]
             fov = math.degrees(2 * math.atan(math.tan(math.radians(fov_deg) / 2) * ratio))
-        return {"width": size, "height": size, "fov_deg": fov, "height_m": height_m, "native": native}
+        camera = {"width": size, "height": size, "fov_deg": fov, "height_m": height_m, "native": native}
+        camera["fov_from"] = source if fov is not None else "unknown"
+        unknown = [k for k in ("fov_deg", "height_m") if camera[k] is None]
+        return {**camera, "unknown": unknown} if unknown else camera
 
     def report(self) -> str:
         lines = [
@@ -163,6 +173,7 @@ def read_bag(
                 k: (t, int(image_order[j]), c) for k, (t, j, c) in plan.items()
             }  # j: the message's position
             images, native = _decode_planned(bag, image_conns, plan, image_size, skipped)
+            camera_info = read_camera_info(bag, image_topic)
             warnings = list(bag.warnings)
     except BagFileError as exc:
         raise BagError(str(exc)) from None
@@ -187,6 +198,7 @@ def read_bag(
             "seconds": round(max(image_t[-1], cmd_t[-1]) - min(image_t[0], cmd_t[0]), 3),
             "stamps": {topic: clock for topic, (_, clock) in clocks.items() if times[topic]},
             "camera": {"width": native[1], "height": native[0]} if native else {},
+            "camera_info": camera_info,
         },
         warnings=warnings,
     )
@@ -339,10 +351,17 @@ def add_arguments(parser: Any, what: str) -> None:
         help="a command older than this counts as zero, s (default 0.5)",
     )
     group.add_argument(
-        "--camera-fov", type=float, default=None, help="the camera's horizontal field of view, deg"
+        "--camera-fov",
+        type=float,
+        default=None,
+        help="the camera's horizontal field of view, deg (default: from the bag's sensor_msgs/CameraInfo; "
+        "without one it is stored as unknown, which `vtr repeat` refuses)",
     )
     group.add_argument(
-        "--camera-height", type=float, default=None, help="the camera's height above the floor, m"
+        "--camera-height",
+        type=float,
+        default=None,
+        help="the camera's height above the floor, m (default: unknown, not compared)",
     )
 
 

@@ -90,6 +90,13 @@ def run_cli(args: Any, cfg: TeachConfig) -> int:
         print(drive.report())
         name = os.path.splitext(os.path.basename(args.out))[0]
         camera = drive.camera(args.camera_fov, args.camera_height)
+        if "fov_deg" in camera.get("unknown", ()):
+            print(
+                "vtr teach: warning: the bag has no calibrated sensor_msgs/CameraInfo for the camera and no "
+                "--camera-fov was given: the route records its field of view as unknown, and `vtr repeat` "
+                "refuses it; pass --camera-fov DEG",
+                file=sys.stderr,
+            )
         route = route_from_drive(drive, cfg, args.segment, name=name, camera=camera)
         route.save(args.out)
     except (BagError, OSError) as exc:

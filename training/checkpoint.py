@@ -65,6 +65,11 @@ def read_checkpoint(path: str | os.PathLike[str], map_location: str | torch.devi
     """The checkpoint's contents; CheckpointError for a missing, garbage or unsafe file."""
     path = Path(path)
     if path.is_dir():
+        if not (path / MODEL).is_file():
+            raise IsADirectoryError(
+                f"{path} is a folder without a {MODEL}, not a model checkpoint; pass the checkpoint file or a "
+                "`vtr train` run folder"
+            )
         path = path / MODEL
     if not path.is_file():
         raise FileNotFoundError(f"no model checkpoint at {path}")

@@ -23,7 +23,12 @@ from typing import Any
 import numpy as np
 
 from vtr.runtime.kinematics import unicycle
-from vtr.training.config import CollectConfig
+from vtr.training.config import CollectConfig, MPCLossConfig
+
+#: The fewest frames a dataset can be trained on: training holds whole episodes out for validation, so it needs
+#: two episodes with a window of N + 1 frames each (training.windows), and the first episode may take up to
+#: episode_max frames.
+MIN_FRAMES = CollectConfig.episode_max + MPCLossConfig.horizon + 1
 
 _KINDS = ("translate", "rotate", "combined", "stop", "creep", "fast_arc")
 # Command mixes (probabilities over _KINDS). "paper": the recipe of the shipped model. "repeat": what the
@@ -197,10 +202,19 @@ def run(cfg: CollectConfig) -> dict[str, Any]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", default="data/house.npz", help="dataset file (.npz), written atomically")
-    parser.add_argument("--frames", type=int, default=7024, help="frames to record (paper: 7024)")
     parser.add_argument(
-        "--seed", type=int, default=0, help="seed for start poses, commands and actuation noise"
+        "--out",
+        default="data/house.npz",
+        help="dataset file (.npz), written atomically (default: data/house.npz)",
+    )
+    parser.add_argument(
+        "--frames",
+        type=int,
+        default=7024,
+        help=f"frames to record (default and the paper's: 7024; at least {MIN_FRAMES})",
+    )
+    parser.add_argument(
+        "--seed", type=int, default=0, help="seed for start poses, commands and actuation noise (default: 0)"
     )
     parser.add_argument(
         "--noise",
@@ -208,9 +222,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=float,
         const=0.05,
         default=0.0,
-        help="actuation noise level (SimConfig.noise); --noise alone means 0.05",
+        help="actuation noise level (SimConfig.noise); --noise alone means 0.05 (default: 0, off)",
     )
-    parser.add_argument("--image-size", type=int, default=128, help="camera width = height (default 128)")
+    parser.add_argument("--image-size", type=int, default=128, help="camera width = height (default: 128)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     houses = parser.add_argument_group("across procedural houses (a sharded dataset folder as --out)")
     houses.add_argument(
@@ -295,6 +309,14 @@ def run_cli(args: argparse.Namespace) -> int:
 
         return collect_bag.run_cli(args)
 
+    if args.frames < MIN_FRAMES:  # a dataset nothing can be trained on: say so now, not at training time
+        print(
+            f"vtr collect: --frames {args.frames} is too few to train on: training holds an episode out for "
+            f"validation and an episode lasts up to {CollectConfig.episode_max} frames; record at least "
+            f"{MIN_FRAMES}",
+            file=sys.stderr,
+        )
+        return 2
     cfg = CollectConfig(
         out=args.out,
         frames=args.frames,

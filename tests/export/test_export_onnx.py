@@ -200,8 +200,23 @@ def test_export_cli_writes_fp32_int8_and_viewnet(tmp_path: Path, capsys: pytest.
         OnnxPolicy(out.parent / "viewnet.onnx")
     assert report["fp32"]["max_abs_err_real"] <= 1e-4
     assert "speedup" in report["int8"]
+    # an export never replaces a file unasked: every output that exists is refused without --force
+    before = {p: p.stat().st_mtime_ns for p in (out, int8_path(out), out.parent / "viewnet.onnx")}
+    assert cli.main(args) == 2 and "exists; pass --force" in capsys.readouterr().err
+    assert {p: p.stat().st_mtime_ns for p in before} == before
+    only_viewnet = [
+        "export",
+        "--checkpoint",
+        str(ckpt),
+        "--out",
+        str(out.parent / "new.onnx"),
+        "--viewnet",
+        str(vckpt),
+    ]
+    assert cli.main(only_viewnet) == 2 and "viewnet.onnx exists" in capsys.readouterr().err
+    assert not (out.parent / "new.onnx").exists()
     # int8 without calibration frames, or a ViewNet given as the policy, are clear errors
-    assert cli.main(["export", "--checkpoint", str(ckpt), "--out", str(out), "--int8"]) == 2
+    assert cli.main(["export", "--checkpoint", str(ckpt), "--out", str(out), "--int8", "--force"]) == 2
     with pytest.raises(ValueError, match="holds a viewnet"):
         export_run(ExportConfig(checkpoint=str(vckpt), out=str(out)))
 

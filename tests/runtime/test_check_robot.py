@@ -57,8 +57,10 @@ def test_the_cli_prints_one_line_per_check_and_exits_zero(
 @pytest.mark.parametrize(
     ("fault", "check", "expected", "words"),
     [
-        ("no_limits", "hello", FAIL, "hello field 'limits' must be an object"),
-        ("no_camera", "hello", FAIL, "camera must be an object"),
+        ("no_limits", "hello.fields", FAIL, "hello field 'limits' must be an object"),
+        ("no_camera", "hello.fields", FAIL, "camera must be an object"),
+        ("hello_two_wrong", "hello.fields", FAIL, "got None; hello field 'mode' must be one of"),
+        ("old_hello", "hello.fields", WARN, "does not announce 'dt' and 'mode'"),
         ("wrong_size", "reset", FAIL, "64x64 but hello announced 128x128"),
         ("bare_errors", "errors", FAIL, "wrong protocol None"),
         ("bare_stop", "stop", FAIL, "carries proto, version, cmd, seq"),
@@ -108,3 +110,21 @@ def test_cli_refuses_an_address_that_is_not_an_endpoint(capsys: pytest.CaptureFi
     assert exit_.value.code == 2 and "has no transport" in capsys.readouterr().err
     assert cli.main(["check-robot"]) == 2  # no address from the command line or a config file
     assert "needs ADDR" in capsys.readouterr().err
+
+
+def test_wrong_hello_fields_are_each_reported_and_every_other_check_still_runs(simulator: Simulator) -> None:
+    with FaultyRobot(simulator, "hello_two_wrong") as robot:
+        found = {r.name: r for r in run_checks(robot.endpoint, timeout_s=0.5)}
+    assert found["hello"].status == PASS and found["hello.fields"].status == FAIL
+    ran = [name for name, r in found.items() if r.status in (PASS, WARN)]
+    assert {"reset", "observe", "step.turn", "limits.enforced", "errors", "stop"} <= set(ran), found
+
+
+def test_a_bridge_written_for_the_first_protocol_text_passes_with_warnings(simulator: Simulator) -> None:
+    with FaultyRobot(simulator, "old_hello") as robot:
+        results = run_checks(robot.endpoint, timeout_s=0.5)
+    assert not [r for r in results if r.status == FAIL], results
+    fields = {r.name: r for r in results}["hello.fields"].detail
+    assert (
+        "add them" in fields and "'camera.camera_height', a deprecated name: say 'camera.height_m'" in fields
+    )

@@ -63,6 +63,28 @@ def image_message(k: int, t_ns: int, kind: str) -> tuple[str, object]:
     return "sensor_msgs/msg/Image", msg
 
 
+def camera_info(fx: float) -> object:
+    """The CameraInfo of the 32x24 camera with focal length ``fx`` pixels (0: uncalibrated)."""
+    types = STORE.types
+    k = np.array([fx, 0.0, 16.0, 0.0, fx, 12.0, 0.0, 0.0, 1.0])
+    roi = types["sensor_msgs/msg/RegionOfInterest"](
+        x_offset=0, y_offset=0, height=0, width=0, do_rectify=False
+    )
+    return types["sensor_msgs/msg/CameraInfo"](
+        header=_header(T0, "cam"),
+        height=24,
+        width=32,
+        distortion_model="plumb_bob",
+        d=np.zeros(5),
+        k=k,
+        r=np.eye(3).ravel(),
+        p=np.zeros(12),
+        binning_x=0,
+        binning_y=0,
+        roi=roi,
+    )
+
+
 def write_drive_bag(
     path: Path,
     *,
@@ -78,9 +100,11 @@ def write_drive_bag(
     storage: str = "mcap",
     camera_latency: float = 0.0,
     camera_clock: float = 0.0,
+    camera_info_fx: float | None = None,
 ) -> Path:
     """Write the drive to the bag folder ``path``; returns it. Camera frames reach the bag ``camera_latency``
-    seconds after their header stamp; ``camera_clock`` shifts the camera's header stamps (a device clock)."""
+    seconds after their header stamp; ``camera_clock`` shifts the camera's header stamps (a device clock).
+    ``camera_info_fx``: also a sensor_msgs/CameraInfo on /camera/camera_info with that focal length (pixels)."""
     types = STORE.types
     vec = types["geometry_msgs/msg/Vector3"]
     plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
@@ -132,6 +156,8 @@ def write_drive_bag(
             )
             events.append((T0 + round(t * 1e9), "/odom", msg, "nav_msgs/msg/Odometry"))
             x += speed(t, fast) / 50
+    if camera_info_fx is not None:
+        events.append((T0, "/camera/camera_info", camera_info(camera_info_fx), "sensor_msgs/msg/CameraInfo"))
     events.sort(key=lambda e: e[0])
     with Writer(path, version=9, storage_plugin=plugin) as writer:
         conns = {}

@@ -134,3 +134,32 @@ def test_vtr_teach_bag_errors_are_one_line(tmp_path: Path, capsys: pytest.Captur
     args = ["teach", "--bag", str(tmp_path / "nope"), "--image-topic", "/i", "--cmd-topic", "/c"]
     assert cli.main([*args, "--out", str(tmp_path / "r.npz")]) == 2
     assert "no bag at" in capsys.readouterr().err
+
+
+def _teach(bag: Path, out: Path, *more: str) -> int:
+    args = ["teach", "--bag", str(bag), "--image-topic", "/camera/image", "--cmd-topic", "/cmd_vel"]
+    return cli.main([*args, "--out", str(out), *more])
+
+
+def test_vtr_teach_bag_reads_the_field_of_view_from_camera_info(tmp_path: Path) -> None:
+    bag = write_drive_bag(tmp_path / "bag", odom=False, camera_info_fx=16.0)  # 32 px wide: 90 degrees
+    assert _teach(bag, tmp_path / "route.npz") == 0
+    camera = Route.load(tmp_path / "route.npz").camera
+    assert camera["fov_deg"] == pytest.approx(73.74, abs=0.01)  # cropped to 24x24, as with --camera-fov 90
+    assert camera["fov_from"] == "sensor_msgs/CameraInfo on /camera/camera_info"
+    assert camera["unknown"] == ["height_m"]  # CameraInfo says nothing of the mounting height
+
+
+@pytest.mark.parametrize("fx", [None, 0.0])  # no CameraInfo; an uncalibrated one
+def test_a_bag_without_camera_facts_stores_an_unknown_field_of_view_that_repeat_refuses(
+    tmp_path: Path, fx: float | None, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bag = write_drive_bag(tmp_path / "bag", odom=False, camera_info_fx=fx)
+    route = tmp_path / "route.npz"
+    assert _teach(bag, route) == 0
+    assert "the route records its field of view as unknown" in capsys.readouterr().err
+    assert Route.load(route).camera["unknown"] == ["fov_deg", "height_m"]
+    model = str(Path(__file__).resolve().parents[2] / "models" / "velocitynet.onnx")
+    code = cli.main(["repeat", "--sim", "tcp://127.0.0.1:9", "--model", model, "--route", str(route)])
+    (line,) = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and "field of view is unknown" in line and "re-teach it with --camera-fov DEG" in line

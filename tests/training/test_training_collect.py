@@ -79,9 +79,30 @@ def test_same_seed_same_dataset(collected: tuple[Path, dict], tmp_path: Path) ->
 
 def test_collect_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from vtr import cli
+    from vtr.training.collect import MIN_FRAMES
 
     out = tmp_path / "c.npz"
-    args = ["collect", "--out", str(out), "--frames", "40", "--image-size", "32", "--no-progress", "--noise"]
+    frames = str(
+        MIN_FRAMES
+    )  # the fewest frames training accepts (fewer is refused: tests/test_cli_bad_input.py)
+    args = [
+        "collect",
+        "--out",
+        str(out),
+        "--frames",
+        frames,
+        "--image-size",
+        "32",
+        "--no-progress",
+        "--noise",
+    ]
     assert cli.main(args) == 0
     assert load_dataset(out).meta["noise"] == 0.05
-    assert '"frames": 40' in capsys.readouterr().out
+    assert f'"frames": {frames}' in capsys.readouterr().out
+    # ... and it can be trained on: validation episodes held out, N + 1 frame windows on both sides
+    from vtr.training.config import MPCLossConfig, TrainConfig
+    from vtr.training.dataset import split_episodes, window_starts
+
+    data = load_dataset(out)
+    for ids in split_episodes(data.episodes, TrainConfig().val_fraction, TrainConfig().seed):
+        assert len(window_starts(data.episodes, MPCLossConfig().horizon + 1, ids)) > 0
