@@ -19,7 +19,7 @@ import torch
 from torch import nn
 
 from vtr.runtime.atomic import atomic_path
-from vtr.training.config import VelocityNetConfig, ViewNetConfig, from_dict
+from vtr.training.config import VelocityNetConfig, from_dict, viewnet_config
 from vtr.training.models import VelocityNet, ViewNet
 
 CHECKPOINT = "checkpoint.pt"
@@ -91,7 +91,7 @@ def load_model(
     kind = ckpt.get("kind")
     try:
         if kind == "viewnet":
-            model: nn.Module = ViewNet(from_dict(ViewNetConfig, ckpt["model_config"]))
+            model: nn.Module = ViewNet(viewnet_config(ckpt["model_config"]))
         elif kind == "velocitynet":
             model = VelocityNet(from_dict(VelocityNetConfig, ckpt["model_config"]))
         else:
