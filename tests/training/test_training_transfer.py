@@ -151,7 +151,7 @@ def test_named_maps_are_never_held_out() -> None:
         assert not np.isin(val_ids, data.episodes[houses == 0]).any()
 
 
-def test_a_viewnet_that_records_no_velocity_gain_keeps_gain_1_when_loaded_or_fine_tuned(tmp_path: Path) -> None:
+def test_an_old_viewnet_without_a_velocity_gain_keeps_gain_1_loaded_or_fine_tuned(tmp_path: Path) -> None:
     from vtr.training.checkpoint import load_model, save_checkpoint
     from vtr.training.config import LEGACY_VELOCITY_GAIN, override, to_dict
     from vtr.training.models import ViewNet
