@@ -24,7 +24,7 @@ from torch import nn
 
 from vtr.runtime.atomic import atomic_path
 from vtr.runtime.npz_guard import MAX_EXPANSION, NpzTooLargeError, check_zip
-from vtr.training.config import VelocityNetConfig, ViewNetConfig, from_dict
+from vtr.training.config import VelocityNetConfig, from_dict, viewnet_config
 from vtr.training.models import VelocityNet, ViewNet
 
 CHECKPOINT = "checkpoint.pt"
@@ -112,7 +112,7 @@ def load_model(
     kind = ckpt.get("kind")
     try:
         if kind == "viewnet":
-            model: nn.Module = ViewNet(from_dict(ViewNetConfig, ckpt["model_config"]))
+            model: nn.Module = ViewNet(viewnet_config(ckpt["model_config"]))
         elif kind == "velocitynet":
             model = VelocityNet(from_dict(VelocityNetConfig, ckpt["model_config"]))
         else:

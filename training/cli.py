@@ -13,10 +13,13 @@ DistributedDataParallel (gloo on CPU, nccl on CUDA): ``torchrun --nproc_per_node
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 from typing import Any
 
-from vtr.runtime.commands import Command
+from vtr.runtime.commands import EXIT_FAILED, Command
 from vtr.runtime.preprocess import PREPROCESSINGS
+from vtr.training.config import MAX_RATIO
 
 
 def _add_common(p: argparse.ArgumentParser) -> None:
@@ -54,6 +57,12 @@ def _add_common(p: argparse.ArgumentParser) -> None:
         choices=PREPROCESSINGS,
         default=None,
         help=f"VelocityNet's input normalisation, stored in the exported model (default: {PREPROCESSINGS[0]})",
+    )
+    p.add_argument(
+        "--allow-no-gain",
+        action="store_true",
+        help=f"go on when a stage's held-out result is above {MAX_RATIO}x its baseline (ViewNet: copy-the-input, "
+        "VelocityNet: the mean command); without it the stage stops with exit 1",
     )
     p.add_argument(
         "--data-on-device",
@@ -164,7 +173,7 @@ def run_cli(args: argparse.Namespace) -> int:
     )
     preset.velocitynet = override(preset.velocitynet, preprocessing=args.preprocessing)
     if args.stage == "viewnet":
-        train_viewnet(
+        report = train_viewnet(
             args.data,
             args.out,
             preset.viewnet,
@@ -173,7 +182,7 @@ def run_cli(args: argparse.Namespace) -> int:
             init=args.init,
         )
     else:
-        train_velocitynet(
+        report = train_velocitynet(
             args.data,
             args.viewnet,
             args.out,
@@ -184,4 +193,25 @@ def run_cli(args: argparse.Namespace) -> int:
             init=args.init,
             recovery=args.recovery,
         )
+    if not report:  # under torchrun only rank 0 writes the report, and checks it
+        return 0
+    return gain_verdict(args.out, args.allow_no_gain, f"vtr train {args.stage}")
+
+
+def gain_verdict(out: str | Path, allow: bool, where: str) -> int:
+    """The stage check: 0 when the stage in ``out`` learned (its report.json against its baseline) or
+    ``allow``; otherwise one line on stderr and EXIT_FAILED."""
+    import json
+
+    from vtr.training.checkpoint import REPORT
+    from vtr.training.report import NoGainError, check_gain
+
+    try:
+        check_gain(json.loads((Path(out) / REPORT).read_text()), str(out))
+    except NoGainError as err:
+        if allow:
+            print(f"{where}: going on (--allow-no-gain): {err}", file=sys.stderr)
+            return 0
+        print(f"{where}: {err}", file=sys.stderr)
+        return EXIT_FAILED
     return 0

@@ -14,6 +14,11 @@ from typing import Any
 from vtr.runtime.contracts import CAMERA, CONTROL_DT, V_MAX, W_MAX
 from vtr.runtime.preprocess import PREPROCESSING, check_preprocessing
 
+#: The stage check: a stage has learned when its held-out figure is at most this fraction of its baseline's
+#: (training/report.py): ViewNet's L1, both directions, against copy-the-input; VelocityNet's first-command MSE
+#: against the mean command. A ViewNet that never learned the motion ends at 0.99-1.01x, trained ones at 0.4-0.7x.
+MAX_RATIO = 0.95
+
 
 def _check_positive(obj: object, *names: str) -> None:
     for name in names:
@@ -91,11 +96,15 @@ class ViewNetConfig:
     leaky_slope: float = 0.2  # LeakyReLU negative slope
     v_max: float = V_MAX  # velocities are divided by these before entering the decoder
     w_max: float = W_MAX
+    # ... and multiplied by this. Unscaled, the command held ~0.3% of the decoder input's energy beside the
+    # image feature (norm ~0.6 against ~11 for 256 channels), and ViewNet trained from nothing often never
+    # learned to use it: it stayed at copy-the-input (training/README.md, "ViewNet learns every time").
+    velocity_gain: float = 10.0
 
     def __post_init__(self) -> None:
         _check_channels(self, "encoder_channels", 8)
         _check_channels(self, "decoder_channels")
-        _check_positive(self, "image_size", "flow_resolution", "v_max", "w_max")
+        _check_positive(self, "image_size", "flow_resolution", "v_max", "w_max", "velocity_gain")
         if self.flow_resolution != 4 * 2 ** len(self.decoder_channels):
             raise ValueError(
                 f"flow_resolution {self.flow_resolution} must equal 4 * 2**len(decoder_channels) = "
@@ -269,6 +278,15 @@ def get_preset(name: str) -> Preset:
     if name not in PRESETS:
         raise ValueError(f"unknown preset {name!r}; choose one of {sorted(PRESETS)}")
     return PRESETS[name]()
+
+
+#: ViewNet checkpoints written before ``ViewNetConfig.velocity_gain`` existed were trained without a gain.
+LEGACY_VELOCITY_GAIN = 1.0
+
+
+def viewnet_config(data: dict[str, Any]) -> ViewNetConfig:
+    """The ViewNetConfig a checkpoint records (an older one that records no gain gets its gain, 1)."""
+    return from_dict(ViewNetConfig, {"velocity_gain": LEGACY_VELOCITY_GAIN, **data})
 
 
 def to_dict(cfg: Any) -> dict[str, Any]:

@@ -42,6 +42,8 @@ class ViewNet(nn.Module):
     The decoder outputs a flow offset that is added to the identity sampling grid, and the input image
     is resampled with it (``grid_sample``). The offset's last layer starts at zero, so an untrained
     ViewNet reproduces the input image: it starts at the copy-the-input baseline and learns the motion.
+    The command joins the image feature scaled by ``cfg.velocity_gain``: at a comparable size, so that
+    the decoder's input carries the motion it must learn rather than image-only noise (config.py).
     """
 
     def __init__(self, cfg: ViewNetConfig) -> None:
@@ -66,7 +68,8 @@ class ViewNet(nn.Module):
         self.flow = nn.Conv2d(dec[-1], 2, 3, padding=1)
         nn.init.zeros_(self.flow.weight)
         nn.init.zeros_(self.flow.bias)
-        self.register_buffer("vel_scale", torch.tensor([1.0 / cfg.v_max, 1.0 / cfg.w_max]), persistent=False)
+        scale = [cfg.velocity_gain / cfg.v_max, cfg.velocity_gain / cfg.w_max]
+        self.register_buffer("vel_scale", torch.tensor(scale), persistent=False)
         self.register_buffer("identity", self._identity_grid(cfg.image_size), persistent=False)
 
     @staticmethod
@@ -79,7 +82,7 @@ class ViewNet(nn.Module):
     def flow_offset(self, image: torch.Tensor, velocity: torch.Tensor) -> torch.Tensor:
         """(B, 3, H, W), (B, 2) -> flow offset (B, 2, H, W) in normalised grid units."""
         feat = self.encoder(image)  # (B, F, 1, 1)
-        vel = (velocity * self.vel_scale)[:, :, None, None]  # (B, 2, 1, 1), normalised to [-1, 1]
+        vel = (velocity * self.vel_scale)[:, :, None, None]  # (B, 2, 1, 1), in [-gain, gain]
         x = self.stem(torch.cat([feat, vel], dim=1))  # (B, dec0, 4, 4)
         x = self.up(x)  # (B, decL, R, R), R = flow_resolution
         flow = self.flow(x)  # (B, 2, R, R)

@@ -14,11 +14,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import torch
 
-from vtr.training.config import MPCLossConfig
+from vtr.training.config import MAX_RATIO, MPCLossConfig
 from vtr.training.losses import mpc_loss
 
 if TYPE_CHECKING:
     from vtr.training.windows import Windows
+
+
+class NoGainError(RuntimeError):
+    """A stage's held-out result did not beat its baseline: the pipeline stops (exit 1) unless told to go on."""
 
 
 def _ratio(model: float, baseline: float) -> float:
@@ -125,3 +129,28 @@ def format_report(report: dict[str, Any]) -> str:
             f"{report['ratio_to_baseline']:.3f}{'' if report['beats_baseline'] else '  (DOES NOT BEAT THE BASELINE)'}"
         )
     return str(report)
+
+
+def check_gain(report: dict[str, Any], where: str) -> None:
+    """Raise NoGainError, one line naming the stage, its figure and the baseline, when ``report`` (a stage's
+    report.json; ``where`` its folder) is above MAX_RATIO times its baseline."""
+    go_on = f"stopping; the model stays in {where}, --allow-no-gain goes on with it"
+    if report.get("model") == "viewnet":
+        copy = report["copy_baseline_l1"]
+        fwd, rev = _ratio(report["viewnet_l1"], copy), _ratio(report["viewnet_l1_reversed"], copy)
+        if not max(fwd, rev) <= MAX_RATIO:
+            raise NoGainError(
+                f"ViewNet did not learn: held-out L1 {report['viewnet_l1']:.5f} (reversed "
+                f"{report['viewnet_l1_reversed']:.5f}) is {fwd:.3f}x ({rev:.3f}x) the copy-the-input baseline "
+                f"{copy:.5f}, above {MAX_RATIO}x; {go_on}"
+            )
+    elif report.get("model") == "velocitynet":
+        ratio = _ratio(report["mse_first_command"], report["mean_baseline_mse"])
+        if not ratio <= MAX_RATIO:
+            raise NoGainError(
+                f"VelocityNet did not learn: held-out first-command MSE {report['mse_first_command']:.5f} is "
+                f"{ratio:.3f}x the mean-command baseline {report['mean_baseline_mse']:.5f}, above "
+                f"{MAX_RATIO}x; {go_on}"
+            )
+    else:
+        raise ValueError(f"{where}: not a stage report (model {report.get('model')!r})")

@@ -41,7 +41,7 @@ from vtr.training.distributed import Dist, any_rank, barrier, setup_dist
 from vtr.training.extra_pairs import JointCall, recovery_batches
 from vtr.training.losses import mpc_loss, velocity_error, viewnet_loss
 from vtr.training.models import VelocityNet, ViewNet
-from vtr.training.transfer import init_weights
+from vtr.training.transfer import init_viewnet_config, init_weights
 from vtr.training.windows import Windows
 
 __all__ = ["CHECKPOINT", "METRICS", "MODEL", "REPORT", "train_velocitynet", "train_viewnet"]
@@ -239,6 +239,8 @@ def train_viewnet(
         "val_episodes": windows.val_ids.tolist(),
         "train_config": to_dict(cfg),  # kept in model.pt too: export writes the recipe into the ONNX
     }
+    if init is not None:
+        model_cfg = init_viewnet_config(model_cfg, init)
     torch.manual_seed(cfg.seed)  # the initial weights come from --seed, not from whatever ran before
     model = ViewNet(model_cfg)
     if init is not None:

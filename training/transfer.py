@@ -6,7 +6,7 @@
   training never saw; a one-house dataset holds out whole episodes as before.
 * ``init_weights(model, kind, model_cfg, path)``: start from given weights (``--init``): a model.pt or
   checkpoint.pt written by ``vtr train``, or the shipped ``models/viewnet.pt``. The architecture must
-  match (same preset); the optimiser starts fresh.
+  match (same preset); the optimiser starts fresh. A ViewNet fine-tune keeps its base's velocity gain.
 * ``vtr train evaluate --data D --viewnet V [--velocitynet P]``: the offline report of given models on
   every episode of a dataset (for example one collected in a held-out house, before and after a
   fine-tune), each figure against its baseline as in training/report.py.
@@ -69,12 +69,9 @@ def split_for(data: FrameData, cfg: Any) -> tuple[np.ndarray, np.ndarray]:
     return split_episodes(data.episodes, cfg.val_fraction, cfg.seed)
 
 
-def init_weights(model: Any, kind: str, model_cfg: Any, path: str | os.PathLike) -> dict[str, Any]:
-    """Load the weights of checkpoint `path` into `model` (in place); returns a note for the metadata.
-
-    Raises ValueError (one line) when the file is not a `kind` checkpoint of the same architecture."""
+def _init_checkpoint(kind: str, path: str | os.PathLike) -> tuple[Path, dict[str, Any]]:
+    """(file, contents) of an ``--init`` checkpoint; ValueError/FileNotFoundError (one line) otherwise."""
     from vtr.training.checkpoint import CheckpointError, read_checkpoint
-    from vtr.training.config import to_dict
 
     p = Path(path)
     if p.is_dir():
@@ -92,7 +89,19 @@ def init_weights(model: Any, kind: str, model_cfg: Any, path: str | os.PathLike)
         raise ValueError(f"--init: {err}") from None
     if ckpt.get("kind") != kind:
         raise ValueError(f"--init: {p} holds a {ckpt.get('kind')!r}, not a {kind}")
+    return p, ckpt
+
+
+def init_weights(model: Any, kind: str, model_cfg: Any, path: str | os.PathLike) -> dict[str, Any]:
+    """Load the weights of checkpoint `path` into `model` (in place); returns a note for the metadata.
+
+    Raises ValueError (one line) when the file is not a `kind` checkpoint of the same architecture."""
+    from vtr.training.config import to_dict, viewnet_config
+
+    p, ckpt = _init_checkpoint(kind, path)
     theirs, ours = ckpt.get("model_config") or {}, to_dict(model_cfg)
+    if kind == "viewnet" and theirs:
+        theirs = to_dict(viewnet_config(theirs))  # an older checkpoint records no velocity gain
     if theirs != ours:
         differ = ", ".join(
             f"{k} {theirs.get(k)!r} (here {ours.get(k)!r})" for k in ours if theirs.get(k) != ours[k]
@@ -102,6 +111,16 @@ def init_weights(model: Any, kind: str, model_cfg: Any, path: str | os.PathLike)
         )
     model.load_state_dict(ckpt["state_dict"])
     return {"init": str(p), "init_step": ckpt.get("step"), "init_data": ckpt.get("data")}
+
+
+def init_viewnet_config(model_cfg: Any, path: str | os.PathLike) -> Any:
+    """A ViewNet fine-tune keeps its base's velocity gain: the base's weights were learned with it (the
+    shipped models/viewnet.pt predates the gain and keeps 1)."""
+    from vtr.training.config import override, viewnet_config
+
+    _, ckpt = _init_checkpoint("viewnet", path)
+    base = viewnet_config(ckpt.get("model_config") or {})
+    return override(model_cfg, velocity_gain=base.velocity_gain)
 
 
 def inherit_init_settings(args: argparse.Namespace) -> None:

@@ -4,7 +4,9 @@ it alone joins training and export, so neither library imports the other's comma
 
 `all` writes everything into its run folder (``--out``: viewnet/, velocitynet/, export/, summary.json) and
 installs the models into ``--models-dir`` only when asked (``--install-models``): a test run must never
-replace the shipped model. The dataset is loaded once for both stages and the export.
+replace the shipped model. The dataset is loaded once for both stages and the export. After each stage its
+held-out result must beat its baseline (training/report.py ``check_gain``); otherwise `all` stops there with
+one line and exit 1, unless ``--allow-no-gain``.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from typing import Any
 
 from vtr.runtime.atomic import atomic_path, write_text_atomic
 from vtr.runtime.cliargs import add_config_arguments, opt
-from vtr.runtime.commands import Command, run_command
+from vtr.runtime.commands import EXIT_FAILED, Command, run_command
 from vtr.training import cli as stages
 
 # The ONNX models the runtime uses, and both torch checkpoints: ViewNet for the MPC loss and VelocityNet
@@ -41,6 +43,7 @@ class AllConfig:
     install_models: bool = opt(False, "copy the exported models into --models-dir (replacing what is there)")
     resume: bool = False  # continue interrupted stages; finished stages are always skipped
     int8: bool = True  # also write the int8 model
+    allow_no_gain: bool = False  # go on past a stage that does not beat its baseline (training/report.py)
 
     def __post_init__(self) -> None:
         from vtr.training.config import PRESETS
@@ -49,8 +52,19 @@ class AllConfig:
             raise ValueError(f"preset must be one of {sorted(PRESETS)}, got {self.preset!r}")
 
 
+class StageStopped(RuntimeError):
+    """A stage did not beat its baseline (the one-line reason): `all` stops there, exit 1."""
+
+
+def _stage_check(stage_dir: Path, cfg: AllConfig) -> None:
+    """Every rank reads the stage's report.json (written by rank 0 before the stage's last barrier)."""
+    if stages.gain_verdict(stage_dir, cfg.allow_no_gain, "vtr train all") != 0:
+        raise StageStopped(f"stopped after {stage_dir.name}")
+
+
 def run_all(cfg: AllConfig, preset: Any) -> dict[str, Any]:
-    """Collect (if needed) -> ViewNet -> VelocityNet -> export. Stages already finished are skipped."""
+    """Collect (if needed) -> ViewNet -> VelocityNet -> export. Stages already finished are skipped; each
+    trained stage (this run's or an earlier one's) must beat its baseline before the next one starts."""
     from vtr.export.cli import ExportConfig
     from vtr.export.cli import run as export
     from vtr.training.checkpoint import MODEL
@@ -75,6 +89,7 @@ def run_all(cfg: AllConfig, preset: Any) -> dict[str, Any]:
     if not (vdir / MODEL).exists():
         train_viewnet(cfg.data, vdir, preset.viewnet, preset.train_viewnet, resume=cfg.resume, data=data)
         timings["viewnet_s"] = time.perf_counter() - t
+    _stage_check(vdir, cfg)
     t = time.perf_counter()
     if not (pdir / MODEL).exists():
         train_velocitynet(
@@ -88,6 +103,7 @@ def run_all(cfg: AllConfig, preset: Any) -> dict[str, Any]:
             data=data,
         )
         timings["velocitynet_s"] = time.perf_counter() - t
+    _stage_check(pdir, cfg)
     if int(os.environ.get("RANK", "0")) != 0:
         return timings
     t = time.perf_counter()
@@ -154,8 +170,12 @@ def run_all_cli(args: argparse.Namespace) -> int:
         install_models=args.install_models,
         resume=args.resume,
         int8=not args.no_int8,
+        allow_no_gain=args.allow_no_gain,
     )
-    run_all(cfg, preset)
+    try:
+        run_all(cfg, preset)
+    except StageStopped:  # the stage check printed its line
+        return EXIT_FAILED
     return 0
 
 

@@ -112,7 +112,15 @@ def test_a_cli_fine_tune_keeps_the_base_preprocessing_and_augmentation(
 
     data = tmp_path / "d.npz"
     save_dataset(data, synthetic_dataset(frames=64, size=32))
-    tiny = ["--data", str(data), "--preset", "tiny", "--steps", "1"]
+    tiny = [
+        "--data",
+        str(data),
+        "--preset",
+        "tiny",
+        "--steps",
+        "1",
+        "--allow-no-gain",
+    ]  # 1 step learns nothing
     assert cli.main(["train", "viewnet", *tiny, "--out", str(tmp_path / "v")]) == 0
     stage = ["train", "velocitynet", *tiny, "--viewnet", str(tmp_path / "v")]
     assert (
@@ -141,3 +149,26 @@ def test_named_maps_are_never_held_out() -> None:
         assert held_out and "house" not in held_out
         assert all(h.startswith("random:") for h in held_out)
         assert not np.isin(val_ids, data.episodes[houses == 0]).any()
+
+
+def test_an_old_viewnet_without_a_velocity_gain_keeps_gain_1_loaded_or_fine_tuned(tmp_path: Path) -> None:
+    from vtr.training.checkpoint import load_model, save_checkpoint
+    from vtr.training.config import LEGACY_VELOCITY_GAIN, override, to_dict
+    from vtr.training.models import ViewNet
+    from vtr.training.transfer import init_viewnet_config
+
+    cfg = get_preset("tiny").viewnet
+    assert cfg.velocity_gain != LEGACY_VELOCITY_GAIN == 1.0
+    old = {k: v for k, v in to_dict(cfg).items() if k != "velocity_gain"}  # written before the gain existed
+    path = tmp_path / "old.pt"
+    save_checkpoint({"kind": "viewnet", "model_config": old, "state_dict": ViewNet(cfg).state_dict()}, path)
+    model = load_model(path)[1]
+    assert model.cfg.velocity_gain == 1.0
+    assert torch.allclose(model.vel_scale, torch.tensor([1 / cfg.v_max, 1 / cfg.w_max]))
+    with pytest.raises(ValueError, match="velocity_gain 1.0"):  # this preset's gain would misread its weights
+        init_weights(ViewNet(cfg), "viewnet", cfg, path)
+    ft = init_viewnet_config(cfg, path)  # what train_viewnet(init=...) builds: the base's gain
+    assert ft == override(cfg, velocity_gain=1.0)
+    init_weights(ViewNet(ft), "viewnet", ft, path)
+    shipped = Path(__file__).resolve().parents[2] / "models" / "viewnet.pt"
+    assert load_model(shipped)[1].cfg.velocity_gain == 1.0  # the shipped ViewNet predates the gain
