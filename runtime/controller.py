@@ -37,7 +37,6 @@ which is why the follower replaced them as the default. They stay for ``--profil
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -45,7 +44,6 @@ import numpy as np
 from vtr.runtime.controller_config import ControllerConfig
 from vtr.runtime.decisions import SWITCHES, TERMINAL, Action, Decision, Verdict  # noqa: F401 - this module's API
 from vtr.runtime.light import remove_side_ramp
-from vtr.runtime.matching import MatchConfig, Matcher
 from vtr.runtime.progress_gate import ProgressGate
 from vtr.runtime.thresholds import (  # noqa: F401 - calibrate_e_m, consecutive_errors: part of this API
     DEFAULT_BOUNDS,
@@ -56,6 +54,7 @@ from vtr.runtime.thresholds import (  # noqa: F401 - calibrate_e_m, consecutive_
     consecutive_errors,
     gaps_between,
     lost_bounds,
+    route_views,
     thresholds,
 )
 
@@ -96,28 +95,12 @@ class Controller:
         self.commands = None if commands is None else np.asarray(commands, dtype=np.float64).reshape(-1, 2)
         self._held = self.turns_in_place(self.commands, poses, len(subgoals))
         self.subgoals = subgoals
-        self.matcher = Matcher(self.cfg.match)
-        self._feats = self.matcher.features(subgoals)
         n = len(subgoals)
-        self.gaps = gaps_between(self.matcher, self._feats)
+        views = route_views(subgoals, self.cfg)
+        self.cfg, self.matcher, self._feats, self.gaps = views.cfg, views.matcher, views.feats, views.gaps
         #: Set when the route is too plain for patch matching and the raw error is used instead.
-        self.fallback = ""
-        if self.cfg.match.method == "patch" and n > 1 and np.median(self.gaps) < PLAIN_ROUTE_GAP:
-            # Patch normalisation sees texture only: in a room of plain walls and floor consecutive taught
-            # views differ by ~0 and every subgoal would "match". The raw error still sees the motion.
-            self.fallback = (
-                f"patch matching sees no motion along this route (median gap {np.median(self.gaps):.3f})"
-            )
-            self.cfg = replace(self.cfg, match=MatchConfig.paper())
-            self.matcher = Matcher(self.cfg.match)
-            self._feats = self.matcher.features(subgoals)
-            self.gaps = gaps_between(self.matcher, self._feats)
-        self.thresholds = thresholds(self.gaps, n, self.cfg)
-        self.median_gap = float(np.median(self.gaps)) if n > 1 else float(self.thresholds[0])
-        #: A view farther than this from every nearby subgoal is not on the route (see LOST_FLOOR).
-        self.lost_bound = max(self.cfg.lost_factor * self.median_gap, LOST_FLOOR[self.cfg.match.method])
-        if n < 2 or self.gaps.max() < DEFAULT_BOUNDS[self.cfg.match.method][0] / 10:
-            self.lost_bound = math.inf  # a route whose views barely change cannot tell being lost
+        self.fallback, self.thresholds, self.median_gap = views.fallback, views.thresholds, views.median_gap
+        self.lost_bound = views.lost_bound
         self._lost_bounds = lost_bounds(self.gaps, n, self.cfg, self.lost_bound)
         self.index = 0
         self.stalled = False

@@ -22,7 +22,6 @@ The repeat loop reports every command (:meth:`Follower.commanded`), which moves 
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -31,8 +30,7 @@ from vtr.runtime.controller import Controller
 from vtr.runtime.controller_config import ControllerConfig
 from vtr.runtime.decisions import Action, Decision, Verdict
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
-from vtr.runtime.matching import MatchConfig, Matcher
-from vtr.runtime.thresholds import DEFAULT_BOUNDS, LOST_FLOOR, PLAIN_ROUTE_GAP, gaps_between, thresholds
+from vtr.runtime.thresholds import route_views
 
 if TYPE_CHECKING:
     from vtr.runtime.route import Route
@@ -70,23 +68,10 @@ class Follower:
             np.zeros((n, 2)) if commands is None else np.asarray(commands, dtype=np.float64).reshape(-1, 2)
         )
         self._held = Controller.turns_in_place(self.commands, poses, n)
-        self.matcher = Matcher(self.cfg.match)
-        self._feats = self.matcher.features(subgoals)
-        self.gaps = gaps_between(self.matcher, self._feats)
-        self.fallback = ""
-        if self.cfg.match.method == "patch" and n > 1 and np.median(self.gaps) < PLAIN_ROUTE_GAP:
-            self.fallback = (
-                f"patch matching sees no motion along this route (median gap {np.median(self.gaps):.3f})"
-            )
-            self.cfg = replace(self.cfg, match=MatchConfig.paper())
-            self.matcher = Matcher(self.cfg.match)
-            self._feats = self.matcher.features(subgoals)
-            self.gaps = gaps_between(self.matcher, self._feats)
-        self.thresholds = thresholds(self.gaps, n, self.cfg)
-        self.median_gap = float(np.median(self.gaps)) if n > 1 else float(self.thresholds[0])
-        self.lost_bound = max(self.cfg.lost_factor * self.median_gap, LOST_FLOOR[self.cfg.match.method])
-        if n < 2 or self.gaps.max() < DEFAULT_BOUNDS[self.cfg.match.method][0] / 10:
-            self.lost_bound = math.inf  # a route whose views barely change cannot tell being lost
+        views = route_views(subgoals, self.cfg)
+        self.cfg, self.matcher, self._feats, self.gaps = views.cfg, views.matcher, views.feats, views.gaps
+        self.fallback, self.thresholds, self.median_gap = views.fallback, views.thresholds, views.median_gap
+        self.lost_bound = views.lost_bound
         motion = taught_motion(travel_poses, self.commands, n, dt * steps_per_subgoal)
         self.localiser = RouteLocaliser(
             self._feats, self.matcher, motion, self.median_gap, self.cfg.localiser

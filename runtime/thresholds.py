@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -76,3 +78,43 @@ def lost_bounds(gaps: np.ndarray, n: int, cfg: ControllerConfig, route_bound: fl
         return np.full(n, route_bound)
     incoming, outgoing = _neighbour_gaps(gaps)
     return np.maximum(route_bound, cfg.lost_factor * np.maximum(incoming, outgoing))
+
+
+@dataclass(frozen=True)
+class RouteViews:
+    """What both controllers derive from a route's subgoal images: the comparison in force (``cfg.match``, the
+    raw error where the route is too plain for patch matching: ``fallback`` says why), the subgoals' features,
+    the gaps between consecutive ones, the thresholds, the median gap and the lost bound."""
+
+    cfg: ControllerConfig
+    matcher: Matcher
+    feats: np.ndarray
+    gaps: np.ndarray
+    fallback: str
+    thresholds: np.ndarray
+    median_gap: float
+    lost_bound: float
+
+
+def route_views(subgoals: np.ndarray, cfg: ControllerConfig) -> RouteViews:
+    """:class:`RouteViews` of (L, H, W, 3) uint8 ``subgoals`` under ``cfg``."""
+    n = len(subgoals)
+    matcher = Matcher(cfg.match)
+    feats = matcher.features(subgoals)
+    gaps = gaps_between(matcher, feats)
+    fallback = ""
+    if cfg.match.method == "patch" and n > 1 and np.median(gaps) < PLAIN_ROUTE_GAP:
+        # Patch normalisation sees texture only: in a room of plain walls and floor consecutive taught views
+        # differ by ~0 and every subgoal would "match". The raw error still sees the motion.
+        fallback = f"patch matching sees no motion along this route (median gap {np.median(gaps):.3f})"
+        cfg = replace(cfg, match=MatchConfig.paper())
+        matcher = Matcher(cfg.match)
+        feats = matcher.features(subgoals)
+        gaps = gaps_between(matcher, feats)
+    limits = thresholds(gaps, n, cfg)
+    median_gap = float(np.median(gaps)) if n > 1 else float(limits[0])
+    #: A view farther than this from every nearby subgoal is not on the route (see LOST_FLOOR).
+    lost_bound = max(cfg.lost_factor * median_gap, LOST_FLOOR[cfg.match.method])
+    if n < 2 or gaps.max() < DEFAULT_BOUNDS[cfg.match.method][0] / 10:
+        lost_bound = math.inf  # a route whose views barely change cannot tell being lost
+    return RouteViews(cfg, matcher, feats, gaps, fallback, limits, median_gap, lost_bound)

@@ -12,7 +12,15 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 #: more routes than workers: a pool that is not stopped goes on with the queued ones
-ROUTES = ("translation", "rotation", "translation_rotation", "living_circle")
+# long enough that the eval is still running when the interrupt comes (the repeat now runs at the taught pace)
+ROUTES = (
+    "grand_tour",
+    "living_circle",
+    "translation_rotation",
+    "kitchen_to_office",
+    "living_to_study",
+    "bedroom_to_study",
+)
 
 
 def _children(pid: int) -> list[int]:
