@@ -116,7 +116,7 @@ def run(cfg: DemoConfig) -> dict[str, Any]:
                 raise KeyboardInterrupt
             say(
                 f"repeated: {summary.status.value} after {summary.steps} steps, {summary.subgoals_reached}/"
-                f"{summary.subgoals_total} subgoals, e_m {summary.e_m:.1f}"
+                f"{summary.subgoals_total} subgoals"
             )
             ol_poses = _open_loop(client, script, start, cfg.seed, policy.meta.dt) if cfg.open_loop else None
             if ol_poses is not None:

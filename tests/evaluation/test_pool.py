@@ -41,6 +41,8 @@ def test_ctrl_c_stops_vtr_eval_and_its_workers_at_once(tmp_path: Path) -> None:
         stdout=subprocess.DEVNULL,
         text=True,
         start_new_session=True,  # its own process group, as a terminal's foreground job
+        # an earlier test of this process may leave SIGINT ignored, and an ignored signal is inherited
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
         deadline = time.monotonic() + 60
