@@ -15,9 +15,10 @@ class Action(str, enum.Enum):
     STALLED = "stalled"  # stall guard found nothing close: stop
     LOST = "lost"  # no subgoal near the current one matches the view: stop
     COLLIDED = "collided"  # the robot reported a contact: stop
+    BLOCKED = "blocked"  # something is in the way (runtime.obstruction) and did not clear: stop
 
 
-TERMINAL = (Action.FINISHED, Action.STALLED, Action.LOST, Action.COLLIDED)
+TERMINAL = (Action.FINISHED, Action.STALLED, Action.LOST, Action.COLLIDED, Action.BLOCKED)
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,7 @@ class RepeatStatus(str, enum.Enum):
     STALLED = "stalled"  # the stall guard found no subgoal close enough
     LOST = "lost"  # no subgoal near the current one matches the view (the controller)
     COLLIDED = "collided"  # an observation reported a contact (the controller)
+    BLOCKED = "blocked"  # something in the way did not clear (the controller, runtime.obstruction)
     ROBOT_RESTARTED = "robot_restarted"  # the robot's session changed under us (it rebooted)
     LINK_LOST = "link_lost"  # no valid frame within frame_timeout_s
     INTERRUPTED = "interrupted"  # stop_event or KeyboardInterrupt
