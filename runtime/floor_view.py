@@ -19,6 +19,7 @@ import numpy as np
 
 from vtr.runtime.contracts import CAMERA
 from vtr.runtime.matching import Matcher
+from vtr.runtime.preprocess import planar_levels
 
 #: The robot's pose relative to a taught view's: metres ahead, metres left, radians turned left.
 Offset = tuple[float, float, float]
@@ -100,7 +101,8 @@ class FloorTiles:
         # the floor point each pooled pixel sees is A ahead (per row) and -side * A to the left (per column);
         # rows at or above the horizon see no floor and are not warped
         self._sky = int(np.count_nonzero(down <= 0))
-        self._ahead = camera.height_m / down[self._sky :]
+        self._ahead = (camera.height_m / down[self._sky :]).astype(np.float32)
+        self._side = self._side.astype(np.float32)
         self._still = np.arange(self._sky * self.shape[1]).reshape(self._sky, self.shape[1])
         # each tile's origin in the band, every shift of it kept inside the band, and the flat indices of the
         # values of each (shift, tile) in a planar band, in the matcher's order (channel, row, column)
@@ -115,17 +117,17 @@ class FloorTiles:
         self.centre = (dr.size - 1) // 2  # the unshifted windows
 
     def pool(self, image: np.ndarray) -> np.ndarray:
-        """(3, band rows, cols) float32 sums of ``downsample`` x ``downsample`` blocks of ``image``'s band."""
-        ds = self.matcher.cfg.downsample
-        rows = image[self.top * ds :].reshape(self.shape[0], ds, -1)
-        x = rows[:, 0].astype(np.float32)
+        """(3, band rows, cols) float32 sums of ``downsample`` x ``downsample`` blocks of ``image``'s band,
+        from its planar levels (one conversion per frame, shared with the matcher and the policy)."""
+        ds, (rows, cols) = self.matcher.cfg.downsample, self.shape
+        levels = planar_levels(image)[:, self.top * ds :].reshape(3, rows, ds, cols, ds)
+        x = levels[:, :, 0].copy()
         for k in range(1, ds):
-            x += rows[:, k]
-        x = x.reshape(self.shape[0], self.shape[1], ds, 3)
-        y = x[:, :, 0].copy()
+            x += levels[:, :, k]
+        y = x[..., 0].copy()
         for k in range(1, ds):
-            y += x[:, :, k]
-        return np.ascontiguousarray(y.transpose(2, 0, 1))
+            y += x[..., k]
+        return y
 
     def features(
         self, band: np.ndarray, which: np.ndarray | None = None, shifted: bool = False
@@ -148,17 +150,17 @@ class FloorTiles:
         h, w, f = self.camera.height, self.camera.width, self.camera.focal_px
         c, s = math.cos(turn), math.sin(turn)
         # in the taught camera's frame the floor point is dx + A (c + s side) ahead, dy + A (s - c side) left
-        ahead = np.multiply.outer(self._ahead, c + s * self._side)
-        ahead += dx
-        np.maximum(ahead, 1e-3, out=ahead)  # behind the taught camera: the nearest row is the best guess
+        ahead = np.multiply.outer(self._ahead, np.float32(c) + np.float32(s) * self._side)
+        ahead += np.float32(dx)
+        np.maximum(ahead, np.float32(1e-3), out=ahead)  # behind the taught camera: the nearest row is best
         inverse = np.reciprocal(ahead, out=ahead)
-        left = np.multiply.outer(self._ahead, s - c * self._side)
-        left += dy
+        left = np.multiply.outer(self._ahead, np.float32(s) - np.float32(c) * self._side)
+        left += np.float32(dy)
         left *= inverse
-        row = inverse * (f * self.camera.height_m / ds)
-        row += h / 2 / ds - self.top
-        col = np.multiply(left, -f / ds, out=left)
-        col += w / 2 / ds
+        row = inverse * np.float32(f * self.camera.height_m / ds)
+        row += np.float32(h / 2 / ds - self.top)
+        col = np.multiply(left, np.float32(-f / ds), out=left)
+        col += np.float32(w / 2 / ds)
         index = np.clip(row, 0, rows - 1, out=row).astype(np.intp) * cols
         index += np.clip(col, 0, cols - 1, out=col).astype(np.intp)
         if self._sky:
