@@ -15,21 +15,32 @@ from typing import Any
 
 import numpy as np
 
-from vtr.evaluation.conditions import LIGHTING, PATH_SCENES, SCENES
+from vtr.evaluation.conditions import BLOCKING_SCENES, LIGHTING, PATH_SCENES, SCENES, box_distance
 from vtr.evaluation.metrics import off_route
 from vtr.runtime.controller import ControllerConfig
 from vtr.runtime.matching import MatchConfig
+
+#: What a run under a condition should do: finish on the route, or stop before what blocks it.
+EXPECTATIONS = ("finished", "blocked")
 
 
 @dataclass(frozen=True)
 class Condition:
     """What differs at repeat time: actuation noise, start offset (lateral m, yaw deg; its sign flips
-    with odd seeds), the light on the camera image (a LIGHTING key) and the house (a SCENES key)."""
+    with odd seeds), the light on the camera image (a LIGHTING key) and the house (a SCENES key); what the
+    run should do (``expect``, one of EXPECTATIONS); ``clear_after_s``: the path scene's box is taken away
+    once the robot has stood that long (conditions.ClearingRobot), None: it stays."""
 
     noise: float = 0.05
     offset: tuple[float, float] = (0.0, 0.0)
     light: str | None = None
     scene: str | None = None
+    expect: str = "finished"
+    clear_after_s: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.expect not in EXPECTATIONS:
+            raise ValueError(f"expect must be one of {EXPECTATIONS}, got {self.expect!r}")
 
 
 CONDITIONS: dict[str, Condition] = {
@@ -38,8 +49,28 @@ CONDITIONS: dict[str, Condition] = {
     "offset_5cm_5deg": Condition(offset=(0.05, 5.0)),
     "offset_10cm_10deg": Condition(offset=(0.10, 10.0)),
     **{name: Condition(light=name) for name in LIGHTING},
-    **{name: Condition(scene=name) for name in (*SCENES, *PATH_SCENES)},
+    **{name: Condition(scene=name) for name in (*SCENES, *PATH_SCENES) if name not in BLOCKING_SCENES},
+    # a box on the taught path half-way along: stop before it (status blocked, no contact) ...
+    "box_on_path": Condition(scene="box_on_path", expect="blocked"),
+    # ... and, taken away after the robot has waited 2 s in front of it, resume and finish
+    "box_removed": Condition(scene="box_on_path", clear_after_s=2.0),
 }
+
+
+def judged(expect: str, outcome: str, detail: str, touched: bool, beside: str) -> tuple[bool, str]:
+    """Whether a run did what its condition expects (the suite's "completed"), and if not, why.
+
+    "finished": the repeat finished on the route (``beside`` empty: see metrics.off_route) without
+    touching anything; "blocked": it stopped as blocked without touching anything."""
+    if outcome == expect == "blocked":
+        return (False, "blocked after a contact") if touched else (True, "")
+    if outcome == expect == "finished":
+        if touched:
+            return False, "finished but touched furniture"
+        return (False, f"finished off the route: {beside}") if beside else (True, "")
+    if outcome == "finished":  # expected blocked: it drove past (or through) what was in the way
+        return False, "finished past the box" if not touched else "finished but touched furniture"
+    return False, f"{outcome}: {detail}" if detail else outcome
 
 
 @dataclass(frozen=True)
@@ -134,9 +165,11 @@ def run_once(
     keep_path: bool = False,
 ) -> dict[str, Any]:
     """One repeat under ``cond`` (evaluation.runs, the `vtr eval` harness's loop); its scores plus the
-    status, the failure's cause and the control steps per taught control step (``keep_path``: and the
-    repeated x, y in mm precision). ``cfg`` needs dt and max_steps_factor (a SuiteConfig)."""
-    from vtr.evaluation.conditions import LitRobot
+    status, whether it did what the condition expects (``completed``, see :func:`judged`) and if not why,
+    and the control steps per taught control step (``keep_path``: and the repeated x, y in mm precision);
+    with the path box: ``box_face_m``, and ``cleared_at_s`` (simulated time it was taken away, None if
+    never). ``cfg`` needs dt and max_steps_factor (a SuiteConfig)."""
+    from vtr.evaluation.conditions import ClearingRobot, LitRobot, path_box, write_cleared_house
     from vtr.evaluation.runs import repeat_closed_loop
     from vtr.evaluation.scoring import score
     from vtr.runtime.light import LightMatchedPolicy
@@ -148,6 +181,9 @@ def run_once(
         Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=cond.noise, house=house)),
         scan=method.scan,
     )
+    clearing = None
+    if cond.clear_after_s is not None:
+        clearing = robot = ClearingRobot(robot, str(write_cleared_house(house)), cond.clear_after_s, cfg.dt)
     if cond.light:
         robot = LitRobot(robot, LIGHTING[cond.light])
     if method.match_light:
@@ -162,19 +198,19 @@ def run_once(
     s = score(route, log)
     touched = log.collisions > 0
     beside = off_route(s["position_error_m"]["mean"], s["final_pose_error"]["position_m"])
-    if log.outcome == "finished":
-        cause = (
-            "finished but touched furniture"
-            if touched
-            else (f"finished off the route: {beside}" if beside else "")
-        )
-    else:
-        cause = f"{log.outcome}: {log.detail}" if log.detail else log.outcome
+    completed, cause = judged(cond.expect, log.outcome, log.detail, touched, beside)
+    box = path_box(house) if cond.scene in BLOCKING_SCENES else None
+    extra: dict[str, Any] = {}
+    if box is not None:  # where the robot ended: its centre to the box's nearest face (contact at its radius)
+        extra["box_face_m"] = box_distance(box, *log.poses[-1][:2])
+    if clearing is not None:
+        extra["cleared_at_s"] = clearing.cleared_at
     return {
         "ran": True,
         "status": log.outcome,
-        "completed": bool(log.outcome == "finished" and not touched and not beside),
+        "completed": completed,
         "cause": cause,
+        **extra,
         "contacts": log.collisions,
         "subgoals_reached": log.subgoals_reached,
         "subgoals": len(route),

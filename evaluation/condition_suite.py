@@ -2,9 +2,11 @@
 per condition how often the robot finished without touching anything, and how well it tracked.
 
 Every route is taught once, noise-free, in the unchanged house. Each repeat then runs under one
-condition (``CONDITIONS``: actuation noise, a start offset, repeat-time lighting, a changed room), one
-actuation-noise seed, one controller (``CONTROLLERS``) and one model (fp32 or int8). A run counts as
-completed only when the repeat finished and the robot touched nothing. The step limit scales with the
+condition (``CONDITIONS``: actuation noise, a start offset, repeat-time lighting, a changed room, a box on
+the path), one actuation-noise seed, one controller (``CONTROLLERS``) and one model (fp32 or int8). A run
+counts as completed only when it did what its condition expects (``condition_run.judged``): the repeat
+finished on the route and the robot touched nothing; under ``box_on_path``, it stopped as ``blocked``
+and touched nothing. The step limit scales with the
 route: ``max_steps_factor`` times its subgoals, plus 50.
 
 By default the routes are the held-out ones (sim2d/routes/heldout): written for this suite and never used
@@ -148,6 +150,7 @@ def aggregate(runs: list[dict[str, Any]]) -> list[dict[str, Any]]:
             return float(np.mean([r[key] for r in among])) if among else None
 
         causes = Counter(r["cause"].split(":")[0] for r in ran if not r["completed"])
+        boxed = [r for r in ran if r.get("box_face_m") is not None]
         rows.append(
             {
                 "controller": ctrl,
@@ -167,6 +170,7 @@ def aggregate(runs: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 "runs_with_contact": sum(r["contacts"] > 0 for r in ran),
                 "steps_per_taught_step": mean("steps_per_taught_step"),
                 "failure_causes": dict(causes),
+                "box_face_m": mean("box_face_m", boxed),  # the path box: the robot's centre to it at the end
             }
         )
     order = {n: i for i, n in enumerate(CONTROLLERS)}

@@ -19,8 +19,11 @@ def markdown(result: dict[str, Any]) -> str:
     cfg = result["config"]
     lines = [
         f"Condition suite: routes {', '.join(result['routes'])}; seeds {cfg['seeds']}; step limit "
-        f"{cfg['max_steps_factor']} x subgoals + 50. Completed = finished without touching anything (those that passed "
-        f"a taught subgoal more than {OFF_PATH_M * 100:.0f} cm away are counted beside it); errors "
+        f"{cfg['max_steps_factor']} x subgoals + 50. Completed = did what the condition expects: finished "
+        "without touching anything (those that passed a taught subgoal more than "
+        f"{OFF_PATH_M * 100:.0f} cm away are counted beside it), or, under box_on_path, stopped as blocked "
+        "without touching the box (beside it: the robot's centre to the box's nearest face at the end; "
+        "contact at 0.17 m); errors "
         "are means over completed runs (nearest-point position error per taught pose, the paper's metric).",
         "",
         "| controller | model | condition | completed | mean err (mm) | max err (mm) | yaw (deg) | cross-track (mm) "
@@ -30,6 +33,8 @@ def markdown(result: dict[str, Any]) -> str:
     for r in result["table"]:
         fails = ", ".join(f"{k} {v}" for k, v in sorted(r["failure_causes"].items())) or "-"
         blocked = f" ({r['not_run']} not run: start or scene blocked)" if r["not_run"] else ""
+        if r.get("box_face_m") is not None:
+            blocked += f" (ended {r['box_face_m']:.2f} m from the box)"
         far = r.get("completed_off_path", 0)
         blocked += f" ({far} > {OFF_PATH_M * 100:.0f} cm off the path)" if far else ""
         lines.append(

@@ -151,6 +151,12 @@ class Matcher:
         b, n, c, _ = tiles.shape
         return tiles.reshape(b, n, c * p * p)
 
+    def normalised(self, tiles: np.ndarray) -> np.ndarray:
+        """(B, tiles, C, patch * patch) float32 tiles of pooled sums (each value the sum of a downsample x
+        downsample block, as :meth:`features` pools) -> patch features, normalised in place: for callers
+        that sample their own tiles (runtime.obstruction warps a taught view)."""
+        return self._normalised(tiles)
+
     def distance(self, a: np.ndarray, b: np.ndarray) -> float:
         """Distance between two features (or images for raw) from :meth:`features`."""
         if self.cfg.method == "raw":
@@ -181,6 +187,19 @@ class Matcher:
         if keep < per_tile.shape[1]:
             per_tile = np.partition(per_tile, keep - 1, axis=1)[:, :keep]
         return (np.add.reduce(per_tile, axis=1) / keep).astype(np.float64)
+
+    def tile_distances(self, feature: np.ndarray, others: np.ndarray) -> np.ndarray:
+        """(K, tiles) per-tile scores of one patch feature against each of K (``others``: (K, tiles, D) or
+        one (tiles, D)): the untrimmed values whose best share :meth:`distances` averages. Tiles run row by
+        row over the image (``image side / (downsample * patch)`` of them per row)."""
+        if self.cfg.method != "patch":
+            raise ValueError("tile distances need patch matching (method='patch')")
+        others = others[None] if others.ndim == feature.ndim else others
+        if feature.shape != others.shape[1:]:
+            raise ValueError(f"feature shape {feature.shape} differs from {others.shape[1:]}")
+        diff = others - feature
+        np.abs(diff, out=diff)
+        return np.add.reduce(diff, axis=-1) / diff.shape[-1]
 
     def image_distance(self, a: np.ndarray, b: np.ndarray) -> float:
         """Convenience: distance between two uint8 images (features computed on the fly)."""

@@ -9,7 +9,7 @@ same seed and the same commands give the same images, bit for bit.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -116,6 +116,20 @@ class Simulator:
         world = build_world(self.house, pose, self.cfg.robot_radius)
         self._state = SimState(world, 0.0, False, draw_bias(self.cfg, seed))
         return self.observe()
+
+    def set_house(self, house: str) -> None:
+        """Swap the house under the robot (a map name, a house JSON path or ``random:SEED``), keeping its
+        pose, clock and actuation noise: the world changing mid-run (an evaluation takes an obstacle away).
+        The robot's pose must be free space in the new house."""
+        state = self._require()
+        pose = self.pose
+        new = load_house(house, self.cfg.changes)
+        if not new.is_free(pose.x, pose.y, self.cfg.robot_radius):
+            raise ValueError(f"the robot's pose ({pose.x:.3f}, {pose.y:.3f}) is not free space in {house}")
+        self.cfg = replace(self.cfg, house=str(house))
+        self.house, self.camera = new, Camera(new, self.cfg.camera)
+        world = build_world(new, pose, self.cfg.robot_radius)
+        self._state = SimState(world, state.time, False, state.bias)
 
     def step(self, v: float, w: float, duration: float) -> np.ndarray:
         """Drive with (v, w), clamped to the limits, for `duration` s of simulated time; returns the image."""

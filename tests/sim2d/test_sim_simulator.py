@@ -197,3 +197,34 @@ def test_noise_has_a_systematic_part_that_open_loop_driving_cannot_average_out()
     for _ in range(40):
         quiet.advance(0.25, 0.0, 0.2)
     assert abs(quiet.pose.y - 2.8) < 1e-6
+
+
+def test_set_house_swaps_the_world_under_the_robot_keeping_pose_clock_and_noise(tmp_path):
+    import json
+
+    from vtr.sim2d.house import resolve_house_path
+
+    data = json.loads(resolve_house_path("house").read_text())
+    box = {
+        "name": "box",
+        "shape": "box",
+        "center": [3.5, 3.0],
+        "size": [0.25, 0.25],
+        "height": 0.4,
+        "texture": "metal_blue",
+    }
+    boxed = tmp_path / "boxed.json"
+    boxed.write_text(json.dumps({**data, "furniture": [*data["furniture"], box]}))
+    sim = Simulator(SimConfig(camera=SMALL, noise=0.1, house=str(boxed)))
+    sim.reset(Pose(2.8, 3.0, 0.0), seed=4)
+    sim.step(0.3, 0.0, 1.0)  # towards the box
+    before, pose, t = sim.observe(), sim.pose, sim.time
+    sim.set_house("house")
+    assert sim.pose == pytest.approx(pose) and sim.time == t and not sim.collided
+    assert not np.array_equal(sim.observe(), before)  # the box is gone from the view ...
+    for _ in range(20):
+        sim.step(0.3, 0.0, 0.1)
+    assert not sim.collided and sim.pose.x > 3.5  # ... and from the world: the robot drives through
+    sim.reset(Pose(3.5, 3.0, 0.0))  # where the box stands: it cannot come back around the robot
+    with pytest.raises(ValueError, match="not free space"):
+        sim.set_house(str(boxed))

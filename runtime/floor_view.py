@@ -1,0 +1,171 @@
+"""The floor ahead in a camera image, and a taught view moved as the floor would move (for
+runtime.obstruction): which tiles see the path ahead, where the robot is relative to a taught view, and the
+taught view warped to that pose by the floor plane.
+
+A pinhole camera ``height_m`` above a flat floor, looking straight ahead and level, sees the floor point
+``X`` metres ahead and ``Y`` to the left at pixel ``(H / 2 + f h / X, W / 2 - f Y / X)``. So, given the
+robot's pose relative to where a view was taught, every pixel of the floor in the current image can be
+looked up in the taught image: floor lines up, whatever stands on it (a box) does not. Images are compared
+as the patch matcher compares them (``downsample``-pooled, ``patch`` x ``patch`` tiles normalised per
+channel), after pooling; the warp takes the nearest pooled pixel.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from vtr.runtime.contracts import CAMERA
+from vtr.runtime.matching import Matcher
+from vtr.runtime.preprocess import planar_levels
+
+#: The robot's pose relative to a taught view's: metres ahead, metres left, radians turned left.
+Offset = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A pinhole camera looking straight ahead, level, square pixels (as sim2d renders)."""
+
+    height: int = CAMERA.height
+    width: int = CAMERA.width
+    fov_deg: float = CAMERA.fov_deg or 90.0
+    height_m: float = CAMERA.height_m or 0.3
+
+    @property
+    def focal_px(self) -> float:
+        return 0.5 * self.width / math.tan(math.radians(self.fov_deg) / 2)
+
+    def rays(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Slopes of the rays through (continuous) pixel coordinates: downwards and to the right, per metre
+        ahead."""
+        f = self.focal_px
+        return (rows - self.height / 2) / f, (cols - self.width / 2) / f
+
+
+def path_weights(
+    camera: Camera, tile_px: int, half_width_m: float, near_m: float, far_m: float
+) -> np.ndarray:
+    """(tiles,) share of each ``tile_px``-pixel tile (row by row) whose pixels see the floor of the corridor
+    ahead: ``near_m`` to ``far_m`` ahead, within ``half_width_m`` of the camera's axis."""
+    h, w = camera.height, camera.width
+    if h % tile_px or w % tile_px:
+        raise ValueError(f"image {h}x{w} is not a multiple of the tile size {tile_px}")
+    down, side = camera.rays(np.arange(h) + 0.5, np.arange(w) + 0.5)
+    ahead = camera.height_m / np.where(down > 0, down, np.nan)  # nan above the horizon: no floor
+    with np.errstate(invalid="ignore"):
+        inside = ((ahead >= near_m) & (ahead <= far_m))[:, None] & (
+            np.abs(side)[None, :] * ahead[:, None] <= half_width_m
+        )
+    return inside.reshape(h // tile_px, tile_px, w // tile_px, tile_px).mean(axis=(1, 3)).ravel()
+
+
+def taught_offset(poses: np.ndarray | None, position: float) -> tuple[int, Offset]:
+    """The subgoal ``k`` at or behind route position ``position`` (subgoal units) and the taught pose there
+    relative to subgoal ``k``'s, interpolated between the taught poses (zero where they are unknown)."""
+    n = 0 if poses is None else len(poses)
+    if n < 2 or poses is None:
+        return max(0, min(int(math.floor(position)), n - 1)), (0.0, 0.0, 0.0)
+    k = max(0, min(int(math.floor(position)), n - 2))
+    t = min(max(position - k, 0.0), 1.0)
+    (x0, y0, a0), (x1, y1, a1) = poses[k], poses[k + 1]
+    if not all(map(math.isfinite, (x0, y0, a0, x1, y1, a1))):
+        return k, (0.0, 0.0, 0.0)
+    dx, dy = t * (x1 - x0), t * (y1 - y0)
+    c, s = math.cos(a0), math.sin(a0)
+    return k, (c * dx + s * dy, -s * dx + c * dy, t * math.remainder(a1 - a0, math.tau))
+
+
+class FloorTiles:
+    """Some tiles of an image (``tiles``, indices row by row, all at or below the horizon's tile row): their
+    features, and those of a taught view warped by the floor to an offset and shifted by up to
+    ``shift_rows`` x ``shift_cols`` pooled pixels each way (the robot is a little off the taught pose the
+    localiser gives it: a few centimetres or degrees move the floor near it by pixels)."""
+
+    def __init__(
+        self, camera: Camera, tiles: np.ndarray, matcher: Matcher, shift_rows: int = 1, shift_cols: int = 2
+    ) -> None:
+        self.camera, self.tiles, self.matcher = camera, np.asarray(tiles), matcher
+        ds, p = matcher.cfg.downsample, matcher.cfg.patch
+        h, w = camera.height, camera.width
+        per_row = w // (ds * p)
+        tile_rows, tile_cols = self.tiles // per_row, self.tiles % per_row
+        # the band of pooled rows kept: from the horizon (or the first tile, if higher) to the bottom
+        self.top = min(int(tile_rows.min()) * p, h // 2 // ds)
+        self.shape = (h // ds - self.top, w // ds)
+        down, self._side = camera.rays(
+            np.arange(self.top, h // ds) * ds + ds / 2, np.arange(w // ds) * ds + ds / 2
+        )
+        # the floor point each pooled pixel sees is A ahead (per row) and -side * A to the left (per column);
+        # rows at or above the horizon see no floor and are not warped
+        self._sky = int(np.count_nonzero(down <= 0))
+        self._ahead = (camera.height_m / down[self._sky :]).astype(np.float32)
+        self._side = self._side.astype(np.float32)
+        self._still = np.arange(self._sky * self.shape[1]).reshape(self._sky, self.shape[1])
+        # each tile's origin in the band, every shift of it kept inside the band, and the flat indices of the
+        # values of each (shift, tile) in a planar band, in the matcher's order (channel, row, column)
+        r0, c0 = tile_rows * p - self.top, tile_cols * p
+        dr, dc = np.meshgrid(np.arange(-shift_rows, shift_rows + 1), np.arange(-shift_cols, shift_cols + 1))
+        r = np.clip(r0[None] + dr.reshape(-1, 1), 0, self.shape[0] - p)  # (shifts, tiles)
+        c = np.clip(c0[None] + dc.reshape(-1, 1), 0, self.shape[1] - p)
+        i, j = np.divmod(np.arange(p * p), p)
+        plane = self.shape[0] * self.shape[1]
+        pixel = (r[..., None] + i) * self.shape[1] + c[..., None] + j  # (shifts, tiles, p * p)
+        self._index = (pixel[:, :, None, :] + plane * np.arange(3)[:, None]).astype(np.intp)
+        self.centre = (dr.size - 1) // 2  # the unshifted windows
+
+    def pool(self, image: np.ndarray) -> np.ndarray:
+        """(3, band rows, cols) float32 sums of ``downsample`` x ``downsample`` blocks of ``image``'s band,
+        from its planar levels (one conversion per frame, shared with the matcher and the policy)."""
+        ds, (rows, cols) = self.matcher.cfg.downsample, self.shape
+        levels = planar_levels(image)[:, self.top * ds :].reshape(3, rows, ds, cols, ds)
+        x = levels[:, :, 0].copy()
+        for k in range(1, ds):
+            x += levels[:, :, k]
+        y = x[..., 0].copy()
+        for k in range(1, ds):
+            y += x[..., k]
+        return y
+
+    def features(
+        self, band: np.ndarray, which: np.ndarray | None = None, shifted: bool = False
+    ) -> np.ndarray:
+        """(tiles, D) patch features of a pooled band's tiles (``which``: those of ``tiles`` at these
+        positions, default all); ``shifted``: (shifts, tiles, D), every shifted window of each."""
+        index = self._index if shifted else self._index[self.centre : self.centre + 1]
+        if which is not None:
+            index = index[:, which]
+        out = self.matcher.normalised(band.ravel().take(index))
+        return out if shifted else out[0]
+
+    def warp(self, band: np.ndarray, offset: Offset) -> np.ndarray:
+        """A taught pooled band as the floor looks from ``offset`` (nearest pooled pixel; pixels above the
+        horizon stay)."""
+        dx, dy, turn = offset
+        if not (dx or dy or turn):
+            return band
+        ds, (rows, cols) = self.matcher.cfg.downsample, self.shape
+        h, w, f = self.camera.height, self.camera.width, self.camera.focal_px
+        c, s = math.cos(turn), math.sin(turn)
+        # in the taught camera's frame the floor point is dx + A (c + s side) ahead, dy + A (s - c side) left
+        ahead = np.multiply.outer(self._ahead, np.float32(c) + np.float32(s) * self._side)
+        ahead += np.float32(dx)
+        np.maximum(ahead, np.float32(1e-3), out=ahead)  # behind the taught camera: the nearest row is best
+        inverse = np.reciprocal(ahead, out=ahead)
+        left = np.multiply.outer(self._ahead, np.float32(s) - np.float32(c) * self._side)
+        left += np.float32(dy)
+        left *= inverse
+        row = inverse * np.float32(f * self.camera.height_m / ds)
+        row += np.float32(h / 2 / ds - self.top)
+        col = np.multiply(left, np.float32(-f / ds), out=left)
+        col += np.float32(w / 2 / ds)
+        index = np.clip(row, 0, rows - 1, out=row).astype(np.intp) * cols
+        index += np.clip(col, 0, cols - 1, out=col).astype(np.intp)
+        if self._sky:
+            index = np.vstack([self._still, index])
+        return band.reshape(3, -1)[:, index]
+
+
+__all__ = ["Camera", "FloorTiles", "Offset", "path_weights", "taught_offset"]

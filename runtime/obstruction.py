@@ -1,0 +1,260 @@
+"""Camera-only obstruction detection: stop as blocked when the floor just ahead stops matching the taught
+view in a region that grows while the robot drives forward.
+
+Where the route localiser places the robot (position ``s`` in subgoal units), the taught view of subgoal
+``k = floor(s)`` is warped by the floor plane to the taught pose at ``s`` (runtime.floor_view): the floor
+then lines up as it looks from there, and what stands on it does not. Without the warp, the floor just
+ahead moves by several pixels between two subgoals, as much as a box changes it, and a fast route looks
+blocked half of the time. The robot is a little off that pose (a few centimetres, a few degrees), so each
+tile of the view is compared with the warped view's tile shifted by up to ``shift_rows`` x ``shift_cols``
+pooled pixels, and with the taught views of subgoals ``k`` and ``k + 1`` as they are, as the patch matcher
+compares (normalised per channel, so light drops out): a tile is *unmatched* when none of them is within
+``tile_threshold``.
+
+Only the tiles where the path ahead appears count (:func:`~vtr.runtime.floor_view.path_weights`): the floor
+of a corridor ``2 half_width_m`` wide from ``near_m`` to ``far_m`` ahead, each tile weighed by how much of
+it sees that floor. An object beside the path never covers those pixels (a ray to the corridor's floor
+stays inside the corridor), nor does a repainted wall or a moved chair off the path. An object on the path
+covers more of it the closer the robot gets, and hides the floor behind it: the detector fires only when
+the unmatched share is at least ``block_fraction``, has kept growing (never dropping by more than
+``slack``) for ``grow_steps`` steps of forward driving, by ``min_growth`` in all, grew from a region that
+matched (``max_base`` or less unmatched), and at least ``hidden_fraction`` of the region is unmatched all
+the way up its column to the corridor's far end. A floor that looks different everywhere (a new carpet), a
+robot off its pose (which mismatches the floor nearest to it first), or a region that is unmatched while
+the robot turns in place or stands, does not fire. Things lower than about two thirds of the camera's
+height hide too little of the far floor to be seen this way (the range sensor's job). Once blocked, the
+verdict holds until the region matches again (``clear_fraction`` or less for ``clear_steps`` views): the
+caller waits on it and resumes when it clears.
+
+Use: ``ObstructionDetector(route.images, route.travel_poses())``, then per view ``update(image,
+estimate.position, forward)`` with ``forward`` true when the robot was commanded forward since the last view.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from vtr.runtime.floor_view import Camera, FloorTiles, path_weights, taught_offset
+from vtr.runtime.matching import MatchConfig, Matcher
+
+
+@dataclass(frozen=True)
+class ObstructionConfig:
+    """The detector's settings; chosen on development routes only (evaluation/README.md)."""
+
+    #: A tile's distance (matcher units: 0 same, ~1.13 unrelated textures) above which it is unmatched.
+    tile_threshold: float = 0.55
+    #: The matcher's floor on a tile's spread (0..255 units), higher than for localising: a plain patch of
+    #: floor under a light that changes across it (one side darker) must stay plain.
+    std_floor: float = 8.0
+    #: Pooled pixels (2 image pixels each) the warped taught view is shifted by, each way, down and across.
+    shift_rows: int = 1
+    shift_cols: int = 2
+    #: The path region: half the corridor's width and its near and far ends ahead of the camera (m).
+    half_width_m: float = 0.2
+    near_m: float = 0.3
+    far_m: float = 1.5
+    #: Unmatched share of the path region from which a growth is tracked, and at which it blocks.
+    onset_fraction: float = 0.1
+    block_fraction: float = 0.3
+    #: Forward steps the share must have grown over (each no more than ``slack`` below the one before), by
+    #: how much in all, and the most it may have been when the growth began.
+    grow_steps: int = 3
+    min_growth: float = 0.1
+    slack: float = 0.05
+    max_base: float = 0.25
+    #: The least share of the region that must be unmatched all the way up its column to the corridor's far
+    #: end: what stands on the path hides the floor behind it, where a robot off its pose mismatches the
+    #: floor nearest to it first.
+    hidden_fraction: float = 0.2
+    #: Once blocked: the share at or under which the way counts as clear, for this many views in a row.
+    clear_fraction: float = 0.1
+    clear_steps: int = 2
+
+    def __post_init__(self) -> None:
+        for name in ("tile_threshold", "std_floor", "half_width_m", "near_m", "far_m"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"ObstructionConfig.{name} must be a finite number > 0, got {value!r}")
+        if self.far_m <= self.near_m:
+            raise ValueError(f"ObstructionConfig.far_m ({self.far_m}) must exceed near_m ({self.near_m})")
+        fractions = ("onset_fraction", "block_fraction", "min_growth", "slack", "max_base", "hidden_fraction")
+        for name in (*fractions, "clear_fraction"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
+                raise ValueError(f"ObstructionConfig.{name} must be in [0, 1], got {value!r}")
+        if not 0 < self.block_fraction or self.onset_fraction > self.block_fraction:
+            raise ValueError(
+                f"ObstructionConfig: need 0 < block_fraction and onset_fraction <= block_fraction, got "
+                f"{self.onset_fraction}, {self.block_fraction}"
+            )
+        if self.clear_fraction >= self.block_fraction:
+            raise ValueError(
+                f"ObstructionConfig.clear_fraction ({self.clear_fraction}) must be under block_fraction "
+                f"({self.block_fraction})"
+            )
+        for name, least in (("grow_steps", 1), ("clear_steps", 1), ("shift_rows", 0), ("shift_cols", 0)):
+            value = getattr(self, name)
+            if not isinstance(value, int) or isinstance(value, bool) or value < least:
+                raise ValueError(f"ObstructionConfig.{name} must be an integer >= {least}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class ObstructionVerdict:
+    """The detector's answer on one view: ``fraction``, the unmatched share of the path region (0..1);
+    ``growing_steps``, the forward steps it has grown over; ``note``, the evidence in words; ``hidden``,
+    the share unmatched all the way up its column to the corridor's far end."""
+
+    blocked: bool
+    fraction: float
+    growing_steps: int
+    note: str
+    hidden: float = 0.0  # the share unmatched all the way to the corridor's far end
+
+
+class Growth:
+    """Folds each view's unmatched share into the decision (see the module docstring)."""
+
+    def __init__(self, cfg: ObstructionConfig) -> None:
+        self.cfg = cfg
+        self.reset()
+
+    def reset(self) -> None:
+        self.last = 0.0  # the share on the last forward step
+        self.base = 0.0  # the least share since the region became unmatched (the growth's start)
+        self.growing = 0  # forward steps since then without a drop of more than slack
+        self.blocked = False
+        self.clear = 0
+
+    def update(self, share: float, hidden: float, forward: bool) -> ObstructionVerdict:
+        """Fold one view's unmatched share and hidden share in: the verdict."""
+        cfg = self.cfg
+        if self.blocked:
+            self.clear = self.clear + 1 if share <= cfg.clear_fraction else 0
+            if self.clear >= cfg.clear_steps:
+                self.reset()
+                note = f"way clear: path region {share:.0%} unmatched"
+                return ObstructionVerdict(False, share, 0, note, hidden)
+            return ObstructionVerdict(True, share, self.growing, self.note(share), hidden)
+        if share < cfg.onset_fraction:
+            self.growing = 0
+        elif forward:
+            if not self.growing:
+                self.base = share
+            elif share < self.last - cfg.slack:  # shrank: count the growth again from here
+                self.growing = 0
+            self.base = min(self.base, share)
+            self.growing += 1
+        if forward or share < cfg.onset_fraction:
+            self.last = share
+        self.blocked = (
+            share >= cfg.block_fraction
+            and self.growing >= cfg.grow_steps
+            and share - self.base >= cfg.min_growth
+            and self.base <= cfg.max_base
+            and hidden >= cfg.hidden_fraction
+        )
+        note = self.note(share) if self.blocked else f"path region {share:.0%} unmatched"
+        return ObstructionVerdict(self.blocked, share, self.growing, note, hidden)
+
+    def note(self, share: float) -> str:
+        return (
+            f"view ahead blocked: {share:.0%} of the path region unmatched, growing for {self.growing} steps"
+        )
+
+
+class ObstructionDetector:
+    """The unmatched share of the path region, view by view, and the growth decision on it.
+
+    ``subgoals``: the route's (L, H, W, 3) uint8 taught views; ``poses``: their (L, 3) taught poses (x, y,
+    yaw; the route's travel poses), None or NaN where unknown (no warp then)."""
+
+    def __init__(
+        self,
+        subgoals: np.ndarray,
+        poses: np.ndarray | None = None,
+        cfg: ObstructionConfig | None = None,
+        camera: Camera | None = None,
+    ) -> None:
+        if subgoals.dtype != np.uint8 or subgoals.ndim != 4 or subgoals.shape[-1] != 3 or not len(subgoals):
+            raise ValueError(f"subgoals must be (L, H, W, 3) uint8, got {subgoals.shape} {subgoals.dtype}")
+        self.cfg = cfg = cfg or ObstructionConfig()
+        self.matcher = Matcher(MatchConfig(std_floor=cfg.std_floor))
+        h, w = subgoals.shape[1:3]
+        base = camera or Camera()
+        camera = Camera(h, w, base.fov_deg, base.height_m)
+        tile = self.matcher.cfg.downsample * self.matcher.cfg.patch
+        weights = path_weights(camera, tile, cfg.half_width_m, cfg.near_m, cfg.far_m)
+        tiles = np.flatnonzero(weights)
+        if not len(tiles):
+            raise ValueError(f"no tile of a {h}x{w} image sees the path region")
+        self.weights = (weights[tiles] / weights.sum()).astype(np.float32)
+        self.floor = FloorTiles(camera, tiles, self.matcher, cfg.shift_rows, cfg.shift_cols)
+        per_row = w // tile
+        row, col = tiles // per_row, tiles % per_row
+        # [i, j]: 1 where tile j is further along tile i's column (it sees the floor behind i's)
+        self._beyond = ((col[None, :] == col[:, None]) & (row[None, :] < row[:, None])).astype(np.float32)
+        self.subgoals = subgoals
+        self.poses = None if poses is None else np.asarray(poses, dtype=np.float64)
+        self._feats = np.stack([self.floor.features(self.floor.pool(image)) for image in subgoals])
+        self._bands: dict[int, np.ndarray] = {}  # pooled taught bands of the last few subgoals
+        self.growth = Growth(cfg)
+
+    def reset(self) -> None:
+        """Forget the tracked region (a new run, or the robot moved elsewhere)."""
+        self.growth.reset()
+
+    @property
+    def blocked(self) -> bool:
+        return self.growth.blocked
+
+    def scores(self, view: np.ndarray, position: float, exhaustive: bool = False) -> np.ndarray:
+        """Each path-region tile's distance to the taught views where the robot is: ``view``, a (H, W, 3)
+        uint8 image; ``position``: the localiser's estimate, in subgoal units. The taught views are tried
+        cheapest first (subgoals ``k`` and ``k + 1`` as they are, then ``k`` warped, then its shifts), each
+        only for the tiles none before matched, so a matched tile's score is under ``tile_threshold`` but
+        not always its least; ``exhaustive``: the least distance of every tile (for studies)."""
+        if view.shape != self.subgoals.shape[1:] or view.dtype != np.uint8:
+            raise ValueError(f"view must be {self.subgoals.shape[1:]} uint8, got {view.shape} {view.dtype}")
+        floor, thr = self.floor, -1.0 if exhaustive else self.cfg.tile_threshold
+        own = floor.features(floor.pool(view))
+        k, offset = taught_offset(self.poses, position)
+        d = self.matcher.tile_distances(own, self._feats[k : k + 2]).min(axis=0)
+        todo = np.flatnonzero(d > thr)
+        if not len(todo):
+            return d
+        band = self._bands.get(k)
+        if band is None:
+            if len(self._bands) >= 4:
+                self._bands.clear()
+            band = self._bands[k] = floor.pool(self.subgoals[k])
+        warped = floor.warp(band, offset)
+        for shifted in (False, True):
+            views = floor.features(warped, todo, shifted)
+            d[todo] = np.minimum(d[todo], self.matcher.tile_distances(own[todo], views).min(axis=0))
+            todo = todo[d[todo] > thr]
+            if not len(todo):
+                break
+        return d
+
+    def shares(self, scores: np.ndarray) -> tuple[float, float]:
+        """The unmatched share of the path region, and the share unmatched all the way up its column to
+        the corridor's far end, from the tiles' :meth:`scores`."""
+        unmatched = (scores > self.cfg.tile_threshold).astype(np.float32)
+        matched_beyond = self._beyond @ (1.0 - unmatched)  # per tile: matched tiles behind it
+        return float(self.weights @ unmatched), float(self.weights @ (unmatched * (matched_beyond == 0)))
+
+    def share(self, view: np.ndarray, position: float) -> float:
+        """The unmatched share of the path region in one view (no tracking)."""
+        return self.shares(self.scores(view, position))[0]
+
+    def update(self, view: np.ndarray, position: float, forward: bool) -> ObstructionVerdict:
+        """Judge one view (see :meth:`scores`); ``forward``: the robot was commanded forward since the
+        last view."""
+        return self.growth.update(*self.shares(self.scores(view, position)), forward)
+
+
+__all__ = ["Growth", "ObstructionConfig", "ObstructionDetector", "ObstructionVerdict"]

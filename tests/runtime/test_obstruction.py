@@ -1,0 +1,179 @@
+"""The camera-only obstruction detector (runtime.obstruction) on synthetic views."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from vtr.runtime.floor_view import Camera, path_weights, taught_offset
+from vtr.runtime.matching import MatchConfig, Matcher
+from vtr.runtime.obstruction import ObstructionConfig, ObstructionDetector
+
+CAM = Camera()
+
+
+def floor_view(x: float, y: float = 0.0, yaw: float = 0.0, seed: int = 0) -> np.ndarray:
+    """What CAM sees from (x, y, yaw) over a floor of 20 cm squares of random colours (grey above the
+    horizon; sim2d's mosaic is coarser still): the pinhole model the detector assumes, drawn apart."""
+    colours = np.random.default_rng(seed).integers(30, 220, (64, 64, 3))
+    f = CAM.focal_px
+    rows, cols = np.mgrid[0 : CAM.height, 0 : CAM.width] + 0.5
+    down, right = (rows - CAM.height / 2) / f, (cols - CAM.width / 2) / f
+    ahead = CAM.height_m / np.where(down > 0, down, np.nan)
+    with np.errstate(invalid="ignore"):
+        fx = x + math.cos(yaw) * ahead + math.sin(yaw) * right * ahead
+        fy = y + math.sin(yaw) * ahead - math.cos(yaw) * right * ahead
+        i, j = np.floor(fx / 0.2).astype(int) % 64, np.floor(fy / 0.2).astype(int) % 64
+    out = colours[np.where(down > 0, i, 0), np.where(down > 0, j, 0)]
+    out[down <= 0] = 128
+    return out.astype(np.uint8)
+
+
+def route(n: int = 8, gap: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+    poses = np.array([[gap * k, 0.0, 0.0] for k in range(n)])
+    return np.stack([floor_view(x) for x, _, _ in poses]), poses
+
+
+def with_blob(image: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
+    """``image`` with a face of blue planks over ``rows`` x ``cols`` (a plain face on a plain floor tile
+    matches it: nothing in a plain patch tells them apart)."""
+    out = image.copy()
+    planks = np.where((np.arange(out.shape[1]) // 4) % 2, 200, 120)[cols]
+    out[rows, cols] = np.stack([planks // 4, planks // 2, planks], axis=-1)[None]
+    return out
+
+
+def test_path_weights_cover_the_floor_ahead_and_nothing_beside():
+    cfg = ObstructionConfig()
+    w = path_weights(CAM, 16, cfg.half_width_m, cfg.near_m, cfg.far_m).reshape(8, 8)
+    assert (w[:4] == 0).all()  # above the horizon
+    assert (w[:, 0] == 0).all() and (w[:, 7] == 0).all()  # the edges see the floor beside the path
+    assert w[7, 3] == w[7, 4] == 1.0 and w[7, 3] > w[7, 1]  # the floor just ahead, most of it
+
+
+def test_taught_offset_interpolates_between_taught_poses():
+    poses = np.array([[1.0, 1.0, math.pi / 2], [1.0, 1.2, math.pi / 2 + 0.2]])
+    k, (dx, dy, turn) = taught_offset(poses, 0.5)
+    assert k == 0 and dx == pytest.approx(0.1) and dy == pytest.approx(0.0, abs=1e-12)
+    assert turn == pytest.approx(0.1)
+    assert taught_offset(poses, 1.0)[0] == 0 and taught_offset(poses, 1.0)[1][0] == pytest.approx(0.2)
+    assert taught_offset(None, 3.7) == (0, (0.0, 0.0, 0.0))
+    assert taught_offset(np.full((2, 3), np.nan), 0.5) == (0, (0.0, 0.0, 0.0))
+
+
+def test_tile_features_are_the_matchers_and_the_warp_follows_the_floor():
+    views, poses = route()
+    det = ObstructionDetector(views, poses)
+    floor, matcher = det.floor, Matcher(MatchConfig(std_floor=det.cfg.std_floor))
+    same = matcher.features(views[2])[floor.tiles]
+    assert np.array_equal(floor.features(floor.pool(views[2])), same)
+    shifted = floor.features(floor.pool(views[2]), shifted=True)
+    assert len(shifted) == 15 and np.array_equal(shifted[floor.centre], same)  # 3 x 5 shifts
+    # half-way between subgoals 2 and 3, 3 cm to the left and turned 3 degrees: the taught view warped
+    # there matches the floor; the taught views as they are do not
+    between = matcher.features(floor_view(0.25, 0.03, math.radians(3)))[floor.tiles]
+    near = det.weights > 0.5 * det.weights.max()
+    warped = floor.features(floor.warp(floor.pool(views[2]), (0.05, 0.03, math.radians(3))))
+    plain = matcher.tile_distances(between, det._feats[2:4]).min(axis=0)
+    assert matcher.tile_distances(between, warped)[0][near].max() < 0.4 < np.median(plain[near])
+    # the detector sees nothing in the way there, nor 2 cm and 2 degrees off that pose: the shifts take
+    # that up, where without them half the path region is unmatched
+    off = floor_view(0.25, 0.02, math.radians(2))
+    assert det.share(floor_view(0.25), 2.5) == 0.0 and det.share(off, 2.5) == 0.0
+    unshifted = ObstructionConfig(shift_rows=0, shift_cols=0)
+    assert ObstructionDetector(views, poses, unshifted).share(off, 2.5) > 0.3
+    exhaustive = det.scores(floor_view(0.25), 2.5, exhaustive=True)
+    assert (exhaustive <= det.scores(floor_view(0.25), 2.5)).all()
+
+
+def box_at(image: np.ndarray, distance: float, side: float = 0.25) -> np.ndarray:
+    """``image`` with a box ``side`` wide and taller than the camera standing ``distance`` m ahead."""
+    f, h = CAM.focal_px, CAM.height_m
+    base, half = 64 + int(f * h / distance), max(1, int(f * side / 2 / distance))
+    return with_blob(image, slice(40, min(base, 128)), slice(64 - half, 64 + half))
+
+
+def test_a_box_coming_closer_while_driving_forward_blocks():
+    views, poses = route()
+    det = ObstructionDetector(views, poses)
+    distances = np.arange(1.6, 0.3, -0.05)
+    verdicts = [det.update(box_at(views[3], d), 3.0, forward=True) for d in distances]
+    fired = [v.blocked for v in verdicts]
+    assert not fired[0] and fired[-1]
+    first = fired.index(True)
+    assert 0.4 <= distances[first] <= 1.0  # well before the robot's body (0.17 m) reaches it
+    assert verdicts[first].growing_steps >= det.cfg.grow_steps and verdicts[first].fraction >= 0.3
+    assert "view ahead blocked" in verdicts[first].note and "growing for" in verdicts[first].note
+    # it holds while the box stays, and clears once the view matches again
+    assert det.update(box_at(views[3], 0.35), 3.0, forward=False).blocked
+    assert [det.update(views[3], 3.0, forward=False).blocked for _ in range(2)] == [True, False]
+    assert not det.blocked
+
+
+def test_a_mismatch_growing_from_the_near_floor_only_does_not_block():
+    """What a robot off its taught pose sees: the floor nearest to it mismatches, the far end matches."""
+    views, poses = route()
+    det = ObstructionDetector(views, poses)
+    for top in range(124, 96, -4):
+        verdict = det.update(with_blob(views[3], slice(top, 128), slice(20, 108)), 3.0, forward=True)
+        assert not verdict.blocked and verdict.hidden < det.cfg.hidden_fraction
+    assert verdict.fraction > 0.5 and verdict.growing_steps >= det.cfg.grow_steps
+
+
+def test_a_blob_beside_the_path_does_not_block():
+    views, poses = route()
+    det = ObstructionDetector(views, poses)
+    for step in range(12):  # as a box beside the path looks while the robot passes it: up the edge
+        rows = slice(110 - 8 * step, 128)
+        view = with_blob(with_blob(views[3], rows, slice(0, 16)), rows, slice(112, 128))
+        verdict = det.update(view, 3.0, forward=True)
+        assert not verdict.blocked and verdict.fraction == 0.0
+
+
+@pytest.mark.parametrize("gain", [(0.6, 0.6, 0.6), (1.5, 1.5, 1.5), (1.2, 1.0, 0.75)])
+def test_a_global_light_change_does_not_block(gain):
+    views, poses = route()
+    det = ObstructionDetector(views, poses)
+    for k in range(6):
+        lit = np.clip(views[k] * np.array(gain, np.float32), 0, 255).astype(np.uint8)
+        assert not det.update(lit, float(k), forward=True).blocked
+        assert det.share(lit, float(k)) == 0.0
+
+
+def test_a_blob_that_does_not_grow_or_grows_while_standing_does_not_block():
+    views, poses = route()
+    det = ObstructionDetector(views, poses)
+    big = box_at(views[3], 0.32, side=0.6)
+    assert det.share(big, 3.0) > 0.6
+    for _ in range(10):  # large from the start, the robot driving on: nothing grew
+        assert not det.update(big, 3.0, forward=True).blocked
+    det.reset()
+    for d in np.arange(1.6, 0.3, -0.05):  # coming closer while the robot stands (or turns in place)
+        assert not det.update(box_at(views[3], d), 3.0, forward=False).blocked
+
+
+def test_bad_settings_and_inputs_are_refused():
+    with pytest.raises(ValueError, match="far_m"):
+        ObstructionConfig(near_m=1.0, far_m=0.5)
+    with pytest.raises(ValueError, match="clear_fraction"):
+        ObstructionConfig(clear_fraction=0.5)
+    with pytest.raises(ValueError, match="grow_steps"):
+        ObstructionConfig(grow_steps=0)
+    with pytest.raises(ValueError, match="tile_threshold"):
+        ObstructionConfig(tile_threshold=float("nan"))
+    views, poses = route(3)
+    with pytest.raises(ValueError, match="subgoals"):
+        ObstructionDetector(views.astype(np.float32), poses)
+    with pytest.raises(ValueError, match="view must be"):
+        ObstructionDetector(views, poses).update(views[0, :64], 0.0, True)
+
+
+def test_other_image_sizes_keep_the_path_region_on_the_floor():
+    views = np.random.default_rng(1).integers(0, 255, (3, 112, 128, 3), dtype=np.uint8)
+    det = ObstructionDetector(views, np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.2, 0.0, 0.0]]))
+    assert (det.floor.tiles // 8 >= 3).all()  # the horizon is at row 56, in the fourth row of tiles
+    assert det.share(views[1], 1.0) == 0.0 and det.share(views[1], 1.5) == 0.0
+    with pytest.raises(ValueError, match="multiple of the tile size"):
+        ObstructionDetector(views[:, :100])
