@@ -51,6 +51,7 @@ from vtr.runtime.thresholds import (  # noqa: F401 - calibrate_e_m, consecutive_
     LOST_WINDOW,
     PLAIN_ROUTE_GAP,
     calibrate_e_m,
+    check_subgoals,
     consecutive_errors,
     gaps_between,
     lost_bounds,
@@ -82,15 +83,7 @@ class Controller:
         after subgoal i-1 can be the end of a turn and the next one a drive); ``travel_poses``: what the
         progress gate measures the taught travel by (default ``poses``; ``Route.travel_poses`` dead-reckons
         them from the commands for a route taught without poses)."""
-        if (
-            subgoals.dtype != np.uint8
-            or subgoals.ndim != 4
-            or subgoals.shape[0] < 1
-            or subgoals.shape[-1] != 3
-        ):
-            raise ValueError(
-                f"subgoals must be (L, H, W, 3) uint8 with L >= 1, got {subgoals.shape} {subgoals.dtype}"
-            )
+        check_subgoals(subgoals)
         self.cfg = cfg or ControllerConfig()
         self.commands = None if commands is None else np.asarray(commands, dtype=np.float64).reshape(-1, 2)
         self._held = self.turns_in_place(self.commands, poses, len(subgoals))

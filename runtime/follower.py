@@ -30,7 +30,7 @@ from vtr.runtime.controller import Controller
 from vtr.runtime.controller_config import ControllerConfig
 from vtr.runtime.decisions import Action, Decision, Verdict
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
-from vtr.runtime.thresholds import route_views
+from vtr.runtime.thresholds import check_subgoals, route_views
 
 if TYPE_CHECKING:
     from vtr.runtime.route import Route
@@ -52,15 +52,7 @@ class Follower:
         steps_per_subgoal: float = 2.0,
         dt: float = 0.1,
     ) -> None:
-        if (
-            subgoals.dtype != np.uint8
-            or subgoals.ndim != 4
-            or subgoals.shape[0] < 1
-            or subgoals.shape[-1] != 3
-        ):
-            raise ValueError(
-                f"subgoals must be (L, H, W, 3) uint8 with L >= 1, got {subgoals.shape} {subgoals.dtype}"
-            )
+        check_subgoals(subgoals)
         self.cfg = cfg or ControllerConfig()
         n = len(subgoals)
         self.subgoals = subgoals

@@ -96,6 +96,14 @@ class RouteViews:
     lost_bound: float
 
 
+def check_subgoals(subgoals: np.ndarray) -> None:
+    """Refuse anything but (L, H, W, 3) uint8 subgoal images with L >= 1 (both controllers take these)."""
+    if subgoals.dtype != np.uint8 or subgoals.ndim != 4 or subgoals.shape[0] < 1 or subgoals.shape[-1] != 3:
+        raise ValueError(
+            f"subgoals must be (L, H, W, 3) uint8 with L >= 1, got {subgoals.shape} {subgoals.dtype}"
+        )
+
+
 def route_views(subgoals: np.ndarray, cfg: ControllerConfig) -> RouteViews:
     """:class:`RouteViews` of (L, H, W, 3) uint8 ``subgoals`` under ``cfg``."""
     n = len(subgoals)
