@@ -20,6 +20,7 @@ import numpy as np
 
 from vtr.runtime import protocol
 from vtr.runtime.contracts import CONTROL_DT, Observation
+from vtr.runtime.frame import Frame
 from vtr.runtime.matching import MatchConfig
 
 SESSION = "bench"
@@ -48,7 +49,9 @@ class LoopbackRobot:
             self._replies[cmd], expect_cmd=cmd, expect_seq=1, expect_shape=self.shape
         )
         assert reply.image is not None and reply.stamp is not None
-        return Observation(image=reply.image, stamp=reply.stamp, pose=reply.pose, collided=reply.collided)
+        return Observation.of_frame(
+            Frame.decoded(reply.image), reply.stamp, pose=reply.pose, collided=reply.collided
+        )
 
     def _encode(self, cmd: str, **fields: Any) -> list[bytes]:
         """As SimClient: checked against the robot's limits, guarded by its session."""

@@ -40,8 +40,8 @@ class ViewNetMPC:
 
         torch = self.torch
         limits = np.array([self.v_max, self.w_max])
-        cur = torch.from_numpy(to_nchw(current))  # (1, 3, H, W)
-        goal = torch.from_numpy(to_nchw(subgoal))
+        cur = torch.from_numpy(to_nchw(np.asarray(current)))  # (1, 3, H, W); a frame from the repeat loop
+        goal = torch.from_numpy(to_nchw(np.asarray(subgoal)))
         mean, std = np.vstack([self._mean[1:], np.zeros((1, 2))]), limits * 0.5  # warm start: shifted plan
         best, best_cost = np.zeros((self.horizon, 2)), math.inf
         for _ in range(self.iterations):

@@ -37,6 +37,7 @@ import zmq
 
 from vtr.runtime import protocol
 from vtr.runtime.address import check_endpoint
+from vtr.runtime.frame import Frame
 from vtr.runtime.hello import Hello, parse_hello
 from vtr.runtime.protocol import BadFrameError, Limits, Reply
 from vtr.runtime.robot import Interrupted, LinkLost, Observation, RobotError, RobotRestarted
@@ -307,9 +308,11 @@ class SimClient:
 
     @staticmethod
     def _observation(reply: Reply) -> Observation:
+        """The decoded reply as an observation; its frame is the decoder's image (checked there: the trust
+        boundary), made a :class:`Frame` here and never checked again."""
         assert reply.image is not None and reply.stamp is not None
-        return Observation(
-            image=reply.image, stamp=reply.stamp, pose=reply.pose, collided=reply.collided, scan=reply.scan
+        return Observation.of_frame(
+            Frame.decoded(reply.image), reply.stamp, pose=reply.pose, collided=reply.collided, scan=reply.scan
         )
 
     # ------------------------------------------------------------------ the Robot protocol

@@ -7,12 +7,14 @@ simulator, training and export, which take their defaults from here instead of r
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
+from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.scan import Scan
 
 #: The paper's robot: |v| <= 0.5 m/s (Twist linear.x), |w| <= 1.0 rad/s (angular.z).
@@ -60,7 +62,7 @@ class Pose(NamedTuple):
 class Observation:
     """One camera frame.
 
-    image: (H, W, 3) uint8 RGB. stamp: the robot's clock in seconds (simulated time for the simulator).
+    image: (H, W, 3) uint8 RGB (as a checked :class:`~vtr.runtime.frame.Frame`: :attr:`frame`). stamp: the robot's clock in seconds (simulated time for the simulator).
     pose: ground-truth (x, y, yaw) in metres/radians when the other side knows it, else None (the
     repeat never uses it; evaluation scores with it). collided: the robot touched something on the way.
     scan: the range reading taken with the image, when the robot has a scanner (None: camera only).
@@ -71,6 +73,20 @@ class Observation:
     pose: tuple[float, float, float] | None = None
     collided: bool = False
     scan: Scan | None = None
+
+    @functools.cached_property
+    def frame(self) -> Frame:
+        """``image`` as a checked frame: the one the robot adapter made with the observation (:meth:`of_frame`:
+        the client's decoder, the in-process simulator), else made from ``image`` on first use (a plain array
+        from a test or a tool: checked then, a ``BadFrameError`` saying what is wrong)."""
+        return as_frame(self.image)
+
+    @classmethod
+    def of_frame(cls, frame: Frame, stamp: float, **fields: Any) -> Observation:
+        """An observation of a frame made where the image entered (its ``image`` is the frame's)."""
+        obs = cls(frame.image, stamp, **fields)
+        obs.__dict__["frame"] = frame  # the cached property's value: the frame is not made again
+        return obs
 
 
 @runtime_checkable
@@ -87,8 +103,9 @@ class Policy(Protocol):
         """(H, W) of the images ``predict`` takes."""
         ...
 
-    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
-        """(H, W, 3) uint8 current and subgoal images -> (2, N): row 0 v (m/s), row 1 w (rad/s)."""
+    def predict(self, current: Frame, subgoal: Frame) -> np.ndarray:
+        """Current and subgoal frames (``frame.image``: (H, W, 3) uint8) -> (2, N): row 0 v (m/s), row 1 w
+        (rad/s). The repeat loop passes :class:`~vtr.runtime.frame.Frame` s; ``OnnxPolicy`` also takes arrays."""
         ...
 
 

@@ -43,6 +43,7 @@ import numpy as np
 
 from vtr.runtime.controller_config import ControllerConfig
 from vtr.runtime.decisions import SWITCHES, TERMINAL, Action, Decision, Verdict  # noqa: F401 - this module's API
+from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.light import remove_side_ramp
 from vtr.runtime.progress_gate import ProgressGate
 from vtr.runtime.thresholds import (  # noqa: F401 - calibrate_e_m, consecutive_errors: part of this API
@@ -163,12 +164,10 @@ class Controller:
         self.stalled = action is Action.STALLED
         return Decision(action, self.index, error, note=note)
 
-    def decide(self, image: np.ndarray, collided: bool = False) -> Decision:
-        """One step of the state machine for ``image`` ((H, W, 3) uint8 at the subgoals' resolution)."""
-        if image.shape != self.subgoals.shape[1:]:
-            raise ValueError(
-                f"image shape {image.shape} differs from the subgoals' {self.subgoals.shape[1:]}"
-            )
+    def decide(self, image: Frame | np.ndarray, collided: bool = False) -> Decision:
+        """One step of the state machine for ``image`` (a frame, or (H, W, 3) uint8 at the subgoals' resolution,
+        checked here)."""
+        image = as_frame(image, self.subgoals.shape[1:3])
         if self.finished:
             return Decision(Action.FINISHED, self.index, math.nan)
         if self.status is not None:
@@ -260,10 +259,11 @@ class Controller:
             prior=prior,
         )
 
-    def judge(self, image: np.ndarray, collided: bool = False) -> Verdict:
+    def judge(self, image: Frame | np.ndarray, collided: bool = False) -> Verdict:
         """Decide on ``image`` until a decision needs the robot: subgoal switches (ADVANCE, JUMP) are
         applied here and reported as events, so the caller handles only COMMAND and the terminal ones."""
         from_index, events = self.index, []
+        image = as_frame(image, self.subgoals.shape[1:3])  # an array: checked once, not at every decide
         decision = self.decide(image, collided)
         while decision.action in SWITCHES:
             events.append(decision)

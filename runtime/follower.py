@@ -29,6 +29,7 @@ import numpy as np
 from vtr.runtime.controller import Controller
 from vtr.runtime.controller_config import ControllerConfig
 from vtr.runtime.decisions import Action, Decision, Verdict
+from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
 from vtr.runtime.thresholds import check_subgoals, route_views
 
@@ -122,10 +123,11 @@ class Follower:
         """Search the whole route on the next image (after a robot restart)."""
         self.localiser.start_at(None)
 
-    def judge(self, image: np.ndarray, collided: bool = False) -> Verdict:
-        """The decision on ``image``, with the subgoal changes it implies as events."""
+    def judge(self, image: Frame | np.ndarray, collided: bool = False) -> Verdict:
+        """The decision on ``image`` (a frame; an array is checked here, once), with the subgoal changes it
+        implies as events."""
         from_index = self.index
-        decision = self._decide(image, collided)
+        decision = self._decide(as_frame(image, self.subgoals.shape[1:3]), collided)
         events: list[Decision] = []
         if decision.action is Action.COMMAND or decision.action is Action.FINISHED:
             to = len(self) if decision.action is Action.FINISHED else decision.index
@@ -141,11 +143,7 @@ class Follower:
         self.status = action
         return Decision(action, self.index, error, note=note)
 
-    def _decide(self, image: np.ndarray, collided: bool) -> Decision:
-        if image.shape != self.subgoals.shape[1:]:
-            raise ValueError(
-                f"image shape {image.shape} differs from the subgoals' {self.subgoals.shape[1:]}"
-            )
+    def _decide(self, image: Frame, collided: bool) -> Decision:
         if self._finished:
             return Decision(Action.FINISHED, len(self), math.nan)
         if self.status is not None:

@@ -11,7 +11,7 @@ seeing images lit as in training. It leaves geometry alone: where things are in 
 ``LightMatchedPolicy`` wraps any policy (``predict(current, subgoal)``) with it: what `vtr repeat`'s default
 profile runs (``--profile paper`` leaves it out). A model trained with augmentation and ``STANDARDISED``
 preprocessing needs it less. The wrapper works on planar float32 (3, H, W), the layout the network takes, and hands the
-result to the policy's ``predict_planar`` (OnnxPolicy) without a uint8 round trip: the values are those of
+result to the policy as a frame of those levels (``Frame.from_levels``) without a uint8 round trip: the values are those of
 ``to_nchw(match_statistics(remove_side_ramp(current)))`` exactly. About 0.07 ms per step on 128x128 (0.17 ms
 before, 1.4 ms before its reductions went through BLAS; the condition-suite results were measured with
 those versions, whose float32 channel statistics rounded where these are exact: 0.35% of pixels one level
@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.preprocess import clip_ufunc, planar_levels
 
 #: Floor on a channel's standard deviation (0..255): a flat channel is shifted, not stretched.
@@ -154,23 +155,23 @@ class LightReference:
     cols: np.ndarray
 
     @classmethod
-    def of(cls, subgoal: np.ndarray) -> LightReference:
+    def of(cls, subgoal: Frame | np.ndarray) -> LightReference:
         p = planar_levels(subgoal)
         mean, std = _planar_stats(p)
         return cls(mean, std, _planar_column_means(p) + np.float32(1.0))
 
 
 def matched_planar(
-    current: np.ndarray,
+    current: Frame | np.ndarray,
     reference: LightReference,
     side_ramp: bool = True,
     out: np.ndarray | None = None,
     scratch: np.ndarray | None = None,
 ) -> np.ndarray:
-    """float32 (3, H, W): ``current`` (uint8 (H, W, 3)) recoloured to ``reference``, in 0..255 levels:
+    """float32 (3, H, W): ``current`` (a frame, or uint8 (H, W, 3)) recoloured to ``reference``, in 0..255 levels:
     the values of ``match_statistics(remove_side_ramp(current))``, planar and in float32. ``out`` and
     ``scratch`` (float32 (3, H, W)) are reused buffers; the result is ``out``."""
-    levels = planar_levels(current)  # converted once per frame (the controller's matcher used it already)
+    levels = planar_levels(current)  # a frame's own levels: the controller's matcher used them already
     if side_ramp:
         p = _ramp(levels, reference.cols, out)
     elif out is None:
@@ -185,33 +186,28 @@ class LightMatchedPolicy:
     """A policy whose current image is recoloured to the subgoal's statistics before each prediction.
 
     Everything else (``image_shape``, ``meta``, ``nonfinite_count``, ``check_route``, timings) is the
-    wrapped policy's. The subgoal's statistics are cached while the same subgoal array comes back. A
-    policy with ``predict_planar`` (OnnxPolicy) gets the recoloured image as float32 (3, H, W) levels,
-    which it scales into its input tensor in place; any other gets it as uint8 (H, W, 3).
+    wrapped policy's. A subgoal's statistics are kept on its frame (:meth:`Frame.derived`); the recoloured
+    image goes to the wrapped policy as a frame made from its planar float32 levels, which ``OnnxPolicy``
+    scales into its input tensor without a uint8 round trip (another policy reads ``frame.image``).
     """
 
     def __init__(self, policy: Any, side_ramp: bool = True) -> None:
         self.policy, self.side_ramp = policy, side_ramp
-        self._subgoal: np.ndarray | None = None
-        self._reference: LightReference | None = None
-        self._planar = getattr(policy, "predict_planar", None)
-        self._buffers: tuple[np.ndarray, np.ndarray] | None = None  # out, scratch: one image each
+        self._scratch: np.ndarray | None = None  # the squares of the channel statistics, reused
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.policy, name)
 
-    def match(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
-        """float32 (3, H, W) levels of ``current`` recoloured to ``subgoal`` (see :func:`matched_planar`)."""
-        if subgoal is not self._subgoal or self._reference is None:
-            self._subgoal, self._reference = subgoal, LightReference.of(subgoal)
-        shape = (current.shape[-1], *current.shape[:2])
-        if self._buffers is None or self._buffers[0].shape != shape:
-            self._buffers = (np.empty(shape, np.float32), np.empty(shape, np.float32))
-        # the result lives in a buffer reused by the next call: the policy consumes it before then
-        return matched_planar(current, self._reference, self.side_ramp, *self._buffers)
+    def match(self, current: Frame | np.ndarray, subgoal: Frame | np.ndarray) -> np.ndarray:
+        """float32 (3, H, W) levels of ``current`` recoloured to ``subgoal`` (see :func:`matched_planar`), in
+        a new array the caller owns."""
+        current, subgoal = as_frame(current), as_frame(subgoal)
+        reference = subgoal.derived(LightReference, LightReference.of)
+        shape = current.levels.shape
+        if self._scratch is None or self._scratch.shape != shape:
+            self._scratch = np.empty(shape, np.float32)
+        return matched_planar(current, reference, self.side_ramp, np.empty(shape, np.float32), self._scratch)
 
-    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
-        levels = self.match(current, subgoal)
-        if self._planar is None:
-            return self.policy.predict(_to_uint8(levels), subgoal)
-        return self._planar(levels, subgoal)
+    def predict(self, current: Frame | np.ndarray, subgoal: Frame | np.ndarray) -> np.ndarray:
+        subgoal = as_frame(subgoal)
+        return self.policy.predict(Frame.from_levels(self.match(current, subgoal)), subgoal)

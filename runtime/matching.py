@@ -26,15 +26,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vtr.runtime.preprocess import image_error, planar_levels
+from vtr.runtime.frame import Frame, as_frame, planar
+from vtr.runtime.preprocess import image_error
+from vtr.runtime.wire_json import BadFrameError
 
 MATCH_METHODS = ("raw", "patch")
-
-
-@functools.cache
-def _column_sum(f: int, c: int, dtype: type) -> np.ndarray:
-    """(f * c, c) 0/1 matrix: f adjacent pixels of c channels -> their per-channel sums."""
-    return np.tile(np.eye(c, dtype=dtype), (f, 1))
 
 
 @functools.cache
@@ -78,55 +74,35 @@ class Matcher:
     def __init__(self, cfg: MatchConfig | None = None) -> None:
         self.cfg = cfg or MatchConfig()
 
-    def features(self, images: np.ndarray) -> np.ndarray:
-        """(H, W, 3) or (B, H, W, 3) uint8 -> features of the same leading shape.
+    def features(self, images: Frame | np.ndarray) -> np.ndarray:
+        """A :class:`~vtr.runtime.frame.Frame` or (H, W, 3) uint8 image, or a (B, H, W, 3) uint8 stack ->
+        features of the same leading shape.
 
-        raw: the uint8 images themselves; patch: float32 (B, tiles, patch * patch * 3), normalised.
+        raw: the uint8 images themselves; patch: float32 (B, tiles, patch * patch * 3), normalised. A frame
+        is pooled from its planar levels (made once per frame, shared with the policy); a stack image by
+        image the same way, so that a subgoal's features are bit for bit those of the same view seen live.
         """
-        if images.dtype != np.uint8 or images.ndim not in (3, 4) or images.shape[-1] != 3:
-            raise ValueError(
+        if isinstance(images, Frame) or images.ndim == 3:
+            frame = as_frame(images)
+            return frame.image if self.cfg.method == "raw" else self._normalised(self._tiles(frame.levels))[0]
+        if images.dtype != np.uint8 or images.ndim != 4 or images.shape[-1] != 3:
+            raise BadFrameError(
                 f"expected uint8 (H, W, 3) or (B, H, W, 3) images, got {images.shape} {images.dtype}"
             )
         if self.cfg.method == "raw":
             return images
-        f, p = self.cfg.downsample, self.cfg.patch
-        h, w = images.shape[-3:-1]
-        if h % (f * p) or w % (f * p):
-            raise ValueError(f"image {h}x{w} is not a multiple of downsample * patch = {f * p}")
-        # Pool by sums (f * f times the mean, so the floor is scaled to match) in float32 (float64 past
-        # f = 256): the sums are integers the type holds exactly whatever the order of the adds, so they
-        # equal integer sums made float32 bit for bit, and both paths below give the same tiles.
-        exact = np.float32 if 255 * f * f < 2**24 else np.float64
-        if images.ndim == 3 and exact is np.float32:
-            return self._normalised(self._tiles_of_frame(images))[0]
-        single = images.ndim == 3
-        batch = images[None] if single else images
-        b, c = batch.shape[0], batch.shape[-1]
-        # Rows: adds of long contiguous rows; columns: a product with a 0/1 matrix (strided adds over the
-        # 3-channel inner axis were 5x slower).
-        rows = batch.reshape(b, h // f, f, w * c)
-        x = rows[:, :, 0].astype(exact)
-        for dy in range(1, f):
-            x += rows[:, :, dy]
-        if f > 1:
-            x = x.reshape(-1, f * c) @ _column_sum(f, c, exact)
-        hp, wp = h // (f * p), w // (f * p)
-        # (B, hp, p, wp, p, C) -> (B, tiles, C, p * p): one row of values per tile and channel
-        tiles = (
-            x.astype(np.float32, copy=False)
-            .reshape(b, hp, p, wp, p, c)
-            .transpose(0, 1, 3, 5, 2, 4)
-            .reshape(b, hp * wp, c, p * p)
-        )
-        out = self._normalised(tiles)
-        return out[0] if single else out
+        return np.concatenate([self._normalised(self._tiles(planar(image))) for image in images])
 
-    def _tiles_of_frame(self, image: np.ndarray) -> np.ndarray:
-        """(1, tiles, C, p * p) pooled sums of one image, from its planar levels (shared with the policy:
-        one conversion per frame); planar, every pooling add runs over contiguous rows or pairs."""
+    def _tiles(self, levels: np.ndarray) -> np.ndarray:
+        """(1, tiles, C, p * p) pooled sums of one image's planar levels (C, H, W); planar, every pooling
+        add runs over contiguous rows or pairs. Pooled by sums (f * f times the mean, so the floor is scaled
+        to match): integers float32 holds exactly whatever the order of the adds (float64 past f = 256)."""
         f, p = self.cfg.downsample, self.cfg.patch
-        levels = planar_levels(image)  # (C, H, W) float32, read-only
         c, h, w = levels.shape
+        if h % (f * p) or w % (f * p):
+            raise BadFrameError(f"image {h}x{w} is not a multiple of downsample * patch = {f * p}")
+        if 255 * f * f >= 2**24:
+            levels = levels.astype(np.float64)
         rows = levels.reshape(c, h // f, f, w)
         x = rows[:, :, 0] + rows[:, :, 1] if f > 1 else levels
         for dy in range(2, f):
@@ -136,9 +112,9 @@ class Matcher:
         for dx in range(2, f):
             y += cols[..., dx]
         hp, wp = h // (f * p), w // (f * p)
-        # (C, hp, p, wp, p) -> (1, tiles, C, p * p): a copy, the same layout as the batch path's
+        # (C, hp, p, wp, p) -> (1, tiles, C, p * p): a copy (a view of read-only levels when f = 1 and one tile)
         tiles = y.reshape(c, hp, p, wp, p).transpose(1, 3, 0, 2, 4).reshape(1, hp * wp, c, p * p)
-        return tiles if tiles.flags.writeable else tiles.copy()  # one tile: a view of read-only levels
+        return (tiles if tiles.flags.writeable else tiles.copy()).astype(np.float32, copy=False)
 
     def _normalised(self, tiles: np.ndarray) -> np.ndarray:
         """(B, tiles, C, p * p) pooled sums -> (B, tiles, C * p * p) features, normalised in place."""

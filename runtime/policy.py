@@ -1,7 +1,9 @@
-"""VelocityNet on onnxruntime: checked once at load, then (current, subgoal) images -> (2, N) velocities.
+"""VelocityNet on onnxruntime: checked once at load, then (current, subgoal) frames -> (2, N) velocities.
 
 The stages are separate methods (``preprocess``, ``infer``, ``postprocess``) so a latency benchmark can
-time each; ``predict`` runs all three and leaves their durations in ``last_timing_ms``.
+time each; ``predict`` runs all three and leaves their durations in ``last_timing_ms``. Images come as
+:class:`~vtr.runtime.frame.Frame` (a plain array is converted once, at this edge): the current frame's input
+tensor is scaled from its planar levels (shared with the matcher), and a subgoal's tensor is kept on its frame.
 """
 
 from __future__ import annotations
@@ -13,9 +15,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import onnxruntime as ort
 
+from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
 from vtr.runtime.paths import require_file
-from vtr.runtime.preprocess import PREPROCESSINGS, clip_ufunc, nchw_into, normalise_planar, to_nchw
+from vtr.runtime.preprocess import PREPROCESSINGS, clip_ufunc, input_into
 
 if TYPE_CHECKING:
     from vtr.runtime.route import Route
@@ -67,14 +70,9 @@ class OnnxPolicy:
         self.nonfinite_count = 0
         #: Durations of the last predict() stages, in milliseconds.
         self.last_timing_ms: dict[str, float] = {}
-        # The subgoal changes every few steps, the current image every step: the subgoal's tensor is kept
-        # while the same array object comes back (the Repeater passes one view per subgoal).
-        self._subgoal_src: np.ndarray | None = None
-        self._subgoal_feed: np.ndarray | None = None
-        self._current_buf: np.ndarray | None = None  # the current image's tensor, rewritten every step
-        self._current_feed: np.ndarray | None = None  # _current_buf as (1, 3, H, W): one object, bound once
-        self._levels_src: np.ndarray | None = None  # predict_planar's levels buffer and its (1, 3, H, W) view
-        self._levels_feed: np.ndarray | None = None
+        # the current image's tensor, rewritten every step, and as (1, 3, H, W): one object, bound once
+        self._current_buf = np.empty((3, self.meta.image_height, self.meta.image_width), np.float32)
+        self._current_feed = self._current_buf[None]
         # The session reads its inputs from, and writes its output to, arrays bound by address
         # (IOBinding): ~5 us a run less than session.run, which wraps every input and output anew. An
         # input array is bound again only when another array object comes (a new subgoal). predict's
@@ -84,7 +82,6 @@ class OnnxPolicy:
         self._own, self._given = self._new_binding(), self._new_binding()
         self._high = np.array([[self.meta.v_max], [self.meta.w_max]], dtype=np.float32)
         self._low = -self._high
-        self._expect = (self.meta.image_height, self.meta.image_width, 3)
 
     def _check_signature(self) -> None:
         meta = self.meta
@@ -137,27 +134,26 @@ class OnnxPolicy:
             )
 
     # ------------------------------------------------------------------ stages
-    def preprocess(self, current: np.ndarray, subgoal: np.ndarray) -> dict[str, np.ndarray]:
-        """uint8 (H, W, 3) images -> the session's feeds (float32 (1, 3, H, W) each).
+    def preprocess(self, current: Frame | np.ndarray, subgoal: Frame | np.ndarray) -> dict[str, np.ndarray]:
+        """Current and subgoal frames (or uint8 (H, W, 3) arrays, converted once here) -> the session's feeds
+        (float32 (1, 3, H, W) each). The current image's tensor is one buffer, rewritten by the next call;
+        the subgoal's is made once per subgoal frame and kept on it."""
+        current, subgoal = as_frame(current, self.image_shape), as_frame(subgoal, self.image_shape)
+        input_into(current.levels, self._current_buf, self.meta.preprocessing)  # _current_feed's values
+        return {
+            INPUT_CURRENT: self._current_feed,
+            INPUT_SUBGOAL: subgoal.derived(self._input_key, self._input),
+        }
 
-        The subgoal's tensor is reused while ``subgoal`` is the same array object as last time, so a
-        subgoal image must not be changed in place while it is being steered to. The current image's
-        tensor is one buffer, rewritten by the next call."""
-        if current.shape != self._expect or subgoal.shape != self._expect:
-            which, image = (
-                (INPUT_CURRENT, current) if current.shape != self._expect else (INPUT_SUBGOAL, subgoal)
-            )
-            raise ValueError(f"{which} image has shape {image.shape}, the model takes {self._expect}")
-        if self._current_buf is None:
-            self._current_buf = np.empty((3, *self.image_shape), np.float32)
-            self._current_feed = self._current_buf[None]
-        nchw_into(current, self._current_buf, self.meta.preprocessing)  # in place: _current_feed's values
-        return {INPUT_CURRENT: self._current_feed, INPUT_SUBGOAL: self._subgoal_tensor(subgoal)}
+    @property
+    def _input_key(self) -> tuple[str, str]:
+        return ("network_input", self.meta.preprocessing)
 
-    def _subgoal_tensor(self, subgoal: np.ndarray) -> np.ndarray:
-        if subgoal is not self._subgoal_src or self._subgoal_feed is None:
-            self._subgoal_feed, self._subgoal_src = to_nchw(subgoal, self.meta.preprocessing), subgoal
-        return self._subgoal_feed
+    def _input(self, frame: Frame) -> np.ndarray:
+        """A frame's (1, 3, H, W) network input, read-only (kept on a subgoal's frame)."""
+        tensor = input_into(frame.levels, np.empty(frame.levels.shape, np.float32), self.meta.preprocessing)
+        tensor.flags.writeable = False
+        return tensor
 
     def _new_binding(self) -> tuple[Any, dict[str, np.ndarray]]:
         binding = self.session.io_binding()
@@ -196,29 +192,10 @@ class OnnxPolicy:
             return np.zeros((2, self.meta.horizon), dtype=np.float32)
         return clip_ufunc(raw, self._low, self._high)
 
-    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
-        """(H, W, 3) uint8 current and subgoal images -> (2, N): row 0 v (m/s), row 1 w (rad/s)."""
+    def predict(self, current: Frame | np.ndarray, subgoal: Frame | np.ndarray) -> np.ndarray:
+        """Current and subgoal frames (or (H, W, 3) uint8 arrays) -> (2, N): row 0 v (m/s), row 1 w (rad/s)."""
         t0 = time.perf_counter()
         return self._infer_timed(t0, self.preprocess(current, subgoal))
-
-    def predict_planar(self, levels: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
-        """As :meth:`predict`, with the current image already planar: float32 (3, H, W) in 0..255 levels
-        (``runtime.light``'s output), scaled into the input tensor in place. Same result as ``predict``
-        on those levels as a uint8 (H, W, 3) image."""
-        t0 = time.perf_counter()
-        h, w, c = self._expect
-        if levels.shape != (c, h, w) or levels.dtype != np.float32 or subgoal.shape != self._expect:
-            raise ValueError(
-                f"expected float32 {(c, h, w)} levels and a {self._expect} subgoal, got {levels.dtype} "
-                f"{levels.shape} and {subgoal.shape}"
-            )
-        if not levels.flags.c_contiguous:
-            levels = np.ascontiguousarray(levels)
-        normalise_planar(levels, self.meta.preprocessing)  # in place (C order)
-        if levels is not self._levels_src:  # LightMatchedPolicy passes one buffer every step
-            self._levels_src, self._levels_feed = levels, levels[None]
-        feeds = {INPUT_CURRENT: self._levels_feed, INPUT_SUBGOAL: self._subgoal_tensor(subgoal)}
-        return self._infer_timed(t0, feeds)
 
     def _infer_timed(self, t0: float, feeds: dict[str, np.ndarray]) -> np.ndarray:
         """Inference and postprocess on ready ``feeds``; the stages since ``t0`` go to ``last_timing_ms``."""

@@ -18,6 +18,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from vtr.runtime.frame import Frame, as_frame
+
 #: Unit scaling: the default, and the name stored in every model shipped so far.
 PREPROCESSING = "rgb8_hwc_to_float32_nchw_div255"
 #: Unit scaling, then per-image, per-channel zero mean and unit variance.
@@ -84,61 +86,18 @@ def to_nchw(images: np.ndarray, preprocessing: str = PREPROCESSING) -> np.ndarra
     return normalise(out, preprocessing, in_place=True)
 
 
-#: The last immutable frame and its planar levels (see :func:`planar_levels`).
-_last_frame: tuple[np.ndarray, np.ndarray] | None = None
+def planar_levels(image: Frame | np.ndarray) -> np.ndarray:
+    """uint8 (H, W, 3) image or :class:`~vtr.runtime.frame.Frame` -> read-only float32 (3, H, W) of the same
+    values, C order: a Frame's own levels (made once per frame), else those of the checked array."""
+    return as_frame(image).levels
 
 
-def planar_levels(image: np.ndarray) -> np.ndarray:
-    """uint8 (H, W, 3) -> read-only float32 (3, H, W) of the same values, C order.
-
-    The controller's matcher, light matching and the policy's input tensor all start from this, so one
-    frame is converted once: the result is kept while the same array object comes back, for an image whose
-    pixels cannot change (a read-only view of ``bytes``, as frames decoded from the wire are); any other
-    image is converted on every call."""
-    global _last_frame
-    last = _last_frame
-    if last is not None and last[0] is image:
-        return last[1]
-    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[-1] != 3:
-        raise ValueError(f"expected a uint8 (H, W, 3) RGB image, got {image.dtype} {image.shape}")
-    out = np.empty((3, *image.shape[:2]), np.float32)
-    np.copyto(out, image.transpose(2, 0, 1))
-    out.flags.writeable = False
-    if _immutable(image):
-        _last_frame = (image, out)
-    return out
-
-
-def _immutable(image: np.ndarray) -> bool:
-    """Read-only all the way down to a ``bytes`` object (or a read-only memoryview)."""
-    base: object = image
-    while isinstance(base, np.ndarray):
-        if base.flags.writeable:
-            return False
-        base = base.base
-    return isinstance(base, bytes) or (isinstance(base, memoryview) and base.readonly)
-
-
-def nchw_into(image: np.ndarray, out: np.ndarray, preprocessing: str = PREPROCESSING) -> np.ndarray:
-    """One uint8 (H, W, 3) frame -> the network's (1, 3, H, W) input, written into ``out`` (float32 (3, H, W))
-    and equal to ``to_nchw``'s: scaled from the frame's planar levels when they were made already (the
-    controller's patch matching), else cast from the frame in one strided copy (the raw error never makes
-    them) and scaled in place (~2 us faster than one mixed-type strided multiply; the cast is exact)."""
-    last = _last_frame
-    if last is not None and last[0] is image:  # scaled straight into out: one pass, the same products
-        np.multiply(last[1], _SCALE, out=out)
-        return normalise(out[None], preprocessing, in_place=True)
-    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[-1] != 3:
-        raise ValueError(f"expected a uint8 (H, W, 3) RGB image, got {image.dtype} {image.shape}")
-    np.copyto(out, image.transpose(2, 0, 1))
-    return normalise_planar(out, preprocessing)
-
-
-def normalise_planar(levels: np.ndarray, preprocessing: str = PREPROCESSING) -> np.ndarray:
-    """float32 (3, H, W) holding uint8 levels (0..255 integers) -> the network's (1, 3, H, W) input, equal
-    to ``to_nchw`` of those levels as uint8 (H, W, 3). Scales ``levels`` in place."""
-    levels *= _SCALE
-    return normalise(levels[None], preprocessing, in_place=True)
+def input_into(levels: np.ndarray, out: np.ndarray, preprocessing: str = PREPROCESSING) -> np.ndarray:
+    """float32 (3, H, W) holding uint8 levels (a Frame's) -> the network's (1, 3, H, W) input, written into
+    ``out`` (float32 (3, H, W), C order) and equal to ``to_nchw`` of those levels as a uint8 image: the
+    same products, then ``normalise`` in place."""
+    np.multiply(levels, _SCALE, out=out)
+    return normalise(out[None], preprocessing, in_place=True)
 
 
 def image_error(a: np.ndarray, b: np.ndarray) -> float:

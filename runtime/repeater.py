@@ -2,7 +2,7 @@
 time. The daemon (`vtr repeat`), the demo, the evaluation and the latency benchmark all run this class;
 they differ only in the robot they hand it and in what they do with each :class:`StepRecord`.
 
-One :meth:`Repeater.step`: validate the frame, let the controller judge it (``runtime.follower`` by
+One :meth:`Repeater.step`: check the observation (its frame is checked once, where it was made), let the controller judge it (``runtime.follower`` by
 default: where the robot is and which subgoal to steer to; its subgoal changes come back as events), run the
 policy, take off its command on the subgoal itself (the zero bias, computed once per subgoal when the route is
 loaded), blend in the taught command (the controller's feed-forward), clip to the model's and the robot's
@@ -37,6 +37,7 @@ import numpy as np
 from vtr.runtime.contracts import CONTROL_DT, Observation, Policy, Robot
 from vtr.runtime.controller import Action, Verdict
 from vtr.runtime.follower import RouteController, controller_for_route
+from vtr.runtime.frame import frames_of
 from vtr.runtime.protocol import BadFrameError
 from vtr.runtime.repeat_types import RepeatConfig, RepeatStatus, StepRecord, Summary
 from vtr.runtime.robot import RobotError, safe_stop
@@ -103,8 +104,8 @@ class Repeater:
         self.controller = (
             controller if controller is not None else controller_for_route(route, self.config.controller)
         )
-        # one view object per subgoal, passed again while it is steered to (OnnxPolicy keeps its tensor)
-        self._views = list(self.controller.subgoals)
+        # one frame per subgoal, passed again while it is steered to (the policy keeps its tensor on it)
+        self._views = frames_of(self.controller.subgoals)
         self._last = len(self._views) - 1
         self._bias = self._self_bias(self.controller.cfg.zero_bias)
         # the tightest bounds of the model and of what the robot announced: the zero bias and the taught prior
@@ -142,12 +143,8 @@ class Repeater:
         robot already on the subgoal, taken off every command toward it (ControllerConfig.zero_bias)."""
         if weight <= 0:
             return None
-        images = self.route.images
         return weight * np.array(
-            [
-                np.asarray(self.policy.predict(images[k], view), np.float64)[:2, 0]
-                for k, view in enumerate(self._views)
-            ]
+            [np.asarray(self.policy.predict(view, view), np.float64)[:2, 0] for view in self._views]
         )
 
     @property
@@ -156,15 +153,19 @@ class Repeater:
 
     # ------------------------------------------------------------------ frames
     def _valid(self, obs: Observation) -> bool:
-        image = obs.image
-        if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.shape != self._expect:
-            shape = getattr(image, "shape", None)
-            kind = getattr(image, "dtype", type(image).__name__)
-            self._last_rejected = f"image {shape} {kind}, expected {self._expect} uint8"
-        elif not math.isfinite(obs.stamp):
-            self._last_rejected = f"non-finite stamp {obs.stamp}"
+        """Whether ``obs`` carries a frame of the route's size and a finite stamp (its frame checked once: by
+        the robot adapter that made it, else here; nothing after this checks it again)."""
+        try:
+            shape = obs.frame.shape
+        except BadFrameError as exc:
+            self._last_rejected = str(exc)
         else:
-            return True
+            if shape != self._expect:
+                self._last_rejected = f"image {shape} uint8, expected {self._expect} uint8"
+            elif not math.isfinite(obs.stamp):
+                self._last_rejected = f"non-finite stamp {obs.stamp}"
+            else:
+                return True
         self.bad_frames += 1
         return False
 
@@ -256,7 +257,7 @@ class Repeater:
         if self.stop_event.is_set():
             return self._end(RepeatStatus.INTERRUPTED)
         t0 = time.perf_counter()
-        verdict = self.controller.judge(obs.image, obs.collided)
+        verdict = self.controller.judge(obs.frame, obs.collided)
         t_error = time.perf_counter()
         decision = verdict.decision
         if decision.action is Action.BLOCKED:  # the camera sees the way ahead blocked
@@ -267,7 +268,7 @@ class Repeater:
         if self.steps >= self.max_steps:
             return self._end(RepeatStatus.STEP_LIMIT, "", verdict)
         target = min(self.controller.index, self._last)
-        velocities = self.policy.predict(obs.image, self._views[target])
+        velocities = self.policy.predict(obs.frame, self._views[target])
         v, w = float(velocities[0, 0]), float(velocities[1, 0])
         if self._bias is not None:
             v, w = v - float(self._bias[target, 0]), w - float(self._bias[target, 1])

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from vtr.runtime.contracts import Observation, Pose, Simulator
+from vtr.runtime.frame import as_frame
 
 
 def _pose_tuple(pose: Any) -> tuple[float, float, float]:
@@ -28,9 +29,10 @@ class LocalRobot:
         self.last: Observation | None = None
 
     def _obs(self, image: Any) -> Observation:
-        self.last = Observation(
-            image=image,
-            stamp=float(self.sim.time),
+        # the frame is made here, where the image enters (a fresh render, handed over: not copied)
+        self.last = Observation.of_frame(
+            as_frame(image, copy=False),
+            float(self.sim.time),
             pose=_pose_tuple(self.sim.pose),
             collided=bool(self.sim.collided),
             scan=self.sim.scan() if self.scan else None,  # type: ignore[attr-defined]

@@ -91,7 +91,7 @@ def run(steps: int, warmup: int, size: int) -> dict[str, Any]:
     from vtr.benchmarks.step_bench import sample_route
     from vtr.benchmarks.timing import time_interleaved
     from vtr.runtime.light import LightMatchedPolicy, LightReference
-    from vtr.runtime.preprocess import normalise_planar
+    from vtr.runtime.preprocess import input_into
 
     current, route = sample_route(size, size)
     ramp = np.linspace(0.5, 1.1, size, dtype=np.float32)[None, :, None]
@@ -111,7 +111,8 @@ def run(steps: int, warmup: int, size: int) -> dict[str, Any]:
     wrapper = LightMatchedPolicy(None)
 
     def numpy_path() -> np.ndarray:
-        return normalise_planar(wrapper.match(current, subgoal))
+        levels = wrapper.match(current, subgoal)
+        return input_into(levels, levels)  # scaled in place, as the policy scales into its input buffer
 
     def onnx_path() -> np.ndarray:
         return session.run(["current"], feeds)[0]

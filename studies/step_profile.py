@@ -29,16 +29,16 @@ STAGES: tuple[tuple[str, str, str], ...] = (
     ("link.encode_request", "protocol", "encode_request"),
     ("judge", "controller", "judge"),
     ("judge.features", "matcher", "features"),
-    ("judge.features.planar_levels", "matching", "planar_levels"),
-    ("judge.features.tiles", "matcher", "_tiles_of_frame"),
+    ("judge.features.planar_levels", "frame", "planar"),  # once per frame (Frame.levels), wherever first
+    ("judge.features.tiles", "matcher", "_tiles"),
     ("judge.features.normalise", "matcher", "_normalised"),
     ("judge.distance", "matcher", "distance"),
     ("predict", "policy", "predict"),
     ("predict.light_match", "light", "matched_planar"),
     ("predict.light_match.ramp", "light", "_ramp"),
     ("predict.light_match.statistics", "light", "_stats_in_place"),
-    ("predict.preprocess", "policy_module", "nchw_into"),
-    ("predict.standardise", "policy_module", "normalise_planar"),
+    ("predict.preprocess", "policy_module", "input_into"),
+    ("predict.standardise", "preprocess", "normalise"),
     ("predict.inference", "onnx", "_run"),  # the network as predict runs it (IOBinding)
     ("predict.inference", "onnx", "infer"),  # the same in checkouts before IOBinding (predict called infer)
     ("predict.postprocess", "onnx", "postprocess"),
@@ -47,7 +47,7 @@ TOP_LEVEL = ("link.step", "link.stop", "judge", "predict")
 
 
 def _owners(rep: Any) -> dict[str, Any]:
-    from vtr.runtime import light, matching, policy, protocol
+    from vtr.runtime import frame, light, matching, policy, preprocess, protocol
 
     onnx = getattr(rep.policy, "policy", rep.policy)
     return {
@@ -56,6 +56,8 @@ def _owners(rep: Any) -> dict[str, Any]:
         "controller": rep.controller,
         "matcher": rep.controller.matcher,
         "matching": matching,
+        "frame": frame,
+        "preprocess": preprocess,
         "policy": rep.policy,
         "light": light,
         "policy_module": policy,

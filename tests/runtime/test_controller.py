@@ -192,7 +192,7 @@ def test_controller_config_validation(kwargs, fragment):
 def test_controller_refuses_wrong_images():
     with pytest.raises(ValueError, match="uint8"):
         Controller(np.zeros((2, 4, 4, 3), dtype=np.float32), old())
-    with pytest.raises(ValueError, match="differs"):
+    with pytest.raises(ValueError, match=r"expected \(4, 4, 3\)"):
         Controller(subgoals(0, 1), old()).decide(flat(0, 8, 8))
 
 
@@ -228,7 +228,7 @@ class SpyPolicy:
         self.inputs: list[tuple[int, int]] = []
 
     def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
-        self.inputs.append((int(current[0, 0, 0]), int(subgoal[0, 0, 0])))
+        self.inputs.append((int(current.image[0, 0, 0]), int(subgoal.image[0, 0, 0])))  # frames
         return np.array([[0.3, 0.1], [-0.2, 0.0]], dtype=np.float32)
 
 

@@ -99,7 +99,7 @@ class SpyPolicy:
         return self.inner.nonfinite_count
 
     def predict(self, current, subgoal):
-        assert current.shape == (16, 16, 3) and current.dtype == np.uint8
+        assert current.shape == (16, 16, 3) and np.asarray(current).dtype == np.uint8
         if not np.shares_memory(current, subgoal):  # a camera frame, not the zero bias's subgoal on itself
             self.seen += 1
         return self.inner.predict(current, subgoal)

@@ -41,7 +41,7 @@ class TowardSubgoal:
     image_shape = (16, 16)
 
     def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
-        v = float(np.clip((subgoal.mean() - current.mean()) / 200.0 / 0.2, -0.5, 0.5))
+        v = float(np.clip((np.asarray(subgoal).mean() - np.asarray(current).mean()) / 200.0 / 0.2, -0.5, 0.5))
         return np.array([[v, v], [0.0, 0.0]], dtype=np.float32)
 
 

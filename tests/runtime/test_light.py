@@ -37,7 +37,7 @@ class Recorder:
         self.seen: list[np.ndarray] = []
 
     def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
-        self.seen.append(current)
+        self.seen.append(np.asarray(current))  # a frame: the repeat loop's policies get frames
         return np.zeros((2, 2), np.float32)
 
 

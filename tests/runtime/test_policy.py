@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from runtime_fakes import H, W, build_velocitynet_onnx, corridor_route, render
 
+from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.policy import ModelMismatchError, OnnxPolicy
 from vtr.runtime.preprocess import to_nchw
 
@@ -44,7 +45,7 @@ def test_out_of_range_outputs_are_clipped_to_model_limits(tmp_path):
 
 def test_wrong_image_shape_is_refused(model_path):
     policy = OnnxPolicy(model_path)
-    with pytest.raises(ValueError, match="model takes"):
+    with pytest.raises(ValueError, match=r"image \(8, 8, 3\) uint8, expected \(16, 16, 3\)"):
         policy.predict(render(0.0, 8, 8), render(0.0, 8, 8))
 
 
@@ -112,7 +113,14 @@ def test_the_current_tensor_is_to_nchws_and_the_tensors_are_c_ordered(model_path
     feeds = policy.preprocess(current, subgoal)
     for name, image in (("current", current), ("subgoal", subgoal)):
         assert np.array_equal(feeds[name], to_nchw(image)) and feeds[name].flags.c_contiguous
-    planar = policy.predict_planar(current.transpose(2, 0, 1).astype(np.float32), subgoal)
+    # a frame given by its planar levels (light matching's output) steers as the same image does
+    planar = policy.predict(Frame.from_levels(current.transpose(2, 0, 1).astype(np.float32)), subgoal)
     assert np.array_equal(planar, policy.predict(current, subgoal))
-    with pytest.raises(ValueError, match="levels"):
-        policy.predict_planar(current.astype(np.float32), subgoal)
+
+
+def test_a_subgoals_tensor_is_made_once_and_kept_on_its_frame(model_path):
+    policy = OnnxPolicy(model_path)
+    current, subgoal = as_frame(render(0.0)), as_frame(render(0.1))
+    first = policy.preprocess(current, subgoal)["subgoal"]
+    assert policy.preprocess(render(0.2), subgoal)["subgoal"] is first and not first.flags.writeable
+    assert np.array_equal(first, to_nchw(subgoal.image))

@@ -81,7 +81,8 @@ def test_model_meta_names_a_known_preprocessing():
         ModelMeta(preprocessing="bgr_minus_mean")
 
 
-def test_planar_levels_converts_an_immutable_frame_once_and_any_other_image_every_time():
+def test_planar_levels_are_a_frames_own_and_an_arrays_made_anew():
+    from vtr.runtime.frame import as_frame
     from vtr.runtime.preprocess import planar_levels
 
     rng = np.random.default_rng(1)
@@ -89,34 +90,29 @@ def test_planar_levels_converts_an_immutable_frame_once_and_any_other_image_ever
     levels = planar_levels(image)
     assert levels.dtype == np.float32 and levels.flags.c_contiguous and not levels.flags.writeable
     assert np.array_equal(levels, image.transpose(2, 0, 1))
-    image[0, 0] = 7  # a writeable image may change in place: never served from the cache
+    image[0, 0] = 7  # an array may change in place: its levels are made from it as it is now
     assert planar_levels(image)[:, 0, 0].tolist() == [7, 7, 7]
-    frame = np.frombuffer(image.tobytes(), np.uint8).reshape(image.shape)  # as decoded from the wire
-    assert planar_levels(frame) is planar_levels(frame)
-    view = image.view()  # read-only, but its pixels can change through `image`: never cached
-    view.flags.writeable = False
-    assert planar_levels(view) is not planar_levels(view)
-    other = np.frombuffer(bytes(image.size), np.uint8).reshape(image.shape)
-    assert not planar_levels(other).any() and planar_levels(frame)[:, 0, 0].tolist() == [7, 7, 7]
+    frame = as_frame(image)
+    assert planar_levels(frame) is planar_levels(frame) is frame.levels  # made once, kept on the frame
+    image[0, 0] = 9  # the frame owns its pixels: a change to the array it came from does not reach it
+    assert planar_levels(frame)[:, 0, 0].tolist() == [7, 7, 7] and frame.image[0, 0].tolist() == [7, 7, 7]
     with pytest.raises(ValueError, match="uint8"):
         planar_levels(image.astype(np.float32))
 
 
 @pytest.mark.parametrize("preprocessing", PREPROCESSINGS)
-def test_normalise_planar_and_nchw_into_give_to_nchws_tensor(preprocessing):
-    from vtr.runtime.preprocess import nchw_into, normalise_planar, planar_levels
+def test_input_into_gives_to_nchws_tensor(preprocessing):
+    from vtr.runtime.preprocess import input_into, planar_levels
 
     image = np.random.default_rng(2).integers(0, 256, (16, 8, 3), dtype=np.uint8)
     expected = to_nchw(image, preprocessing)
-    tensor = normalise_planar(planar_levels(image).copy(), preprocessing)
-    assert tensor.shape == (1, 3, 16, 8) and np.array_equal(tensor, expected)
-    frame = np.frombuffer(image.tobytes(), np.uint8).reshape(image.shape)
     buffer = np.empty((3, 16, 8), np.float32)
-    assert np.array_equal(nchw_into(frame, buffer, preprocessing), expected)  # one strided pass
-    planar_levels(frame)  # the matcher converted this frame already: its levels are reused
-    assert np.array_equal(nchw_into(frame, buffer, preprocessing), expected)
-    with pytest.raises(ValueError, match="uint8"):
-        nchw_into(image.astype(np.float32), buffer)
+    tensor = input_into(planar_levels(image), buffer, preprocessing)
+    assert (
+        tensor.shape == (1, 3, 16, 8)
+        and np.array_equal(tensor, expected)
+        and np.shares_memory(tensor, buffer)
+    )
 
 
 def test_numpy_standardisation_in_place_equals_the_formula_bit_for_bit():

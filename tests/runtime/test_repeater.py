@@ -153,7 +153,7 @@ class Biased:
     image_shape = (4, 4)
 
     def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
-        gap = float(subgoal[0, 0, 0]) - float(current[0, 0, 0])  # steer toward the subgoal's grey level
+        gap = float(subgoal.image[0, 0, 0]) - float(current.image[0, 0, 0])  # toward the subgoal's grey level
         return np.array([[0.001 * gap + 0.03], [0.15]], dtype=np.float32)
 
 

@@ -1,12 +1,12 @@
 """The Repeater's fast step path decides and steers exactly as the straightforward computation does.
 
-Fast: frames arrive read-only over ``bytes`` (as decoded from the wire), so the frame's planar float32
-levels are made once and shared by the matcher, light matching and the policy's input tensor; the
-subgoal's features, light statistics and tensor are cached per subgoal; light matching hands planar
-float32 to ``OnnxPolicy.predict_planar``. Straightforward: writeable frames (every consumer converts for
-itself), light matching through its uint8 result, and a policy that runs ``to_nchw`` on both images and
-``session.run`` on every step. The two runs of one scripted route must give the same decisions, errors
-and velocities bit for bit, switches included.
+Fast: frames arrive as the client's decoder makes them (``Frame.decoded`` over ``bytes``), so the frame's
+planar float32 levels are made once and shared by the matcher, light matching and the policy's input
+tensor; the subgoal's tensor and light statistics are kept on its frame; light matching hands its planar
+float32 levels to ``OnnxPolicy`` as a frame. Straightforward: plain writeable arrays (checked and
+converted by the Repeater), light matching through its uint8 image, and a policy that runs ``to_nchw`` on
+both images and ``session.run`` on every step. The two runs of one scripted route must give the same
+decisions, errors and velocities bit for bit, switches included.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ import pytest
 
 from tests.runtime.texture_views import view
 from vtr.runtime.contracts import Observation
+from vtr.runtime.frame import Frame
 from vtr.runtime.light import LightMatchedPolicy
 from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL, OUTPUT_VELOCITIES, ModelMeta
 from vtr.runtime.policy import OnnxPolicy
@@ -36,7 +37,8 @@ class ScriptedRobot:
     def _frame(self) -> Observation:
         image = view(self.x)
         if self.immutable:
-            image = np.frombuffer(image.tobytes(), np.uint8).reshape(image.shape)
+            decoded = np.frombuffer(image.tobytes(), np.uint8).reshape(image.shape)
+            return Observation.of_frame(Frame.decoded(decoded), float(self.x))
         return Observation(image=image, stamp=float(self.x))
 
     def observe(self) -> Observation:
@@ -57,9 +59,12 @@ class PlainPolicy:
         self.policy, self.meta, self.image_shape = policy, policy.meta, policy.image_shape
         self.high = np.array([[policy.meta.v_max], [policy.meta.w_max]], dtype=np.float32)
 
-    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+    def predict(self, current: Frame, subgoal: Frame) -> np.ndarray:
         pre = self.meta.preprocessing
-        feeds = {INPUT_CURRENT: to_nchw(current.copy(), pre), INPUT_SUBGOAL: to_nchw(subgoal.copy(), pre)}
+        feeds = {
+            INPUT_CURRENT: to_nchw(np.array(current), pre),
+            INPUT_SUBGOAL: to_nchw(np.array(subgoal), pre),
+        }
         (raw,) = self.policy.session.run([OUTPUT_VELOCITIES], feeds)
         return np.clip(raw[0], -self.high, self.high)
 

@@ -10,7 +10,7 @@ from studies import step_bench_ab, step_profile
 def test_the_profiler_times_each_stage_inside_its_parent_and_unwraps_afterwards(
     tiny: tuple[str, str],
 ) -> None:
-    from vtr.runtime import light, matching
+    from vtr.runtime import frame, light
 
     model, route = tiny
     rep = step_bench_ab._repeaters(route, model)["light"]
@@ -22,7 +22,7 @@ def test_the_profiler_times_each_stage_inside_its_parent_and_unwraps_afterwards(
     assert stages["link.decode_reply"]["calls_per_step"] == 2  # the step's reply and the zero command's
     # everything wrapped is itself again: instance attributes removed, module functions put back
     assert "predict" not in vars(rep.policy) and "step" not in vars(rep.robot)
-    assert matching.planar_levels.__module__ == "vtr.runtime.preprocess"
+    assert frame.planar.__module__ == "vtr.runtime.frame" and frame.planar.__name__ == "planar"
     assert light._ramp.__name__ == "_ramp" and rep.step().commanded
     assert "cumtime" in step_profile.cprofile_top(rep, steps=3, warmup=1, top=5)
 
