@@ -4,6 +4,9 @@ What it measures (p50 / p99 over many steps after a warm-up, all in one run so t
   * the runtime's stages at ``--threads``: frame decode (the wire protocol's decode of a real encoded
     frame), preprocess, inference, image error, and the whole control step (encoded frame in -> encoded
     command out, the simulator excluded); the ZeroMQ round trip to a local simulator separately;
+  * of each whole step, its compute (the real ``Repeater.step``'s own stage times: the controller's judgement,
+    the policy, the command's limits) apart from its link (the command's request and reply, the zero command),
+    beside inference alone timed in the same loop: issue 19's budget is p99 step compute <= 1 ms at 1 thread;
   * the same model on onnxruntime fp32, onnxruntime int8, torch eager and OpenCV cv2.dnn at 1 thread and
     at all cores, each with its GFLOP per step and achieved GFLOP/s next to this machine's float32
     matrix-multiply rate measured in the same run;
@@ -29,7 +32,7 @@ from vtr.benchmarks.backends import bench_backends
 from vtr.benchmarks.hardware import all_cores, child_env
 from vtr.benchmarks.latency_report import STEP_VARIANTS, format_report, ratios
 from vtr.benchmarks.results import write_json
-from vtr.benchmarks.timing import time_interleaved
+from vtr.benchmarks.timing import summarise, time_interleaved
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 
 BACKENDS = ("ort_fp32", "ort_int8", "torch_eager", "cv2_dnn")
@@ -143,7 +146,7 @@ def bench_stages(cfg: LatencyConfig, current: np.ndarray, route: np.ndarray) -> 
         cfg.steps,
         cfg.warmup,
     )
-    pairs = {}
+    pairs, compute = {}, {}
     for name, bench in variants.items():
         pair = time_interleaved(
             {"inference": functools.partial(bench.policy.infer, feeds), "whole_step": bench},
@@ -152,6 +155,12 @@ def bench_stages(cfg: LatencyConfig, current: np.ndarray, route: np.ndarray) -> 
         )
         pairs[name] = pair
         stages[name] = pair["whole_step"]
+        # the timed steps' own split (the Repeater's stage times): compute, and the link apart
+        compute[name] = {
+            "step_compute": summarise(np.array(bench.compute_ms[-cfg.steps :]) * 1e6),
+            "link": summarise(np.array(bench.link_ms[-cfg.steps :]) * 1e6),
+            "inference": pair["inference"],
+        }
     return {
         "threads": cfg.threads,
         "codec": "vtr.runtime.protocol",
@@ -159,6 +168,7 @@ def bench_stages(cfg: LatencyConfig, current: np.ndarray, route: np.ndarray) -> 
         "matching": {name: bench.matching for name, bench in variants.items()},
         "stages": stages,
         "pairs": pairs,
+        "compute": compute,
     }
 
 

@@ -112,9 +112,9 @@ def sample_route(height: int, width: int, length: int = ROUTE_LENGTH) -> tuple[n
 class BenchStep:
     """``Repeater.step`` on a ``LoopbackRobot`` showing ``current`` while steering to ``route[0]``.
 
-    The controller never switches (fixed e_m below any error, no stall guard, no settling): every step
-    commands, the worst case; everything else is the default controller (its lost check included), with
-    ``match`` as its image comparison (default: patch matching; ``MatchConfig.paper()`` for the raw error).
+    The controller never reaches the end (the robot's view stays near the first subgoal): every step
+    commands, the worst case; everything else is the default controller (the route localiser's window and its
+    lost check included), with ``match`` as its image comparison (default: patch matching; ``MatchConfig.paper()`` for the raw error).
     ``route`` is the taught images (from :func:`sample_route`); a single (H, W, 3) image makes a route of
     ``ROUTE_LENGTH`` copies, on which the controller falls back to the raw error (``matching`` says which
     one is in force). The zero command after each step is sent, as the daemon does by default
@@ -169,9 +169,16 @@ class BenchStep:
         )
         #: The image comparison the controller uses ("raw" also when it fell back from patch matching).
         self.matching = self.repeater.controller.cfg.match.method
+        #: Per call, from the Repeater's own stage times (ms): the step's compute (the controller's judgement,
+        #: the policy, the command's limits: no link) and its link (the command sent and its reply decoded,
+        #: the zero command and its reply).
+        self.compute_ms: list[float] = []
+        self.link_ms: list[float] = []
 
     def __call__(self) -> Any:
         record = self.repeater.step()
         if not record.commanded:  # the identical frame matched the subgoal: cannot happen, say so
             raise RuntimeError(f"the benchmark's repeat ended: {record.status}")
+        self.compute_ms.append(record.latency_ms["compute"])
+        self.link_ms.append(record.latency_ms["robot"])
         return record

@@ -89,7 +89,15 @@ def test_latency_smoke_run(tiny_model: Path, tmp_path: Path) -> None:
     }
     on_disk = json.loads((tmp_path / "lat.json").read_text())
     assert on_disk["gflop"] == pytest.approx(result["gflop"])
-    assert "targets (issues 5 and 11)" in latency_report.format_report(result)
+    # each whole step's compute apart from its link, and the budget judged on vtr repeat's default step
+    for name, c in result["stages"]["compute"].items():
+        assert c["step_compute"]["n"] == c["link"]["n"] == 3 and c["inference"]["n"] == 3
+        assert 0 < c["step_compute"]["p50_ms"] < stages[name]["p99_ms"] and c["link"]["p50_ms"] > 0
+    default = result["stages"]["compute"][latency_report.DEFAULT_VARIANT]["step_compute"]
+    assert result["ratios"]["step_compute_p99_ms"] == default["p99_ms"]
+    assert result["ratios"]["meets_target"]["step_compute_p99_ms"] is (default["p99_ms"] <= 1.0)
+    report_text = latency_report.format_report(result)
+    assert "targets (issues 5, 11 and 19)" in report_text and "step compute (Repeater.step" in report_text
     from vtr.evaluation import report
 
     md = report.build(on_disk, [])
