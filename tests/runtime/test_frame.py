@@ -67,7 +67,9 @@ def test_a_bad_image_is_one_clear_error_naming_what_it_is(bad, words):
 def test_frames_of_a_route_are_one_read_only_copy_per_subgoal():
     images = corridor_route().images
     frames = frames_of(images)
-    assert len(frames) == len(images) and all(np.array_equal(f.image, i) for f, i in zip(frames, images))
+    assert len(frames) == len(images) and all(
+        np.array_equal(f.image, i) for f, i in zip(frames, images, strict=True)
+    )
     assert not any(np.shares_memory(f.image, images) for f in frames)
 
 
