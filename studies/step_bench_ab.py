@@ -8,7 +8,9 @@ tar -x -C DIR``); it uses only interfaces older checkouts have too (``OnnxPolicy
 round-robin in one process; prints one JSON line of medians in microseconds. ``--sections`` instead
 steps each variant alone and adds the median of each call inside the step (the controller's judgement,
 the matcher's features and distance, the policy, light matching, inference, the link's calls), each
-measured by a wrapper around that call (about 1 us of wrapper included in each).
+measured by a wrapper around that call (about 1 us of wrapper included in each). ``--split`` steps the three
+variants and inference alone round-robin and prints, per variant, the p50 and p99 of the step's compute and
+of its link as the Repeater's own stage times split them (issue 19's budget: p99 compute <= 1 ms).
 """
 
 from __future__ import annotations
@@ -68,6 +70,39 @@ def medians(route_file: str, model: str, steps: int, warmup: int) -> dict[str, f
             if i >= warmup:
                 samples[name].append(elapsed)
     return {name: float(np.median(s)) / 1e3 for name, s in samples.items()}
+
+
+def split(route_file: str, model: str, steps: int, warmup: int) -> dict[str, dict[str, float]]:
+    """p50 / p99 (microseconds) of each variant's whole step, its compute and its link (``record.latency_ms``:
+    ``compute``, ``robot``), and of inference alone on the same frames, all stepped round-robin."""
+    from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
+    from vtr.runtime.policy import OnnxPolicy
+    from vtr.runtime.preprocess import to_nchw
+
+    variants = _repeaters(route_file, model)
+    data = np.load(route_file)
+    policy = OnnxPolicy(model, threads=1)
+    feeds = {INPUT_CURRENT: to_nchw(data["current"]), INPUT_SUBGOAL: to_nchw(data["route"][0])}
+    samples: dict[str, list[float]] = {}
+    for i in range(warmup + steps):
+        t0 = time.perf_counter_ns()
+        policy.infer(feeds)
+        if i >= warmup:
+            samples.setdefault("inference", []).append((time.perf_counter_ns() - t0) / 1e3)
+        for name, rep in variants.items():
+            t0 = time.perf_counter_ns()
+            record = rep.step()
+            elapsed = (time.perf_counter_ns() - t0) / 1e3
+            if not record.commanded:
+                raise RuntimeError(f"{name}: the repeat ended ({record.status})")
+            if i >= warmup:
+                samples.setdefault(f"{name}.step", []).append(elapsed)
+                samples.setdefault(f"{name}.compute", []).append(record.latency_ms["compute"] * 1e3)
+                samples.setdefault(f"{name}.link", []).append(record.latency_ms["robot"] * 1e3)
+    return {
+        name: {"p50_us": float(np.percentile(s, 50)), "p99_us": float(np.percentile(s, 99))}
+        for name, s in samples.items()
+    }
 
 
 # ("onnx", "_run"): the network as predict runs it since IOBinding (older checkouts: "infer")
@@ -138,11 +173,14 @@ def main() -> int:
     parser.add_argument(
         "--sections", choices=("raw", "patch", "light"), help="time the calls inside one variant"
     )
+    parser.add_argument("--split", action="store_true", help="p50/p99 of each step's compute and link")
     args = parser.parse_args()
     if args.write:
         write_route(args.route_file, args.model)
     if args.sections:
         print(json.dumps(sections(args.route_file, args.model, args.steps, args.warmup, args.sections)))
+    elif args.split:
+        print(json.dumps(split(args.route_file, args.model, args.steps, args.warmup)))
     else:
         print(json.dumps(medians(args.route_file, args.model, args.steps, args.warmup)))
     return 0
