@@ -7,6 +7,8 @@ What it measures (p50 / p99 over many steps after a warm-up, all in one run so t
   * of each whole step, its compute (the real ``Repeater.step``'s own stage times: the controller's judgement,
     the policy, the command's limits) apart from its link (the command's request and reply, the zero command),
     beside inference alone timed in the same loop: issue 19's budget is p99 step compute <= 1 ms at 1 thread;
+    also the CPU time the thread spent judging and predicting, which a wait for a core on a busy machine does
+    not inflate;
   * the same model on onnxruntime fp32, onnxruntime int8, torch eager and OpenCV cv2.dnn at 1 thread and
     at all cores, each with its GFLOP per step and achieved GFLOP/s next to this machine's float32
     matrix-multiply rate measured in the same run;
@@ -159,6 +161,7 @@ def bench_stages(cfg: LatencyConfig, current: np.ndarray, route: np.ndarray) -> 
         compute[name] = {
             "step_compute": summarise(np.array(bench.compute_ms[-cfg.steps :]) * 1e6),
             "link": summarise(np.array(bench.link_ms[-cfg.steps :]) * 1e6),
+            "step_compute_cpu": summarise(np.array(bench.compute_cpu_ms[-cfg.steps :]) * 1e6),
             "inference": pair["inference"],
         }
     return {

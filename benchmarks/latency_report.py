@@ -151,12 +151,15 @@ def _compute_lines(compute: dict[str, Any]) -> list[str]:
         "",
         "  step compute (Repeater.step's own stage times), the link apart, inference alone in the same loop:",
         f"  {'variant':<24}{'compute p50':>12}{'p99':>8}{'link p50':>10}{'p99':>8}{'infer p50':>11}{'p99':>8}"
-        f"{'compute/infer':>15}",
+        f"{'compute/infer':>15}{'cpu p50':>9}{'p99':>8}",
     ]
     for name, c in compute.items():
         sc, link, inf = c["step_compute"], c["link"], c["inference"]
+        cpu = c.get("step_compute_cpu")
+        cpu_text = "" if cpu is None else f"{cpu['p50_ms']:>9.3f}{cpu['p99_ms']:>8.3f}"
         lines.append(
             f"  {name:<24}{sc['p50_ms']:>12.3f}{sc['p99_ms']:>8.3f}{link['p50_ms']:>10.3f}{link['p99_ms']:>8.3f}"
-            f"{inf['p50_ms']:>11.3f}{inf['p99_ms']:>8.3f}{sc['p50_ms'] / inf['p50_ms']:>14.2f}x"
+            f"{inf['p50_ms']:>11.3f}{inf['p99_ms']:>8.3f}{sc['p50_ms'] / inf['p50_ms']:>14.2f}x{cpu_text}"
         )
+    lines.append("  (cpu: this thread's CPU time in the judgement and the policy, waits for a core left out)")
     return lines

@@ -174,11 +174,45 @@ class BenchStep:
         #: the zero command and its reply).
         self.compute_ms: list[float] = []
         self.link_ms: list[float] = []
+        #: Per call: the CPU time this thread spent in the controller's judgement and the policy (ms), which
+        #: time the process waited for a core (a busy machine) does not count in.
+        self.compute_cpu_ms: list[float] = []
+        self._cpu_ns = 0
+        rep = self.repeater
+        rep.controller.judge = self._on_cpu(rep.controller.judge)  # type: ignore[method-assign]
+        rep.policy = self._on_cpu(rep.policy)
+
+    def _on_cpu(self, call: Any) -> Any:
+        """``call`` (a function, or a policy: its ``predict``) adding this thread's CPU time to ``_cpu_ns``."""
+        inner = getattr(call, "predict", call)
+
+        def timed(*args: Any, **kwargs: Any) -> Any:
+            t0 = time.thread_time_ns()
+            try:
+                return inner(*args, **kwargs)
+            finally:
+                self._cpu_ns += time.thread_time_ns() - t0
+
+        if inner is call:
+            return timed
+        return _Timed(call, timed)
 
     def __call__(self) -> Any:
+        self._cpu_ns = 0
         record = self.repeater.step()
         if not record.commanded:  # the identical frame matched the subgoal: cannot happen, say so
             raise RuntimeError(f"the benchmark's repeat ended: {record.status}")
         self.compute_ms.append(record.latency_ms["compute"])
         self.link_ms.append(record.latency_ms["robot"])
+        self.compute_cpu_ms.append(self._cpu_ns / 1e6)
         return record
+
+
+class _Timed:
+    """A policy whose ``predict`` is ``timed``; everything else is the policy's."""
+
+    def __init__(self, policy: Any, timed: Any) -> None:
+        self._policy, self.predict = policy, timed
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._policy, name)

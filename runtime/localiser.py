@@ -110,6 +110,12 @@ def taught_motion(travel_poses: np.ndarray | None, commands: np.ndarray, n: int,
     return out
 
 
+def _mean(x: np.ndarray, axis: int) -> np.ndarray:
+    """``np.mean(x, axis)`` of a float64 array: the same sum and division, without its Python wrappers (the
+    update runs a few of these on a small table every step)."""
+    return np.add.reduce(x, axis=axis) / x.shape[axis]
+
+
 def _shifted(belief: np.ndarray, cells: float) -> np.ndarray:
     """``belief`` moved by ``cells`` (a fraction split between the two cells it falls between), mass kept:
     what would move past either end of the route piles up there (the robot is at the end, not beyond it)."""
@@ -117,8 +123,9 @@ def _shifted(belief: np.ndarray, cells: float) -> np.ndarray:
     whole = math.floor(cells)
     frac = cells - whole
     src = np.arange(n) + whole
-    near = np.bincount(np.clip(src, 0, n - 1), weights=belief * (1.0 - frac), minlength=n)
-    return near + np.bincount(np.clip(src + 1, 0, n - 1), weights=belief * frac, minlength=n)
+    # np.minimum / np.maximum: np.clip's own checks cost more than the clip on these few cells
+    near = np.bincount(np.minimum(np.maximum(src, 0), n - 1), weights=belief * (1.0 - frac), minlength=n)
+    return near + np.bincount(np.minimum(np.maximum(src + 1, 0), n - 1), weights=belief * frac, minlength=n)
 
 
 class RouteLocaliser:
@@ -240,7 +247,7 @@ class RouteLocaliser:
         """Weigh the belief by how well ``view`` (features of the current image) fits each position."""
         win = self.window()
         errors = self.matcher.distances(view, self.feats[win.start : win.stop])
-        best = int(np.argmin(errors))
+        best = int(errors.argmin())
         if self.n < 2:
             self.last = Estimate(0.0, 0.0, 1.0, float(errors[0]), 0, float(errors[0]), 0, errors)
             return self.last
@@ -248,7 +255,7 @@ class RouteLocaliser:
         lo, hi = win.start * k, (win.stop - 1) * k + 1  # cells the window can judge
         expected, gaps = self._expectation(win)  # (cells, window)
         resid = errors[None, :] - expected
-        mean = np.nanmean if gaps else np.mean  # subgoals beyond the band: only in a whole-route window
+        mean = np.nanmean if gaps else _mean  # subgoals beyond the band: only in a whole-route window
         offset = mean(resid, axis=1)
         resid -= offset[:, None]
         sq = mean(resid * resid, axis=1)
@@ -260,15 +267,15 @@ class RouteLocaliser:
         self.belief *= weights
         self._normalise()
         self._wide = False
-        mode = int(np.argmax(self.belief))
+        mode = int(self.belief.argmax())
         span = int(round(3 * k))
         a, b = max(0, mode - span), min(len(self.belief), mode + span + 1)
         local = self.belief[a:b] / self.belief[a:b].sum()
         mean = float(local @ self.cells[a:b])
-        std = float(np.sqrt(max(local @ (self.cells[a:b] - mean) ** 2, 0.0)))
+        std = math.sqrt(max(float(local @ (self.cells[a:b] - mean) ** 2), 0.0))
         near = int(round(CONFIDENT_SPAN * k))
         confidence = float(self.belief[max(0, mode - near) : mode + near + 1].sum())
-        at = int(np.clip(round(mean * k), lo, hi - 1)) - lo
+        at = min(max(round(mean * k), lo), hi - 1) - lo
         self.last = Estimate(
             position=mean,
             std=std,

@@ -91,7 +91,10 @@ def test_latency_smoke_run(tiny_model: Path, tmp_path: Path) -> None:
     assert on_disk["gflop"] == pytest.approx(result["gflop"])
     # each whole step's compute apart from its link, and the budget judged on vtr repeat's default step
     for name, c in result["stages"]["compute"].items():
-        assert c["step_compute"]["n"] == c["link"]["n"] == 3 and c["inference"]["n"] == 3
+        assert (
+            c["step_compute"]["n"] == c["link"]["n"] == c["step_compute_cpu"]["n"] == c["inference"]["n"] == 3
+        )
+        assert 0 < c["step_compute_cpu"]["p50_ms"]
         assert 0 < c["step_compute"]["p50_ms"] < stages[name]["p99_ms"] and c["link"]["p50_ms"] > 0
     default = result["stages"]["compute"][latency_report.DEFAULT_VARIANT]["step_compute"]
     assert result["ratios"]["step_compute_p99_ms"] == default["p99_ms"]

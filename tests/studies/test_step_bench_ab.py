@@ -25,7 +25,9 @@ def test_the_ab_script_splits_each_step_into_compute_and_link(tiny: tuple[str, s
     model, route = tiny
     out = step_bench_ab.split(route, model, steps=3, warmup=1)
     assert set(out) == {"inference"} | {
-        f"{v}.{part}" for v in ("raw", "patch", "light") for part in ("step", "compute", "link")
+        f"{v}.{part}"
+        for v in ("raw", "patch", "light")
+        for part in ("step", "compute", "link", "compute_cpu")
     }
     assert all(0 < v["p50_us"] <= v["p99_us"] for v in out.values())
     assert out["light.compute"]["p50_us"] < out["light.step"]["p99_us"]
