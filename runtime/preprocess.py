@@ -73,7 +73,8 @@ def _standardise_planes(x: np.ndarray) -> np.ndarray:
 
 
 def to_nchw(images: np.ndarray, preprocessing: str = PREPROCESSING) -> np.ndarray:
-    """uint8 RGB images (H, W, 3) or (B, H, W, 3) -> float32 (B, 3, H, W): in [0, 1], then ``normalise``d."""
+    """uint8 RGB images (H, W, 3) or (B, H, W, 3) -> float32 (B, 3, H, W): in [0, 1], then ``normalise``d
+    (:func:`input_into` of their levels: the runtime's one encoder)."""
     if images.dtype != np.uint8:
         raise ValueError(f"expected uint8 RGB images, got dtype {images.dtype}")
     if images.ndim == 3:
@@ -81,9 +82,8 @@ def to_nchw(images: np.ndarray, preprocessing: str = PREPROCESSING) -> np.ndarra
     if images.ndim != 4 or images.shape[-1] != 3:
         raise ValueError(f"expected (H, W, 3) or (B, H, W, 3) RGB images, got shape {images.shape}")
     # C order: onnxruntime copies a tensor that is not contiguous on every run (about 13 us at 128x128)
-    out = images.transpose(0, 3, 1, 2).astype(np.float32, order="C")
-    out *= _SCALE
-    return normalise(out, preprocessing, in_place=True)
+    levels = images.transpose(0, 3, 1, 2).astype(np.float32, order="C")
+    return input_into(levels, levels, preprocessing)
 
 
 def planar_levels(image: Frame | np.ndarray) -> np.ndarray:
@@ -93,11 +93,11 @@ def planar_levels(image: Frame | np.ndarray) -> np.ndarray:
 
 
 def input_into(levels: np.ndarray, out: np.ndarray, preprocessing: str = PREPROCESSING) -> np.ndarray:
-    """float32 (3, H, W) holding uint8 levels (a Frame's) -> the network's (1, 3, H, W) input, written into
-    ``out`` (float32 (3, H, W), C order) and equal to ``to_nchw`` of those levels as a uint8 image: the
-    same products, then ``normalise`` in place."""
+    """float32 (3, H, W) or (B, 3, H, W) holding uint8 levels (a Frame's) -> the network's (B, 3, H, W) input,
+    written into ``out`` (float32 of the same shape, C order; ``levels`` itself will do): the one encoder of
+    images for the network, ``to_nchw``'s and the policy's (uint8 / 255, then ``normalise`` in place)."""
     np.multiply(levels, _SCALE, out=out)
-    return normalise(out[None], preprocessing, in_place=True)
+    return normalise(out.reshape(-1, *out.shape[-3:]), preprocessing, in_place=True)
 
 
 def image_error(a: np.ndarray, b: np.ndarray) -> float:
