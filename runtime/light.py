@@ -10,11 +10,11 @@ seeing images lit as in training. It leaves geometry alone: where things are in 
 
 ``LightMatchedPolicy`` wraps any policy (``predict(current, subgoal)``) with it: what `vtr repeat`'s default
 profile runs (``--profile paper`` leaves it out). A model trained with augmentation and ``STANDARDISED``
-preprocessing needs it less. The wrapper works on planar float32 (3, H, W), the layout the network takes, and hands the
-result to the policy as a frame of those levels (``Frame.from_levels``) without a uint8 round trip: the values are those of
-``to_nchw(match_statistics(remove_side_ramp(current)))`` exactly. About 0.07 ms per step on 128x128 (0.17 ms
-before, 1.4 ms before its reductions went through BLAS; the condition-suite results were measured with
-those versions, whose float32 channel statistics rounded where these are exact: 0.35% of pixels one level
+preprocessing needs it less. The wrapper works on planar float32 (3, H, W), the layout the network takes, and
+hands the result to the policy as a frame of those levels (``Frame.from_levels``) without a uint8 round trip:
+the values are those of ``to_nchw(match_statistics(remove_side_ramp(current)))`` exactly. About 0.07 ms per
+step on 128x128 (0.17 ms before, 1.4 ms before its reductions went through BLAS; the condition-suite results
+were measured with those versions, whose float32 channel statistics rounded where these are exact: 0.35% of pixels one level
 apart, benchmarks/README.md).
 """
 
@@ -168,8 +168,8 @@ def matched_planar(
     out: np.ndarray | None = None,
     scratch: np.ndarray | None = None,
 ) -> np.ndarray:
-    """float32 (3, H, W): ``current`` (a frame, or uint8 (H, W, 3)) recoloured to ``reference``, in 0..255 levels:
-    the values of ``match_statistics(remove_side_ramp(current))``, planar and in float32. ``out`` and
+    """float32 (3, H, W): ``current`` (a frame, or uint8 (H, W, 3)) recoloured to ``reference``, in 0..255
+    levels: the values of ``match_statistics(remove_side_ramp(current))``, planar and in float32. ``out`` and
     ``scratch`` (float32 (3, H, W)) are reused buffers; the result is ``out``."""
     levels = planar_levels(current)  # a frame's own levels: the controller's matcher used them already
     if side_ramp:
