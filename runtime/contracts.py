@@ -65,7 +65,8 @@ class Observation:
     image: (H, W, 3) uint8 RGB (as a checked :class:`~vtr.runtime.frame.Frame`: :attr:`frame`). stamp: the
     robot's clock in seconds (simulated time for the simulator). pose: ground-truth (x, y, yaw) in
     metres/radians when the other side knows it, else None (the repeat never uses it; evaluation scores with
-    it). collided: the robot touched something on the way. scan: the range reading taken with the image, when the robot has a scanner (None: camera only).
+    it). collided: the robot touched something on the way. scan: the range reading taken with the image, when
+    the robot has a scanner (None: camera only).
     """
 
     image: np.ndarray

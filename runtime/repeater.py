@@ -4,10 +4,10 @@ they differ only in the robot they hand it and in what they do with each :class:
 
 One :meth:`Repeater.step`: check the observation (its frame was checked once, where it was made), let the
 controller judge the frame (``runtime.follower`` by default: where the robot is and which subgoal to steer to;
-its subgoal changes come back as events), run the policy, take off its command on the subgoal itself (the zero bias, computed once per subgoal when the route is
-loaded), blend in the taught command (the controller's feed-forward), clip to the model's and the robot's
-limits, let the range scan's zones stop or slow it (``runtime.safety``), apply that (v, w) for dt, command
-zero unless continuous.
+its subgoal changes come back as events), run the policy, take off its command on the subgoal itself (the zero
+bias, computed once per subgoal when the route is loaded), blend in the taught command (the controller's
+feed-forward), clip to the model's and the robot's limits, let the range scan's zones stop or slow it
+(``runtime.safety``), apply that (v, w) for dt, command zero unless continuous.
 
 Safety rules, in order of precedence:
 
