@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from vtr.runtime.frame import Frame
 from vtr.runtime.matching import Matcher
 
 
@@ -243,8 +244,11 @@ class RouteLocaliser:
     def _mode(self) -> float:
         return float(self.cells[int(np.argmax(self.belief))])
 
-    def update(self, view: np.ndarray) -> Estimate:
-        """Weigh the belief by how well ``view`` (features of the current image) fits each position."""
+    def update(self, view: Frame | np.ndarray) -> Estimate:
+        """Weigh the belief by how well ``view`` fits each position: a frame, or the current image's features
+        from the localiser's matcher (``matcher.features(frame)``, which a caller may need for more)."""
+        if isinstance(view, Frame):
+            view = self.matcher.features(view)
         win = self.window()
         errors = self.matcher.distances(view, self.feats[win.start : win.stop])
         best = int(errors.argmin())

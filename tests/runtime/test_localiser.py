@@ -88,3 +88,13 @@ def test_a_move_keeps_the_belief_where_the_route_is_and_piles_only_what_passes_a
     loc.start_at(12.0)  # the last subgoal: a move forward stays there
     loc.predict(0.25, 0.0, 0.1)
     assert float(loc.belief @ loc.cells) == pytest.approx(12.0, abs=0.15)
+
+
+def test_a_frame_is_weighed_as_its_features_are():
+    from vtr.runtime.frame import as_frame
+
+    by_frame, by_features = _localiser(), _localiser()
+    for x in (0.1, 0.1125, 0.125):
+        a, b = by_frame.update(as_frame(render(x))), by_features.update(_view(x))
+        assert (a.position, a.confidence, a.best) == (b.position, b.confidence, b.best)
+        assert np.array_equal(a.errors, b.errors)
