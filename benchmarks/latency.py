@@ -114,6 +114,7 @@ def bench_stages(cfg: LatencyConfig, current: np.ndarray, route: np.ndarray) -> 
     round-robin with inference on its own policy (``pairs``; its ratio is judged against that inference):
     a daemon runs one onnxruntime session, not four taking turns in the cache."""
     from vtr.benchmarks.step_bench import BenchStep
+    from vtr.runtime.frame import Frame, as_frame
     from vtr.runtime.light import LightMatchedPolicy
     from vtr.runtime.matching import MatchConfig
     from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
@@ -132,17 +133,21 @@ def bench_stages(cfg: LatencyConfig, current: np.ndarray, route: np.ndarray) -> 
     matcher = step.repeater.controller.matcher
     subgoal_features = matcher.features(subgoal)  # cached per subgoal by the controller
     light_policy = LightMatchedPolicy(policy)
+    pixels, goal = as_frame(current).image, as_frame(subgoal)  # read-only pixels; the subgoal's frame, kept
+
+    def fresh() -> Frame:
+        """A new frame of the current image, as each step's is: the stages below each make its planar levels
+        (~15 us at 128x128), which the whole step makes once for all of them."""
+        return Frame.decoded(pixels)
 
     stages = time_interleaved(
         {
             "frame_decode": robot.decode,
-            # the stages below each convert the (writeable) frame to planar float32 (~15 us at 128x128);
-            # the whole step converts its decoded (read-only) frame once for all of them
-            "preprocess": lambda: policy.preprocess(current, subgoal),
+            "preprocess": lambda: policy.preprocess(fresh(), goal),
             "inference": lambda: policy.infer(feeds),
             "image_error": lambda: image_error(current, subgoal),
-            "matching": lambda: matcher.distance(matcher.features(current), subgoal_features),
-            "light_matching": lambda: light_policy.match(current, subgoal),
+            "matching": lambda: matcher.distance(matcher.features(fresh()), subgoal_features),
+            "light_matching": lambda: light_policy.match(fresh(), goal),
             "command_encode": lambda: robot.encode_command(0.1, -0.2),
         },
         cfg.steps,
