@@ -146,7 +146,9 @@ def config_from_settings(values: Resolved | Mapping[str, Any]) -> RepeatRunConfi
         timeout_s=values["repeat.timeout"],
         start="route" if values["repeat.start"] == "route" else "here",
         match_light=profile.match_light,
-        repeat=RepeatConfig(controller=controller, safety=safety, wait_s=values["repeat.wait"]),
+        repeat=RepeatConfig(
+            controller=controller, safety=safety, wait_s=values["repeat.wait"], speed=values["repeat.speed"]
+        ),
     )
 
 

@@ -64,6 +64,9 @@ class RepeatConfig:
     safety: SafetyConfig = field(default_factory=SafetyConfig)
     #: Seconds to wait for the way to clear when something is in it, before the run ends as ``blocked``.
     wait_s: float = 10.0
+    #: Fraction of the commanded speed driven (taught pace, VelocityNet and limits alike): a careful first
+    #: repeat at 0.5. The arc each command drives is the same; the route takes 1/speed the time.
+    speed: float = 1.0
 
     def __post_init__(self) -> None:
         if self.dt is not None and not (math.isfinite(self.dt) and self.dt > 0):
@@ -74,6 +77,8 @@ class RepeatConfig:
             raise ValueError(f"frame_timeout_s must be > 0 seconds, got {self.frame_timeout_s}")
         if not (math.isfinite(self.wait_s) and self.wait_s >= 0):
             raise ValueError(f"wait_s must be >= 0 seconds, got {self.wait_s}")
+        if not (math.isfinite(self.speed) and 0 < self.speed <= 1):
+            raise ValueError(f"speed must be in (0, 1], got {self.speed}")
         if self.bad_frame_backoff_s < 0:
             raise ValueError(f"bad_frame_backoff_s must be >= 0, got {self.bad_frame_backoff_s}")
 

@@ -117,7 +117,9 @@ class Repeater:
         self.on_step = on_step
         self.stop_event = stop_event or threading.Event()
         # a lost robot must stop; a long route must not be cut short
-        self.max_steps = self.config.max_steps or STEPS_PER_SUBGOAL * len(route) + 50
+        self.max_steps = self.config.max_steps or math.ceil(
+            (STEPS_PER_SUBGOAL * len(route) + 50) / self.config.speed
+        )
         self.steps = 0
         self.bad_frames = 0
         self.status: RepeatStatus | None = None
@@ -274,6 +276,7 @@ class Repeater:
         if decision.prior is not None:  # the taught command into the subgoal, blended in
             a, b, pv, pw = decision.prior
             v, w = (1 - a) * v + a * pv, (1 - b) * w + b * pw
+        v, w = v * self.config.speed, w * self.config.speed  # the same arc, slower
         v_max = min(decision.v_limit, self._v_max)  # v_limit 0: no translation in a taught turn in place
         v, w = max(-v_max, min(v_max, v)), max(-self._w_max, min(self._w_max, w))
         guard = limit_twist(
