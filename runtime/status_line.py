@@ -143,7 +143,6 @@ class RepeatStatusLine:
         self.confidence = confidence or (lambda: None)
         self.line = line or LiveLine()
         self._t0: tuple[float | None, float] | None = None
-        self._waiting_since: float | None = None
 
     def _elapsed(self, stamp: float | None) -> float:
         now = time.monotonic()
@@ -158,12 +157,7 @@ class RepeatStatusLine:
         if not self.line.enabled:
             return
         elapsed = self._elapsed(record.stamp)
-        waiting = record.status is None and not record.commanded and "waiting" in record.detail
-        if waiting and self._waiting_since is None:
-            self._waiting_since = elapsed
-        elif not waiting:
-            self._waiting_since = None
-        waited = elapsed - self._waiting_since if self._waiting_since is not None else None
+        waited = getattr(record, "waited_s", None)
         text = repeat_status(
             record, self.total, elapsed, self.taught_s, self.confidence(), waited, self.wait_s
         )
@@ -195,10 +189,10 @@ class Progress:
     ``close()`` at the end (or use it as a context manager)."""
 
     def __init__(
-        self, label: str, total: int | None = None, quiet: bool = False, line: LiveLine | None = None
+        self, label: str, total: int | None = None, quiet: bool = False, stream: TextIO | None = None
     ) -> None:
         self.label, self.total, self.done = label, total, 0
-        self.line = line or LiveLine(enabled=False if quiet else None)
+        self.line = LiveLine(stream, enabled=False if quiet else None)
         self._t0 = time.monotonic()
         self.line.show(progress_text(label, 0, total, 0.0), force=True)
 
