@@ -96,7 +96,7 @@ def write_run_plots(run: RecordedRun, route: Route, out_dir: Path, stem: str) ->
         fig, (ax_v, ax_w) = plt.subplots(2, 1, figsize=(7, 4.5), sharex=True)
         ax_v.step(run.times, run.commands[:, 0], where="post", lw=0.8, color="tab:green")
         ax_v.set_ylabel("v (m/s)")
-        ax_v.set_title(f"{stem}: commands ({len(run.commands)} control steps)")
+        ax_v.set_title(f"{stem}: commands ({len(run.commands)} steps recorded)")
         ax_w.step(run.times, run.commands[:, 1], where="post", lw=0.8, color="tab:orange")
         ax_w.set_ylabel("w (rad/s)")
         ax_w.set_xlabel("time (s)")

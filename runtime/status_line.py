@@ -100,16 +100,18 @@ def repeat_status(
     waited_s: float | None = None,
     wait_s: float | None = None,
 ) -> str:
-    """The status line of one step record (runtime.repeat_types.StepRecord): subgoal i/N, the image match,
-    the localiser's confidence when there is one, the command, time against the teach's; a wait for the way to
-    clear (``waited_s`` of ``wait_s``) or the end of the run instead of the command."""
-    subgoal = min(int(record.subgoal), total)
-    parts = [f"subgoal {subgoal}/{total}"]
+    """The status line of one step record (runtime.repeat_types.StepRecord): the subgoal steered to (i/N,
+    from 1; N/N once finished), the image match (the record's error), the localiser's confidence when there is
+    one, the command, time against the teach's; a wait for the way to clear (``waited_s`` of ``wait_s``) or the
+    end of the run instead of the command."""
+    status = getattr(record, "status", None)
+    finished = status is not None and status.value == "finished"
+    shown = total if finished else min(int(record.subgoal) + 1, total)  # counted from 1, as a person would
+    parts = [f"subgoal {shown}/{total}"]
     if math.isfinite(record.error):
-        parts.append(f"match {record.error:.1f}")
+        parts.append(f"match {record.error:.3g}")  # raw 0..255 or matcher units
     if confidence is not None and math.isfinite(confidence):
         parts.append(f"confidence {confidence:.2f}")
-    status = getattr(record, "status", None)
     if status is not None:
         parts.append(f"ended: {status.value}")
     elif waited_s is not None:

@@ -52,10 +52,10 @@ def record(**kw) -> StepRecord:
 def test_the_repeat_status_names_subgoal_match_confidence_command_and_time_against_the_teach():
     text = repeat_status(record(), total=10, elapsed_s=4.0, taught_s=8.0, confidence=0.87)
     assert (
-        text == "subgoal 4/10  match 12.3  confidence 0.87  v +0.20 m/s  w -0.05 rad/s  4.0 s of 8.0 s taught"
+        text == "subgoal 5/10  match 12.3  confidence 0.87  v +0.20 m/s  w -0.05 rad/s  4.0 s of 8.0 s taught"
     )
     bare = repeat_status(record(error=math.nan, v=-0.0001), total=10, elapsed_s=1.25)
-    assert bare == "subgoal 4/10  v +0.00 m/s  w -0.05 rad/s  1.2 s"  # no match, no localiser, no taught time
+    assert bare == "subgoal 5/10  v +0.00 m/s  w -0.05 rad/s  1.2 s"  # no match, no localiser, no taught time
 
 
 def test_a_wait_and_the_end_replace_the_command():
@@ -109,7 +109,7 @@ def test_the_repeat_line_follows_the_robot_clock_and_always_shows_the_end():
     status(record(stamp=3.5, commanded=False, status=RepeatStatus.FINISHED))
     status.close()
     out = term.getvalue()
-    assert "\rsubgoal 4/10  match 12.3  confidence 0.50  v +0.20" in out
+    assert "\rsubgoal 5/10  match 12.3  confidence 0.50  v +0.20" in out
     assert "ended: finished  2.5 s of 8.0 s taught" in out and out.endswith("\n")
 
 
