@@ -186,19 +186,18 @@ def run(cfg: SuiteConfig) -> dict[str, Any]:
     t0 = time.perf_counter()
     runs: list[dict[str, Any]] = []
 
-    progress = Progress("condition suite (route x condition)", len(tasks))  # stderr, a terminal only
-    if cfg.workers > 1 and len(tasks) > 1:
-        from vtr.evaluation.pool import process_pool
+    with Progress("condition suite (route x condition)", len(tasks)) as progress:  # stderr, a terminal only
+        if cfg.workers > 1 and len(tasks) > 1:
+            from vtr.evaluation.pool import process_pool
 
-        with process_pool(cfg.workers) as ex:  # Ctrl-C stops it at once
-            for (path, cond, _), out in zip(tasks, ex.map(evaluate_task, tasks), strict=True):
-                runs += out
+            with process_pool(cfg.workers) as ex:  # Ctrl-C stops it at once
+                for (path, cond, _), out in zip(tasks, ex.map(evaluate_task, tasks), strict=True):
+                    runs += out
+                    progress.advance(f"{path.stem} {cond}")
+        else:
+            for path, cond, c in tasks:
+                runs += evaluate_task((path, cond, c))
                 progress.advance(f"{path.stem} {cond}")
-    else:
-        for path, cond, c in tasks:
-            runs += evaluate_task((path, cond, c))
-            progress.advance(f"{path.stem} {cond}")
-    progress.close()
     result = {
         "config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
         "routes": [p.stem for p in paths],

@@ -240,18 +240,18 @@ def run(cfg: HouseSuiteConfig, progress: bool = True) -> dict[str, Any]:
         if cfg.json_path is not None and len(routes) < len(tasks):
             _write(cfg, _result(cfg, routes, len(tasks), t0))
 
-    if cfg.workers > 1 and len(tasks) > 1:
-        from concurrent.futures import as_completed
+    with line:
+        if cfg.workers > 1 and len(tasks) > 1:
+            from concurrent.futures import as_completed
 
-        from vtr.evaluation.pool import process_pool
+            from vtr.evaluation.pool import process_pool
 
-        with process_pool(min(cfg.workers, len(tasks))) as ex:  # Ctrl-C stops it at once
-            for fut in as_completed([ex.submit(evaluate_route, t) for t in tasks]):
-                finished(fut.result())
-    else:
-        for t in tasks:
-            finished(evaluate_route(t))
-    line.close()
+            with process_pool(min(cfg.workers, len(tasks))) as ex:  # Ctrl-C stops it at once
+                for fut in as_completed([ex.submit(evaluate_route, t) for t in tasks]):
+                    finished(fut.result())
+        else:
+            for t in tasks:
+                finished(evaluate_route(t))
     result = _result(cfg, routes, len(tasks), t0)
     if cfg.json_path is not None:
         _write(cfg, result)

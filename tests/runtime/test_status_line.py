@@ -166,3 +166,15 @@ def test_vtr_repeat_is_quiet_when_stderr_is_not_a_terminal(policy_path, tmp_path
         argv = ["repeat", "--sim", server.endpoint, "--model", policy_path, "--route", str(route)]
         assert main([*argv, "--profile", "paper"]) == 0
     assert "subgoal" not in capsys.readouterr().err
+
+
+def test_a_wait_for_a_blocked_way_counts_up_on_the_record_and_the_line():
+    from test_follower import WithScan, _run
+
+    rep, records = _run(WithScan(box_x=0.55), wait_s=2.0)
+    waits = [r.waited_s for r in records if r.waited_s is not None]
+    assert rep.status is RepeatStatus.BLOCKED and len(waits) >= 20
+    assert waits == sorted(waits) and waits[0] == 0.0 and 1.5 < waits[-1] < 2.0
+    assert all(r.waited_s is None for r in records if r.commanded)
+    text = repeat_status(records[-2], 9, 3.0, waited_s=records[-2].waited_s, wait_s=2.0)
+    assert f"waiting: way blocked ({waits[-1]:.1f} s of 2 s)" in text
