@@ -21,7 +21,6 @@ import argparse
 import math
 import os
 import time
-from concurrent.futures import as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -250,7 +249,7 @@ def run(cfg: EvalConfig) -> dict[str, Any]:
         if cfg.workers > 1 and len(files) > 1:
             with process_pool(min(cfg.workers, len(files))) as ex:  # Ctrl-C stops it at once
                 futures = {ex.submit(evaluate_route, f, cfg): f for f in files}
-                for done in as_completed(futures):
+                for done in progress.as_completed(futures):
                     progress.advance(futures[done].stem)
                 routes = [f.result() for f in futures]
         else:

@@ -13,8 +13,11 @@ import math
 import shutil
 import sys
 import time
-from collections.abc import Callable
-from typing import Any, TextIO
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, wait
+from typing import Any, TextIO, TypeVar
+
+T = TypeVar("T")
 
 #: Seconds between rewrites of the line (a lockstep simulator steps far faster than anyone reads).
 REFRESH_S = 0.1
@@ -196,6 +199,7 @@ class Progress:
         self.label, self.total, self.done = label, total, 0
         self.line = LiveLine(stream, enabled=False if quiet else None)
         self._t0 = time.monotonic()
+        self._what = ""
         self.line.show(progress_text(label, 0, total, 0.0), force=True)
 
     def advance(self, what: str = "", n: int = 1) -> None:
@@ -205,9 +209,20 @@ class Progress:
     def start(self, what: str) -> None:
         self.show(f"{what} ...", force=True)
 
-    def show(self, what: str = "", force: bool = False) -> None:
+    def show(self, what: str | None = None, force: bool = False) -> None:
+        """The line now (``what`` None: the last one said, with the clock moved on)."""
+        self._what = self._what if what is None else what
         elapsed = time.monotonic() - self._t0
-        self.line.show(progress_text(self.label, self.done, self.total, elapsed, what), force=force)
+        self.line.show(progress_text(self.label, self.done, self.total, elapsed, self._what), force=force)
+
+    def as_completed(self, futures: Iterable[Future[T]], every_s: float = 1.0) -> Iterator[Future[T]]:
+        """``futures`` as they finish, the clock on the line moving on while none does (pool workers)."""
+        pending = set(futures)
+        while pending:
+            done, pending = wait(pending, timeout=every_s, return_when=FIRST_COMPLETED)
+            if not done:
+                self.show()
+            yield from done
 
     def close(self) -> None:
         self.line.close()

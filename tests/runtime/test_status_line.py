@@ -178,3 +178,15 @@ def test_a_wait_for_a_blocked_way_counts_up_on_the_record_and_the_line():
     assert all(r.waited_s is None for r in records if r.commanded)
     text = repeat_status(records[-2], 9, 3.0, waited_s=records[-2].waited_s, wait_s=2.0)
     assert f"waiting: way blocked ({waits[-1]:.1f} s of 2 s)" in text
+
+
+def test_progress_yields_futures_as_they_finish_and_moves_its_clock_meanwhile():
+    import time
+    from concurrent.futures import ThreadPoolExecutor
+
+    term = Terminal()
+    with ThreadPoolExecutor(2) as ex, Progress("vtr eval", 2, stream=term) as progress:
+        futures = [ex.submit(time.sleep, 0.5), ex.submit(lambda: 7)]
+        finished = [f.result() for f in progress.as_completed(futures, every_s=0.1)]
+    assert sorted(finished, key=str) == [7, None]
+    assert term.getvalue().count("vtr eval: 0/2") + term.getvalue().count("vtr eval: 1/2") >= 3  # ticks
