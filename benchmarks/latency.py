@@ -240,7 +240,7 @@ def run(cfg: LatencyConfig) -> dict[str, Any]:
     current, route = sample_route(h, w)
     x, y = to_nchw(current), to_nchw(route[0])
     flops = count_flops(cfg.model)
-    progress = Progress("vtr bench latency", total=6)  # one live line on stderr, a terminal only
+    progress = Progress("vtr bench latency", total=6, eta=False)  # one live line on stderr, a terminal only
 
     def measured(name: str, measure: Callable[[], Any]) -> Any:
         progress.start(name)

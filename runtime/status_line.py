@@ -175,10 +175,13 @@ class RepeatStatusLine:
 # ------------------------------------------------------------------------------------ eval, bench
 
 
-def progress_text(label: str, done: int, total: int | None, elapsed_s: float, last: str = "") -> str:
-    """``label: done/total (pct) elapsed[, about R left][: last]``."""
+def progress_text(
+    label: str, done: int, total: int | None, elapsed_s: float, last: str = "", eta: bool = True
+) -> str:
+    """``label: done/total (pct) elapsed[, about R left][: last]`` (the time left where the pieces are alike:
+    ``eta``)."""
     if total:
-        left = elapsed_s / done * (total - done) if done else None
+        left = elapsed_s / done * (total - done) if done and eta else None
         text = f"{label}: {done}/{total} ({100 * done / total:.0f}%), {_seconds(elapsed_s)}"
         if left is not None and done < total:
             text += f", about {_seconds(left)} left"
@@ -190,13 +193,18 @@ def progress_text(label: str, done: int, total: int | None, elapsed_s: float, la
 class Progress:
     """Done/total of a long job on a :class:`LiveLine` (stderr, a terminal only; ``quiet`` silences it).
 
-    ``advance(what)`` after each finished piece; ``start(what)`` before a long one whose count is not known;
-    ``close()`` at the end (or use it as a context manager)."""
+    ``advance(what)`` after each finished piece; ``start(what)`` before a long one; ``close()`` at the end (or
+    use it as a context manager). ``eta``: say the time left, for pieces that take about as long as each other."""
 
     def __init__(
-        self, label: str, total: int | None = None, quiet: bool = False, stream: TextIO | None = None
+        self,
+        label: str,
+        total: int | None = None,
+        quiet: bool = False,
+        stream: TextIO | None = None,
+        eta: bool = True,
     ) -> None:
-        self.label, self.total, self.done = label, total, 0
+        self.label, self.total, self.done, self.eta = label, total, 0, eta
         self.line = LiveLine(stream, enabled=False if quiet else None)
         self._t0 = time.monotonic()
         self._what = ""
@@ -213,7 +221,8 @@ class Progress:
         """The line now (``what`` None: the last one said, with the clock moved on)."""
         self._what = self._what if what is None else what
         elapsed = time.monotonic() - self._t0
-        self.line.show(progress_text(self.label, self.done, self.total, elapsed, self._what), force=force)
+        text = progress_text(self.label, self.done, self.total, elapsed, self._what, self.eta)
+        self.line.show(text, force=force)
 
     def as_completed(self, futures: Iterable[Future[T]], every_s: float = 1.0) -> Iterator[Future[T]]:
         """``futures`` as they finish, the clock on the line moving on while none does (pool workers)."""

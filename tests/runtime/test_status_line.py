@@ -119,6 +119,9 @@ def test_progress_text_and_its_line():
         "vtr eval: 1/4 (25%), 10.0 s, about 30.0 s left: square"
     )
     assert progress_text("vtr bench latency", 2, None, 3.0) == "vtr bench latency: 2 done, 3.0 s"
+    assert progress_text("vtr bench latency", 1, 6, 3.0, "stages", eta=False) == (
+        "vtr bench latency: 1/6 (17%), 3.0 s: stages"
+    )
     term = Terminal()
     with Progress("vtr eval", 2, stream=term) as progress:
         progress.advance("a")
