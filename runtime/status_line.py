@@ -30,10 +30,7 @@ class LiveLine:
 
     def __init__(self, stream: TextIO | None = None, enabled: bool | None = None, every_s: float = REFRESH_S):
         self.stream = stream if stream is not None else sys.stderr
-        if enabled is None:
-            isatty = getattr(self.stream, "isatty", None)
-            enabled = bool(isatty and isatty())
-        self.enabled = enabled
+        self.enabled = _is_terminal(self.stream) if enabled is None else enabled
         self.every_s = every_s
         self._shown = False
         self._last = -math.inf
@@ -45,25 +42,37 @@ class LiveLine:
             return
         self._last = now
         width = shutil.get_terminal_size((100, 24)).columns - 1
-        self.stream.write("\r" + text[:width] + "\x1b[K")  # clear what a longer line left behind
-        self.stream.flush()
-        self._shown = True
+        self._write("\r" + text[:width] + "\x1b[K")  # clear what a longer line left behind
+        self._shown = self.enabled
 
     def print(self, text: str) -> None:
         """A line that stays (a finished run), printed above the live one."""
         if not self.enabled:
             return
-        self.stream.write("\r\x1b[K" + text + "\n")
-        self.stream.flush()
+        self._write("\r\x1b[K" + text + "\n")
         self._shown = False
         self._last = -math.inf
 
     def close(self) -> None:
         """End the live line so that what is printed next starts on a line of its own."""
         if self._shown:
-            self.stream.write("\n")
-            self.stream.flush()
+            self._write("\n")
             self._shown = False
+
+    def _write(self, text: str) -> None:
+        """Write, or fall silent for good: a closed terminal must not end what the line only shows."""
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (OSError, ValueError):
+            self.enabled = False
+
+
+def _is_terminal(stream: Any) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, OSError, ValueError):  # no such method, or a closed stream
+        return False
 
 
 # ------------------------------------------------------------------------------------ vtr repeat

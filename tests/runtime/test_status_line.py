@@ -100,6 +100,15 @@ def test_the_line_is_written_only_to_a_terminal():
     assert out.startswith("\rxxx") and out.endswith("\x1b[K\n") and "too soon" not in out
     assert len(out) < 500  # cut to the terminal's width: a wrapped line cannot be overwritten
     assert LiveLine(Terminal(), enabled=False).enabled is False
+    gone = Terminal()
+    gone.close()  # the terminal went away: the line falls silent instead of ending the run
+    closed = LiveLine(gone)
+    closed.show("subgoal 1/2", force=True)
+    closed.close()
+    assert closed.enabled is False
+    shut = io.StringIO()
+    shut.close()
+    assert LiveLine(shut).enabled is False and LiveLine(object()).enabled is False  # type: ignore[arg-type]
 
 
 def test_the_repeat_line_follows_the_robot_clock_and_always_shows_the_end():
