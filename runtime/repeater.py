@@ -14,10 +14,10 @@ Safety rules, in order of precedence:
 - zero velocity is commanded when the run ends for any reason: finished, stalled, step limit, an
   interrupt (``stop_event`` or KeyboardInterrupt), a robot error, no valid frame in time, or any other
   exception (re-raised after the stop);
-- a frame that fails validation (``BadFrameError`` from the client, or a wrong shape/dtype or a
-  non-finite stamp from any Robot), the reply to the zero command between steps included, is counted
-  and never reaches the policy: the robot is stopped and
-  re-polled with ``observe`` until a valid frame arrives, or ``frame_timeout_s`` passes without one;
+- a frame that fails validation (``BadFrameError`` from the client, or a wrong shape/dtype or a non-finite
+  stamp from any Robot), the reply to the zero command between steps included, is counted and never reaches
+  the policy: the robot is stopped and re-polled with ``observe`` until a valid frame arrives, or
+  ``frame_timeout_s`` passes without one; ``missed_replies`` step replies in a row too late end the run;
 - the step limit ends a run whose robot is lost.
 
 How a run ends is a :class:`RepeatStatus` (its docstring lists when each is produced). Something in the way
@@ -37,6 +37,7 @@ import numpy as np
 from vtr.runtime.contracts import CONTROL_DT, Observation, Policy, Robot
 from vtr.runtime.controller import Action, Verdict
 from vtr.runtime.follower import RouteController, controller_for_route
+from vtr.runtime.missed_replies import MissedReplies
 from vtr.runtime.protocol import BadFrameError
 from vtr.runtime.repeat_types import RepeatConfig, RepeatStatus, StepRecord, Summary
 from vtr.runtime.robot import RobotError, safe_stop
@@ -59,10 +60,6 @@ def _status_of(value: str, default: RepeatStatus) -> RepeatStatus:
         return RepeatStatus(value)
     except ValueError:
         return default
-
-
-#: Default step limit per subgoal (plus 50): 4x the taught control steps, as subgoals are 2 steps apart.
-STEPS_PER_SUBGOAL = 8
 
 
 class Repeater:
@@ -116,10 +113,7 @@ class Repeater:
         self._w_max = min([math.inf, *(float(b.w_max) for b in bounds)])
         self.on_step = on_step
         self.stop_event = stop_event or threading.Event()
-        # a lost robot must stop; a long route must not be cut short
-        self.max_steps = self.config.max_steps or math.ceil(
-            (STEPS_PER_SUBGOAL * len(route) + 50) / self.config.speed
-        )
+        self.max_steps = self.config.step_limit(len(route))
         self.steps = 0
         self.bad_frames = 0
         self.status: RepeatStatus | None = None
@@ -138,18 +132,16 @@ class Repeater:
         #: Zero steps held while something was in the way; when the current wait began (robot clock, wall).
         self.waited_steps = 0
         self._blocked_since: tuple[float, float] | None = None
+        self._missed = MissedReplies(self.config.missed_replies)  # step replies too late, in a row
 
     def _self_bias(self, weight: float) -> np.ndarray | None:
         """(L, 2) ``weight * policy(S, S)`` per subgoal S, or None when off: what the network commands with the
         robot already on the subgoal, taken off every command toward it (ControllerConfig.zero_bias)."""
         if weight <= 0:
             return None
-        images = self.route.images
+        predict, images = self.policy.predict, self.route.images
         return weight * np.array(
-            [
-                np.asarray(self.policy.predict(images[k], view), np.float64)[:2, 0]
-                for k, view in enumerate(self._views)
-            ]
+            [np.asarray(predict(images[k], v), np.float64)[:2, 0] for k, v in enumerate(self._views)]
         )
 
     @property
@@ -257,6 +249,8 @@ class Repeater:
         obs = self._obs
         if self.stop_event.is_set():
             return self._end(RepeatStatus.INTERRUPTED)
+        if self._missed.too_slow:  # each step was stopped already; another would only creep on
+            return self._end(RepeatStatus.ROBOT_TOO_SLOW, self._missed.describe(self.dt))
         t0 = time.perf_counter()
         verdict = self.controller.judge(obs.image, obs.collided)
         t_error = time.perf_counter()
@@ -291,7 +285,7 @@ class Repeater:
         stage["error"] = (t_error - t0) * 1e3
         stage["policy"] = (t_policy - t_error) * 1e3
         stage["compute"] = (t_policy - t0) * 1e3
-        new_obs = self._fetch(lambda: self.robot.step(v, w, self.dt))
+        new_obs = self._fetch(self._missed.watch(lambda: self.robot.step(v, w, self.dt)))
         self.controller.commanded(v, w, self.dt)  # the progress gate counts what the robot was told
         # the robot's own breakdown of the step round trip (SimClient: receive, decode)
         robot_stage = getattr(self.robot, "last_timing_ms", None) or {}
@@ -317,12 +311,11 @@ class Repeater:
         waited = max(now[0] - since[0], now[1] - since[1])
         if waited >= self.config.wait_s:
             return self._end(RepeatStatus.BLOCKED, f"{evidence}; waited {waited:.1f} s", verdict)
-        new_obs = self._fetch(lambda: self.robot.step(0.0, 0.0, self.dt))
+        new_obs = self._fetch(self._missed.watch(lambda: self.robot.step(0.0, 0.0, self.dt)))
         self.controller.commanded(0.0, 0.0, self.dt)
         self.waited_steps += 1
-        record = self._record(
-            verdict, obs, 0.0, 0.0, False, {}, None, f"{evidence}; waiting up to {self.config.wait_s:g} s"
-        )
+        detail = f"{evidence}; waiting up to {self.config.wait_s:g} s"
+        record = self._record(verdict, obs, 0.0, 0.0, False, {}, None, detail, waited)
         self._obs = new_obs
         return record
 
@@ -336,6 +329,7 @@ class Repeater:
         stage: Mapping[str, float],
         status: RepeatStatus | None = None,
         detail: str = "",
+        waited_s: float | None = None,
     ) -> StepRecord:
         index = self.controller.index
         return StepRecord(
@@ -355,6 +349,7 @@ class Repeater:
             image=obs.image if obs is not None else None,
             status=status,
             detail=detail,
+            waited_s=waited_s,
         )
 
     def _end(self, status: RepeatStatus, detail: str = "", verdict: Verdict | None = None) -> StepRecord:

@@ -230,7 +230,7 @@ def test_an_unexpected_exception_stops_the_robot_and_propagates():
 
 def test_every_status_has_a_distinct_value():
     values = [s.value for s in RepeatStatus]
-    assert len(set(values)) == len(values) == 10
+    assert len(set(values)) == len(values) == 11
     assert RepeatStatus("link_lost") is RepeatStatus.LINK_LOST
     assert RepeatStatus(Action.BLOCKED.value) is RepeatStatus.BLOCKED  # a BLOCKED decision ends as blocked
 
