@@ -125,7 +125,8 @@ def drive(
 
 
 def executed(prev: Observation, obs: Observation, dt: float) -> tuple[float, float, bool]:
-    """(v, w, moving) over one period: the reported twist, else the pose change divided by ``dt``."""
+    """(v, w, moving) over one period: the reported twist, else the pose change over the time the robot's stamps
+    say passed (``dt`` when they do not advance: a late reply must not read as a burst of speed)."""
     if obs.twist is not None:
         v, w = obs.twist
         return v, w, abs(v) > STILL_V or abs(w) > STILL_W
@@ -136,8 +137,9 @@ def executed(prev: Observation, obs: Observation, dt: float) -> tuple[float, flo
     dx, dy = obs.pose[0] - prev.pose[0], obs.pose[1] - prev.pose[1]
     dyaw = (obs.pose[2] - prev.pose[2] + math.pi) % (2 * math.pi) - math.pi
     yaw = prev.pose[2]
-    v = (dx * math.cos(yaw) + dy * math.sin(yaw)) / dt
-    return v, dyaw / dt, math.hypot(dx, dy) > STILL_D or abs(dyaw) > STILL_YAW
+    elapsed = obs.stamp - prev.stamp if obs.stamp - prev.stamp > 1e-6 else dt
+    v = (dx * math.cos(yaw) + dy * math.sin(yaw)) / elapsed
+    return v, dyaw / elapsed, math.hypot(dx, dy) > STILL_D or abs(dyaw) > STILL_YAW
 
 
 def follow(
