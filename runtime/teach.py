@@ -1,4 +1,6 @@
-"""`vtr teach`: drive a scripted route (ROUTE.json) and record its visual trajectory (a Route .npz).
+"""`vtr teach`: drive a route and record its visual trajectory (a Route .npz): a scripted route (ROUTE.json,
+here), a drive by keyboard in this terminal (``--drive``) or a drive by the robot's own joystick (``--follow``;
+both in ``runtime.teach_drive``), all recorded by one recorder (``runtime.teach_record``).
 
 The robot is reset to the script's start, then each segment is driven in control steps of ``dt``
 (0.1 s, the repeat's step): a segment of duration D takes round(D / dt) steps. Subgoal spacing, chosen

@@ -120,6 +120,7 @@ def run_serve(
     changes: tuple[str, ...] = (),
     scan: bool = True,
     drive_script: str | None = None,
+    twist: bool = True,
 ) -> int:
     from vtr.runtime.route_script import load_route_script
     from vtr.sim2d.config import CameraConfig, SimConfig
@@ -135,7 +136,13 @@ def run_serve(
     sim_cfg = SimConfig(house=house, noise=noise, changes=changes, camera=CameraConfig(brightness=brightness))
     script = None if drive_script is None else load_route_script(drive_script)
     cfg = ServerConfig(
-        bind=bind, sim=sim_cfg, mode=mode, cmd_vel_timeout=cmd_vel_timeout, scan=scan, drive_script=script
+        bind=bind,
+        sim=sim_cfg,
+        mode=mode,
+        cmd_vel_timeout=cmd_vel_timeout,
+        scan=scan,
+        drive_script=script,
+        twist=twist,
     )
     try:
         return int(serve(cfg) or 0)
@@ -197,6 +204,12 @@ def add_serve_arguments(parser: argparse.ArgumentParser) -> None:
         "270 deg scanner, 5 m, sim2d/rangefinder.py)",
     )
     parser.add_argument(
+        "--no-twist",
+        dest="twist",
+        action="store_false",
+        help="report no executed twist in the replies (default: the commanded twist, docs/PROTOCOL.md)",
+    )
+    parser.add_argument(
         "--drive-script",
         default=None,
         metavar="ROUTE_JSON",
@@ -224,6 +237,7 @@ def run_serve_cli(args: argparse.Namespace) -> int:
         tuple(args.change),
         args.scan,
         args.drive_script,
+        args.twist,
     )
 
 
