@@ -281,6 +281,9 @@ def run_cli(args: argparse.Namespace) -> int:
         return 2
     try:
         route = run(cfg)
+    except KeyboardInterrupt:  # Ctrl-C outside raw mode, SIGTERM, SIGHUP: the robot got its stop already
+        print("vtr teach: interrupted; nothing saved", file=sys.stderr)
+        return 130
     except (OSError, ValueError, RobotError) as exc:  # bad ROUTE.json, unreachable or refusing simulator
         print(f"vtr teach: {exc}", file=sys.stderr)
         return 2

@@ -6,7 +6,7 @@ the next press): up/``w`` faster, down/``s`` slower (below zero: backwards), lef
 clockwise, REP-103), right/``d`` turn right, space stops, ``q`` or Enter finishes and saves, Esc or Ctrl-C
 aborts. In raw mode Ctrl-C arrives as a byte (no SIGINT), so the teach ends through its own exit path.
 
-Only the standard library (termios, tty, select): this runs on the robot board.
+Only the standard library (termios, tty, select, signal): this runs on the robot board.
 """
 
 from __future__ import annotations
@@ -14,7 +14,9 @@ from __future__ import annotations
 import contextlib
 import os
 import select
+import signal
 import termios
+import threading
 import tty
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -94,15 +96,26 @@ class KeyReader:
         return keys
 
 
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt(signal.Signals(signum).name)
+
+
 @contextlib.contextmanager
 def raw_terminal(fd: int) -> Iterator[None]:
-    """Raw mode on ``fd`` for the block, the previous settings restored on every way out."""
+    """Raw mode on ``fd`` for the block, the previous settings restored on every way out. SIGTERM and SIGHUP (the
+    terminal closed) become a KeyboardInterrupt meanwhile, so they too leave through the drive's stop."""
     saved = termios.tcgetattr(fd)
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        previous = {sig: signal.signal(sig, _interrupt) for sig in (signal.SIGTERM, signal.SIGHUP)}
     try:
         tty.setraw(fd, termios.TCSANOW)
         yield
     finally:
-        termios.tcsetattr(fd, termios.TCSADRAIN, saved)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        with contextlib.suppress(termios.error):  # a terminal that is gone has nothing to restore
+            termios.tcsetattr(fd, termios.TCSADRAIN, saved)
 
 
 @dataclass

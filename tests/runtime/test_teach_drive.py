@@ -3,6 +3,7 @@ save nothing and leave the robot stopped and the terminal as it was."""
 
 from __future__ import annotations
 
+import signal
 import termios
 from pathlib import Path
 
@@ -54,8 +55,8 @@ def test_a_route_taught_by_keyboard_in_a_terminal_is_repeated_to_the_end(simulat
     assert summary.status == "finished" and summary.subgoals_reached == len(route), summary
 
 
-@pytest.mark.parametrize("key", [b"\x1b", b"\x03"], ids=["esc", "ctrl-c"])
-def test_esc_and_ctrl_c_save_nothing_and_stop_the_robot(simulator, tmp_path, key):
+@pytest.mark.parametrize("key", [b"\x1b", b"\x03", None], ids=["esc", "ctrl-c", "sigterm"])
+def test_esc_ctrl_c_and_sigterm_save_nothing_and_stop_the_robot(simulator, tmp_path, key):
     simulator.reset(pose=START)
     out = tmp_path / "route.npz"
     cfg = ServerConfig(bind="tcp://127.0.0.1:*", mode="realtime", cmd_vel_timeout=5.0)
@@ -63,11 +64,14 @@ def test_esc_and_ctrl_c_save_nothing_and_stop_the_robot(simulator, tmp_path, key
         term = _teach(server.endpoint, out)
         term.press(UP * 4, then=0.6)
         assert server.server.twist[0] == pytest.approx(0.2)  # driving, the watchdog fed every period
-        term.press(key)
+        if key is None:
+            term.proc.send_signal(signal.SIGTERM)
+        else:
+            term.press(key)
         code = term.finish()
         assert server.server.twist == (0.0, 0.0) and server.server.last_cmd == "stop"
         assert server.server.watchdog_stops == 0  # the teach stopped it, not the robot's timeout
-    assert code == 130 and "aborted; nothing saved" in term.text(), term.text()
+    assert code == 130 and "; nothing saved" in term.text(), term.text()
     assert not out.exists()
 
 

@@ -52,7 +52,7 @@ def test_a_route_recorded_while_someone_else_drives_is_repeated_to_the_end(simul
         assert term.finish() == 0, term.text()
         assert set(server.server.served) == {"hello", "observe"}  # not one motion command, not even a stop
         route = Route.load(out)
-        assert 8 <= len(route) <= 20 and route.spacing["rule"] == "steps"
+        assert 4 <= len(route) <= 20 and route.spacing["rule"] == "steps"  # 28 periods of 0.1 s, every 2nd
         assert route.poses[0] == pytest.approx([7.2, 1.2, 0.0], abs=0.03)
         assert route.poses[-1] == pytest.approx(simulator.pose, abs=0.03)  # it stood still at the end
         assert route.commands[:, 0].max() == pytest.approx(0.25, abs=0.02)
