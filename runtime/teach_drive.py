@@ -20,6 +20,7 @@ is saved). The robot standing still adds no subgoals (``TeachRecorder.step``'s `
 from __future__ import annotations
 
 import math
+import os
 import time
 from typing import Any, TextIO
 
@@ -41,9 +42,16 @@ class StatusLine:
         self.out = out if out is not None and out.isatty() else None
 
     def show(self, text: str) -> None:
-        if self.out is not None:
-            self.out.write(f"\r{text}\x1b[K")
+        if self.out is not None:  # cut to the terminal's width: a wrapped line could not be redrawn in place
+            self.out.write(f"\r{text[: self.width - 1]}\x1b[K")
             self.out.flush()
+
+    @property
+    def width(self) -> int:
+        try:
+            return os.get_terminal_size(self.out.fileno()).columns or 80
+        except (OSError, ValueError, AttributeError):
+            return 80
 
     def end(self) -> None:
         if self.out is not None:

@@ -266,6 +266,7 @@ class SimServer:
         if req.cmd == "observe":
             if self.driver is not None:  # the follower's first look starts the joystick
                 self.driver.start(float(sim.time))
+                self.twist = self.driver.twist(float(sim.time))[:2]
             return self._image_reply(req, sim.observe())
         if req.cmd == "step":
             v, w, duration = req.fields["v"], req.fields["w"], req.fields["duration"]

@@ -83,3 +83,22 @@ def test_the_executed_motion_comes_from_the_twist_else_from_the_pose():
 def test_a_drive_script_needs_realtime():
     with pytest.raises(ValueError, match="needs --mode realtime"):
         ServerConfig(drive_script=JOYSTICK)
+
+
+def test_while_its_joystick_drives_the_robot_refuses_motion_commands_then_takes_them(simulator):
+    from vtr.runtime.client import SimClient
+    from vtr.runtime.robot import RobotError
+
+    script = parse_route_script(
+        {"start": {"x": 7.2, "y": 1.2, "yaw": 0.0}, "segments": [{"v": 0.2, "w": 0.0, "duration": 0.5}]}
+    )
+    cfg = ServerConfig(bind="tcp://127.0.0.1:*", mode="realtime", drive_script=script)
+    with ServerThread(simulator, cfg) as server, SimClient(server.endpoint) as client:
+        client.handshake()
+        with pytest.raises(RobotError, match="driven by its own joystick"):
+            client.step(0.1, 0.0, 0.1)  # before the script starts, too: the operator has the controls
+        assert client.observe().twist == (0.2, 0.0)  # the first look starts the script
+        time.sleep(0.7)
+        moved = client.observe()
+        assert moved.twist == (0.0, 0.0) and moved.pose[0] == pytest.approx(7.3, abs=0.02)
+        assert client.step(0.0, 0.5, 0.1).twist == (0.0, 0.5)  # an ordinary robot once the script is over
