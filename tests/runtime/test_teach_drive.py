@@ -118,3 +118,24 @@ def test_the_teleop_steps_within_the_robots_limits():
     assert (t.v, t.w) == (-0.05, -0.1)
     assert t.press("q") == "finish" and t.press("enter") == "finish"
     assert t.press("esc") == "abort" and t.press("ctrl-c") == "abort" and t.press("x") is None
+
+
+def test_one_recorder_spaces_every_teach_and_standing_still_adds_nothing():
+    import numpy as np
+
+    from vtr.runtime.robot import Observation
+    from vtr.runtime.teach import TeachConfig
+    from vtr.runtime.teach_record import TeachRecorder
+
+    def at(x: float) -> Observation:
+        return Observation(image=np.full((2, 2, 3), int(x * 100), np.uint8), stamp=x, pose=(x, 0.0, 0.0))
+
+    rec = TeachRecorder(TeachConfig(), at(0.0))
+    for i in range(1, 4):
+        rec.step(0.2, 0.0, at(i * 0.02))
+    for _ in range(50):  # the driver stops to think: no subgoals of the same view
+        rec.step(0.0, 0.0, at(0.06), moving=False)
+    rec.step(0.0, 0.3, at(0.06))  # a turn in place moves
+    route = rec.finish("r", {})
+    assert route.poses[:, 0].tolist() == [0.0, 0.04, 0.06] and len(route) == 3
+    assert route.commands.tolist() == [[0.2, 0.0], [0.2, 0.0], [0.0, 0.0]]
