@@ -245,6 +245,7 @@ class SimClient:
                 expect_shape=self.expect_shape,
                 max_message_bytes=self.max_message_bytes,
                 expect_scan=None if self.hello_info is None else self.hello_info.scan,
+                expect_twist=self.hello_info is not None and self.hello_info.twist is not None,
             )
         except BadFrameError as exc:
             _, peeked = protocol.peek_cmd_seq(frames)
@@ -310,7 +311,12 @@ class SimClient:
     def _observation(reply: Reply) -> Observation:
         assert reply.image is not None and reply.stamp is not None
         return Observation(
-            image=reply.image, stamp=reply.stamp, pose=reply.pose, collided=reply.collided, scan=reply.scan
+            image=reply.image,
+            stamp=reply.stamp,
+            pose=reply.pose,
+            collided=reply.collided,
+            scan=reply.scan,
+            twist=reply.twist,
         )
 
     # ------------------------------------------------------------------ the Robot protocol

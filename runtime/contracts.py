@@ -64,6 +64,8 @@ class Observation:
     pose: ground-truth (x, y, yaw) in metres/radians when the other side knows it, else None (the
     repeat never uses it; evaluation scores with it). collided: the robot touched something on the way.
     scan: the range reading taken with the image, when the robot has a scanner (None: camera only).
+    twist: the (v, w) the robot reports it executed, when its hello announces ``twist`` (None: not reported);
+    whoever commanded it (this runtime or the robot's own joystick: `vtr teach --follow`).
     """
 
     image: np.ndarray
@@ -71,6 +73,7 @@ class Observation:
     pose: tuple[float, float, float] | None = None
     collided: bool = False
     scan: Scan | None = None
+    twist: tuple[float, float] | None = None
 
 
 @runtime_checkable
