@@ -89,8 +89,8 @@ def _houses_config(recipe: Recipe, preset: Any) -> Any:
 def collect_status(recipe: Recipe, preset: Any) -> tuple[bool, str]:
     """(whether the dataset is complete, what there is) for the recipe's collect stage."""
     if not recipe.houses:
-        done = Path(recipe.data).exists()
-        return done, f"{recipe.data} exists" if done else f"{preset.collect.frames} frames into {recipe.data}"
+        done, frames = Path(recipe.data).exists(), recipe.collect.get("frames", preset.collect.frames)
+        return done, f"{recipe.data} exists" if done else f"{frames:,} frames into {recipe.data}"
     from vtr.training.collect_houses import houses_meta, recorded_houses
 
     hcfg = _houses_config(recipe, preset)
@@ -113,7 +113,15 @@ def collect(recipe: Recipe, preset: Any) -> None:
         from vtr.training.config import override
 
         c = recipe.collect
-        collect_one(override(preset.collect, out=recipe.data, frames=c.get("frames"), seed=c.get("seed")))
+        collect_one(
+            override(
+                preset.collect,
+                out=recipe.data,
+                frames=c.get("frames"),
+                seed=c.get("seed"),
+                noise=c.get("noise"),
+            )
+        )
 
 
 def _train_cfg(base: Any, stage: Stage, args: argparse.Namespace) -> Any:
