@@ -24,6 +24,7 @@ import functools
 import json
 import subprocess
 import sys
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -36,6 +37,7 @@ from vtr.benchmarks.latency_report import STEP_VARIANTS, format_report, ratios
 from vtr.benchmarks.results import write_json
 from vtr.benchmarks.timing import summarise, time_interleaved
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
+from vtr.runtime.status_line import Progress
 
 BACKENDS = ("ort_fp32", "ort_int8", "torch_eager", "cv2_dnn")
 
@@ -256,6 +258,14 @@ def run(cfg: LatencyConfig) -> dict[str, Any]:
     current, route = sample_route(h, w)
     x, y = to_nchw(current), to_nchw(route[0])
     flops = count_flops(cfg.model)
+    progress = Progress("vtr bench latency", total=6, eta=False)  # one live line on stderr, a terminal only
+
+    def measured(name: str, measure: Callable[[], Any]) -> Any:
+        progress.start(name)
+        out = measure()
+        progress.advance(name)
+        return out
+
     result: dict[str, Any] = {
         "config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
         "model": str(cfg.model),
@@ -263,13 +273,14 @@ def run(cfg: LatencyConfig) -> dict[str, Any]:
         "gflop": flops["gflop"],
         "flops": flops,
         "machine": {"cores": all_cores(), "processor": platform.processor() or platform.machine()},
-        "stages": bench_stages(cfg, current, route),
-        "zmq": bench_zmq(cfg) if cfg.zmq else {"skipped": "disabled"},
-        "backends": bench_backends(cfg, x, y, flops["gflop"]),
-        "memory": bench_memory(cfg) if cfg.memory else {"skipped": "disabled"},
-        "sim": bench_sim(cfg, (h, w)) if cfg.sim_steps else {"skipped": "disabled"},
-        "also_models": {str(m): step_overhead(cfg, m) for m in cfg.also_models},
+        "stages": measured("stages", lambda: bench_stages(cfg, current, route)),
+        "zmq": measured("zmq", lambda: bench_zmq(cfg) if cfg.zmq else {"skipped": "disabled"}),
+        "backends": measured("backends", lambda: bench_backends(cfg, x, y, flops["gflop"])),
+        "memory": measured("memory", lambda: bench_memory(cfg) if cfg.memory else {"skipped": "disabled"}),
+        "sim": measured("sim", lambda: bench_sim(cfg, (h, w)) if cfg.sim_steps else {"skipped": "disabled"}),
+        "also_models": measured("also", lambda: {str(m): step_overhead(cfg, m) for m in cfg.also_models}),
     }
+    progress.close()
     result["ratios"] = ratios(result)
     if cfg.json_path is not None:
         write_json(cfg.json_path, result)

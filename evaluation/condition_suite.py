@@ -29,6 +29,7 @@ import numpy as np
 from vtr.evaluation.condition_run import CONDITIONS, CONTROLLERS, cached_policy, run_once
 from vtr.evaluation.condition_tables import markdown
 from vtr.evaluation.metrics import off_path
+from vtr.runtime.status_line import Progress
 
 HELDOUT_DIR = Path(__file__).resolve().parents[1] / "sim2d" / "routes" / "heldout"
 
@@ -185,24 +186,18 @@ def run(cfg: SuiteConfig) -> dict[str, Any]:
     t0 = time.perf_counter()
     runs: list[dict[str, Any]] = []
 
-    def progress(done: int) -> None:
-        print(
-            f"condition suite: {done}/{len(tasks)} route x condition tasks, {time.perf_counter() - t0:.0f} s",
-            file=sys.stderr,
-            flush=True,
-        )
+    with Progress("condition suite (route x condition)", len(tasks)) as progress:  # stderr, a terminal only
+        if cfg.workers > 1 and len(tasks) > 1:
+            from vtr.evaluation.pool import process_pool
 
-    if cfg.workers > 1 and len(tasks) > 1:
-        from vtr.evaluation.pool import process_pool
-
-        with process_pool(cfg.workers) as ex:  # Ctrl-C stops it at once
-            for k, out in enumerate(ex.map(evaluate_task, tasks), 1):
-                runs += out
-                progress(k)
-    else:
-        for k, task in enumerate(tasks, 1):
-            runs += evaluate_task(task)
-            progress(k)
+            with process_pool(cfg.workers) as ex:  # Ctrl-C stops it at once
+                for (path, cond, _), out in zip(tasks, ex.map(evaluate_task, tasks), strict=True):
+                    runs += out
+                    progress.advance(f"{path.stem} {cond}")
+        else:
+            for path, cond, c in tasks:
+                runs += evaluate_task((path, cond, c))
+                progress.advance(f"{path.stem} {cond}")
     result = {
         "config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
         "routes": [p.stem for p in paths],

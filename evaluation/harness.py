@@ -39,6 +39,7 @@ from vtr.runtime.atomic import write_text_atomic
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT, Policy
 from vtr.runtime.route_script import RouteScript, load_route_script
+from vtr.runtime.status_line import Progress
 from vtr.sim2d.routes import ROUTES_DIR
 
 QUICK_ROUTES = ("translation",)
@@ -244,11 +245,19 @@ def run(cfg: EvalConfig) -> dict[str, Any]:
     names = cfg.routes or (QUICK_ROUTES if cfg.quick else ())
     files = route_files(names)
     t0 = time.perf_counter()
-    if cfg.workers > 1 and len(files) > 1:
-        with process_pool(min(cfg.workers, len(files))) as ex:  # Ctrl-C stops it at once
-            routes = list(ex.map(evaluate_route, files, [cfg] * len(files)))
-    else:
-        routes = [evaluate_route(f, cfg) for f in files]
+    with Progress("vtr eval", len(files)) as progress:  # a live line on stderr, on a terminal only
+        if cfg.workers > 1 and len(files) > 1:
+            with process_pool(min(cfg.workers, len(files))) as ex:  # Ctrl-C stops it at once
+                futures = {ex.submit(evaluate_route, f, cfg): f for f in files}
+                for done in progress.as_completed(futures):
+                    progress.advance(futures[done].stem)
+                routes = [f.result() for f in futures]
+        else:
+            routes = []
+            for f in files:
+                progress.start(f.stem)
+                routes.append(evaluate_route(f, cfg))
+                progress.advance(f.stem)
     agg = aggregate(routes)
     notes = []
     if cfg.int8_model is None:

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import sys
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -24,6 +23,7 @@ import numpy as np
 
 from vtr.evaluation.condition_run import CONTROLLERS
 from vtr.evaluation.metrics import off_path
+from vtr.runtime.status_line import Progress
 
 MAX_HOUSES = 1000
 
@@ -193,18 +193,9 @@ def summarise(routes: list[dict[str, Any]], houses: tuple[str, ...]) -> dict[str
     return out
 
 
-def _progress(done: int, total: int, routes: list[dict[str, Any]], t0: float) -> None:
+def _completed(routes: list[dict[str, Any]]) -> str:
     runs = [r for route in routes for r in route["runs"] if r["method"] == "velocitynet"]
-    elapsed = time.perf_counter() - t0
-    eta = elapsed / done * (total - done)
-    bar = "#" * int(30 * done / total)
-    print(
-        f"\rhouses [{bar:<30}] {done}/{total} routes, {sum(r['completed'] for r in runs)}/{len(runs)} "
-        f"runs completed, {elapsed:.0f} s, ~{eta:.0f} s left",
-        end="\n" if done == total else "",
-        file=sys.stderr,
-        flush=True,
-    )
+    return f"{sum(r['completed'] for r in runs)}/{len(runs)} runs completed"
 
 
 def _result(cfg: HouseSuiteConfig, routes: list[dict[str, Any]], total: int, t0: float) -> dict[str, Any]:
@@ -241,25 +232,24 @@ def run(cfg: HouseSuiteConfig, progress: bool = True) -> dict[str, Any]:
     tasks = [(h, k, cfg) for h in cfg.houses for k in range(cfg.routes_per_house)]
     t0 = time.perf_counter()
     routes: list[dict[str, Any]] = []
+    line = Progress("houses (routes)", len(tasks), quiet=not progress)  # stderr, a terminal only
 
     def finished(route: dict[str, Any]) -> None:
         routes.append(route)
-        if progress:
-            _progress(len(routes), len(tasks), routes, t0)
+        line.advance(_completed(routes))
         if cfg.json_path is not None and len(routes) < len(tasks):
             _write(cfg, _result(cfg, routes, len(tasks), t0))
 
-    if cfg.workers > 1 and len(tasks) > 1:
-        from concurrent.futures import as_completed
+    with line:
+        if cfg.workers > 1 and len(tasks) > 1:
+            from vtr.evaluation.pool import process_pool
 
-        from vtr.evaluation.pool import process_pool
-
-        with process_pool(min(cfg.workers, len(tasks))) as ex:  # Ctrl-C stops it at once
-            for fut in as_completed([ex.submit(evaluate_route, t) for t in tasks]):
-                finished(fut.result())
-    else:
-        for t in tasks:
-            finished(evaluate_route(t))
+            with process_pool(min(cfg.workers, len(tasks))) as ex:  # Ctrl-C stops it at once
+                for fut in line.as_completed([ex.submit(evaluate_route, t) for t in tasks]):
+                    finished(fut.result())
+        else:
+            for t in tasks:
+                finished(evaluate_route(t))
     result = _result(cfg, routes, len(tasks), t0)
     if cfg.json_path is not None:
         _write(cfg, result)

@@ -3,7 +3,8 @@
 The run's poses (where the robot reported them) are compared with the taught route's poses by the same metrics
 as the simulator evaluation (evaluation.metrics.route_metrics); completion comes from the run's summary.
 A file that is not such a run is one line and exit 2 (runtime.mcap_read); a damaged one is scored as far as it
-reads, with a warning on stderr.
+reads, with a warning on stderr. ``--plots DIR`` draws the run (evaluation.run_plots), even one without poses,
+which cannot be scored: then what is missing is one line and the exit 0.
 """
 
 from __future__ import annotations
@@ -58,14 +59,31 @@ def run_cli(args: Any) -> int:
     except (OSError, ValueError) as exc:
         print(f"vtr eval: {exc}", file=sys.stderr)
         return 2
+    plots: list[Path] = []
+    if getattr(args, "plots_dir", None) is not None:  # drawn first: a run that cannot be scored can be seen
+        from vtr.evaluation.run_plots import write_run_plots
+
+        try:
+            plots, missing = write_run_plots(run, route, Path(args.plots_dir), Path(args.run).stem)
+        except OSError as exc:  # a file where the folder should be, a read-only place
+            print(f"vtr eval: --plots {args.plots_dir}: {exc.strerror or exc}", file=sys.stderr)
+            return 2
+        for path in plots:
+            print(f"vtr eval: wrote {path}", file=sys.stderr)
+        if missing:
+            print(f"vtr eval: {args.run}: {missing}", file=sys.stderr)
     try:
         result = score_recorded_run(run, route)
     except ValueError as exc:  # one line: the run's damage, when there was some, said in it
+        if plots and (not np.isfinite(run.poses).all(axis=1).any() or not np.isfinite(route.poses).all()):
+            _warn(run)
+            return 0  # asked for pictures of a run without poses: drawn, and what is missing said
         damage = f" ({'; '.join(run.warnings)})" if run.warnings else ""
         print(f"vtr eval: {args.run}: {exc}{damage}", file=sys.stderr)
         return 2
-    for warning in run.warnings:
-        print(f"vtr eval: warning: {warning}", file=sys.stderr)
+    _warn(run)
+    if plots:
+        result["plots"] = [str(p) for p in plots]
     text = json.dumps(result, indent=2, default=float)
     if args.json_path is not None:
         from vtr.runtime.atomic import write_text_atomic
@@ -73,3 +91,8 @@ def run_cli(args: Any) -> int:
         write_text_atomic(Path(args.json_path), text)
     print(text)
     return 0
+
+
+def _warn(run: RecordedRun) -> None:
+    for warning in run.warnings:
+        print(f"vtr eval: warning: {warning}", file=sys.stderr)

@@ -1,5 +1,6 @@
 """The checks of `vtr check-robot` that move the robot: a zero step, a turn in place and back, steps it must
-refuse (beyond its limits, or meant for another session), and the realtime command timeout (the watchdog)."""
+refuse (beyond its limits, or meant for another session), the realtime command timeout (the watchdog), and the
+executed twist a robot announces (a turn must show in it)."""
 
 from __future__ import annotations
 
@@ -8,6 +9,8 @@ import time
 from typing import Any
 
 from vtr.runtime.check_link import PASS, WARN, CheckFailed, Context, image_diff
+from vtr.runtime.protocol import BadFrameError
+from vtr.runtime.reply_codec import twist_from_wire
 
 #: A turn this large must change the view (radians).
 TURN_ANGLE = 0.3
@@ -67,6 +70,43 @@ def check_turn(ctx: Context) -> tuple[str, str]:
     if turned.collided or back.collided:
         return WARN, note + "; 'collided' was true during a turn in place"
     return PASS, note
+
+
+def check_twist(ctx: Context) -> tuple[str, str]:
+    """The executed twist (docs/PROTOCOL.md, 'Executed twist'): when hello announces it, every image reply
+    carries one, and a turn in place reports w > 0 (counter-clockwise positive) while it turns."""
+    assert ctx.hello is not None and ctx.limits is not None
+    w = 0.5 * ctx.limits.w_max
+    replies = [ctx.ask("observe")]
+    try:  # three steps: a measured twist may lag the command by a step or two
+        replies += [ctx.step(0.0, w) for _ in range(3)]
+        ctx.step(0.0, -w)
+        ctx.step(0.0, -w)
+        ctx.step(0.0, -w)
+    finally:
+        ctx.link.ask("stop")
+    if ctx.hello.twist is None:
+        if any(r.header.get("twist") is not None for r in replies):
+            return WARN, (
+                "replies carry a 'twist' but hello does not announce one, so the runtime ignores it: announce "
+                "it (docs/PROTOCOL.md, 'Executed twist')"
+            )
+        return PASS, "not reported: `vtr teach --follow` goes by the pose"
+    twists = []
+    for reply in replies:
+        if reply.header.get("twist") is None:
+            raise CheckFailed(f"hello announces 'twist' but the {reply.cmd!r} reply carries none")
+        try:
+            twists.append(twist_from_wire(reply.header["twist"]))
+        except BadFrameError as exc:
+            raise CheckFailed(f"the {reply.cmd!r} reply's twist: {exc}") from None
+    v_seen, w_seen = twists[-1]
+    if not w_seen > 0.2 * w:
+        raise CheckFailed(
+            f"turning in place at w={w:g} rad/s the robot reported w={w_seen:g}: report the twist it executes, "
+            "counter-clockwise positive (REP-103)"
+        )
+    return PASS, f"{ctx.hello.twist}; turning at w={w:g} rad/s reported v={v_seen:+.3f}, w={w_seen:+.3f}"
 
 
 def _refused(ctx: Context, what: str, **fields: Any) -> str:

@@ -7,7 +7,8 @@ is rebuilt, and the whole run has a time budget: it never hangs.
 
 The robot moves: zero steps, a turn in place of about 0.3 rad and back, and steps the robot must refuse. It ends
 with a ``stop``. Run it with the robot in free space. A robot that announces a range scanner in ``hello`` must send
-a matching scan with every image (check ``scan``).
+a matching scan with every image (check ``scan``), one that announces its executed twist a twist that shows a turn
+(check ``twist``).
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ from vtr.runtime.check_motion import (
     check_limits_enforced,
     check_session_guard,
     check_turn,
+    check_twist,
     check_watchdog,
     check_zero_step,
 )
@@ -273,6 +275,7 @@ CHECKS: list[tuple[str, Check, tuple[str, ...]]] = [
     ("stop", check_stop, ("hello",)),
     ("step.zero", check_zero_step, ("observe",)),
     ("step.turn", check_turn, ("observe",)),
+    ("twist", check_twist, ("observe",)),
     ("stamps", check_stamps, ("observe",)),
     ("limits.enforced", check_limits_enforced, ("hello",)),
     ("errors", check_errors, ("hello",)),

@@ -40,7 +40,7 @@ from vtr.runtime.address import check_endpoint
 from vtr.runtime.frame import Frame
 from vtr.runtime.hello import Hello, parse_hello
 from vtr.runtime.protocol import BadFrameError, Limits, Reply
-from vtr.runtime.robot import Interrupted, LinkLost, Observation, RobotError, RobotRestarted
+from vtr.runtime.robot import Interrupted, LinkLost, MissedReply, Observation, RobotError, RobotRestarted
 
 #: Commands that are safe to send again after a missed reply (they move nothing).
 RETRYABLE = ("hello", "observe", "stop")
@@ -158,7 +158,8 @@ class SimClient:
                 if cmd not in RETRYABLE:
                     wait = self._wait_s(cmd, fields)
                     if stopped:
-                        self._reject(f"no reply to {cmd!r} within {wait:.2f} s; the robot was sent a stop")
+                        why = f"no reply to {cmd!r} within {wait:.2f} s; the robot was sent a stop"
+                        self._reject(why, MissedReply(why, wait))
                     raise LinkLost(
                         f"no reply from {self.endpoint} to {cmd!r} within {wait:.2f} s, nor to the stop sent after it"
                     )
@@ -229,10 +230,10 @@ class SimClient:
             self._drop()
         return False
 
-    def _reject(self, why: str) -> None:
+    def _reject(self, why: str, error: BadFrameError | None = None) -> None:
         self.bad_frames += 1
         self.last_bad_frame = why
-        raise BadFrameError(why)
+        raise error if error is not None else BadFrameError(why)
 
     def _match(self, raw: list[bytes], cmd: str, seq: int, fields: dict[str, Any]) -> Reply | None:
         """A reply for ``seq``, or None for one to skip (an earlier request's); raises on a bad one."""
@@ -245,6 +246,7 @@ class SimClient:
                 expect_shape=self.expect_shape,
                 max_message_bytes=self.max_message_bytes,
                 expect_scan=None if self.hello_info is None else self.hello_info.scan,
+                expect_twist=self.hello_info is not None and self.hello_info.twist is not None,
             )
         except BadFrameError as exc:
             _, peeked = protocol.peek_cmd_seq(frames)
@@ -312,7 +314,12 @@ class SimClient:
         boundary), made a :class:`Frame` here and never checked again."""
         assert reply.image is not None and reply.stamp is not None
         return Observation.of_frame(
-            Frame.decoded(reply.image), reply.stamp, pose=reply.pose, collided=reply.collided, scan=reply.scan
+            Frame.decoded(reply.image),
+            reply.stamp,
+            pose=reply.pose,
+            collided=reply.collided,
+            scan=reply.scan,
+            twist=reply.twist,
         )
 
     # ------------------------------------------------------------------ the Robot protocol

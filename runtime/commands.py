@@ -36,7 +36,9 @@ class Command(NamedTuple):
 
 #: The robot board's commands: numpy, onnxruntime and pyzmq only (`vtr-robot`; `vtr` has them too).
 ROBOT_COMMANDS: dict[str, Command] = {
-    "teach": Command("vtr.runtime.teach", "drive a scripted route and record its visual trajectory"),
+    "teach": Command(
+        "vtr.runtime.teach", "drive a route (scripted, by keyboard or by its joystick) and record what it saw"
+    ),
     "repeat": Command(
         "vtr.runtime.daemon", "follow a taught route from camera images alone (the robot daemon)"
     ),

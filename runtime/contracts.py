@@ -66,7 +66,9 @@ class Observation:
     robot's clock in seconds (simulated time for the simulator). pose: ground-truth (x, y, yaw) in
     metres/radians when the other side knows it, else None (the repeat never uses it; evaluation scores with
     it). collided: the robot touched something on the way. scan: the range reading taken with the image, when
-    the robot has a scanner (None: camera only).
+    the robot has a scanner (None: camera only). twist: the (v, w) the robot reports it executed, when its hello
+    announces ``twist`` (None: not reported); whoever commanded it (this runtime or the robot's own joystick:
+    `vtr teach --follow`).
     """
 
     image: np.ndarray
@@ -74,6 +76,7 @@ class Observation:
     pose: tuple[float, float, float] | None = None
     collided: bool = False
     scan: Scan | None = None
+    twist: tuple[float, float] | None = None
 
     @functools.cached_property
     def frame(self) -> Frame:

@@ -14,6 +14,10 @@ line written whole or not at all (runtime/run_log.py; a full disk ends the run, 
 - ``latency_ms``: see ``runtime.repeater.StepRecord``.
 
 Subgoals reached on the last image (the run finishing) appear only in the summary.
+
+On a terminal, and unless ``--json``, one live line on stderr shows the run as it goes (runtime/status_line.py):
+subgoal i/N, the image match, the localiser's confidence, the command, time against the teach's, or the wait
+for a blocked way.
 """
 
 from __future__ import annotations
@@ -23,7 +27,7 @@ import json
 import signal
 import sys
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -31,7 +35,7 @@ import numpy as np
 
 from vtr.runtime.address import check_endpoint
 from vtr.runtime.hello import accept_hello, check_robot_fits, require_known_fov
-from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus, Summary
+from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus, StepRecord, Summary
 from vtr.runtime.robot import RobotError
 from vtr.runtime.run_log import LogWriteError
 from vtr.runtime.run_outputs import OutputWriteError, RunOutputs, check_outputs
@@ -39,6 +43,7 @@ from vtr.runtime.safety import SafetyConfig
 from vtr.runtime.settings import PROFILES, default
 from vtr.runtime.settings_cli import Resolved, resolve
 from vtr.runtime.settings_cli import add_arguments as add_settings
+from vtr.runtime.status_line import RepeatStatusLine, taught_seconds
 
 # ------------------------------------------------------------------------------------------------- CLI
 
@@ -64,6 +69,8 @@ class RepeatRunConfig:
     #: Recolour the current image to the subgoal's light before the policy (runtime/light.py; the profile's).
     match_light: bool = True
     repeat: RepeatConfig = field(default_factory=RepeatConfig)
+    #: A live status line on stderr while it runs (runtime/status_line.py), shown only on a terminal.
+    status_line: bool = False
 
     def __post_init__(self) -> None:
         check_endpoint(self.sim)
@@ -109,10 +116,38 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
         repeater = Repeater(client, policy, route, config=cfg.repeat, stop_event=stop_event)
         # opened only now, with the model, route and robot checked: a refused start leaves no empty file
         with RunOutputs(route.images, cfg.log, cfg.mcap, cfg.foxglove) as outputs:  # log, MCAP bag, live view
-            repeater.on_step = outputs.chain()
-            summary = repeater.run()
+            line = status_line(repeater) if cfg.status_line else None
+            repeater.on_step = observers(outputs.chain(), line)
+            try:
+                summary = repeater.run()
+            finally:
+                if line is not None:
+                    line.close()  # what is printed next starts on a line of its own
             outputs.finish(summary.to_dict())
         return summary
+
+
+def status_line(repeater: Repeater) -> RepeatStatusLine:
+    """The live line of a repeat: the route's subgoals and taught time, the localiser's confidence."""
+
+    def confidence() -> float | None:
+        return getattr(getattr(repeater.controller, "estimate", None), "confidence", None)
+
+    route = repeater.route
+    return RepeatStatusLine(len(route), taught_seconds(route), repeater.config.wait_s, confidence)
+
+
+def observers(*calls: Callable[[StepRecord], None] | None) -> Callable[[StepRecord], None] | None:
+    """One ``on_step`` calling each of ``calls`` that is not None, in order (None when there is none)."""
+    chosen = [c for c in calls if c is not None]
+    if len(chosen) <= 1:
+        return chosen[0] if chosen else None
+
+    def on_step(record: StepRecord) -> None:
+        for call in chosen:
+            call(record)
+
+    return on_step
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -146,7 +181,10 @@ def config_from_settings(values: Resolved | Mapping[str, Any]) -> RepeatRunConfi
         timeout_s=values["repeat.timeout"],
         start="route" if values["repeat.start"] == "route" else "here",
         match_light=profile.match_light,
-        repeat=RepeatConfig(controller=controller, safety=safety, wait_s=values["repeat.wait"]),
+        repeat=RepeatConfig(
+            controller=controller, safety=safety, wait_s=values["repeat.wait"], speed=values["repeat.speed"]
+        ),
+        status_line=not values["repeat.json"],  # and only on a terminal
     )
 
 

@@ -34,9 +34,13 @@ ADDED_FIELDS = {
     "cmd_vel_timeout": "not said (a realtime robot must announce it)",
     "realtime_factor": "1",
     "scan": "no range scanner: camera-only safety",
+    "twist": "no executed twist in replies: `vtr teach --follow` goes by the pose",
 }
 #: Of those, the ones every robot should announce: a warning names them when left out.
 SHOULD_ANNOUNCE = ("dt", "mode")
+#: What an executed-twist report may say it is (hello's ``twist.source``): measured by the wheels, or the
+#: command the base is executing (whoever sent it).
+TWIST_SOURCES = ("measured", "commanded")
 #: Older names still read, each with the name to use instead; a hello using one gets a warning.
 DEPRECATED = {"camera.camera_height": "camera.height_m"}
 
@@ -90,6 +94,8 @@ class Hello:
     info: dict[str, Any] = field(default_factory=dict)
     #: The range scanner every image reply may carry a reading of (None: camera only).
     scan: ScanSpec | None = None
+    #: Where the executed twist every image reply carries comes from (``TWIST_SOURCES``); None: not reported.
+    twist: str | None = None
     #: Deprecated names the robot used (keys of ``DEPRECATED``).
     deprecated: tuple[str, ...] = ()
 
@@ -126,6 +132,16 @@ def _mode(h: dict[str, Any]) -> str | None:
     if mode is not None and mode not in MODES:
         raise BadFrameError(f"hello field 'mode' must be one of {MODES}, got {mode!r:.60}")
     return mode
+
+
+def _twist(h: dict[str, Any]) -> str | None:
+    raw = h.get("twist")
+    if raw is None:
+        return None
+    source = raw.get("source") if isinstance(raw, dict) else None
+    if source not in TWIST_SOURCES:
+        raise BadFrameError(f"hello field 'twist' must be an object with 'source' one of {TWIST_SOURCES}")
+    return source
 
 
 def _version(h: dict[str, Any]) -> int:
@@ -166,6 +182,7 @@ def read_hello(reply: Reply) -> tuple[Hello, dict[str, str]]:
         )
     rate = read("realtime_factor", lambda: _positive(h, "realtime_factor"), None) or 1.0
     scan = read("scan", lambda: spec_from_dict(h["scan"]) if h.get("scan") is not None else None, None)
+    twist = read("twist", lambda: _twist(h), None)
     cam = h.get("camera") if isinstance(h.get("camera"), dict) else {}
     deprecated = ("camera.camera_height",) if "camera_height" in cam and "height_m" not in cam else ()
     names = {k: h.get(k) if isinstance(h.get(k), str) else None for k in ("robot", "map")}
@@ -182,6 +199,7 @@ def read_hello(reply: Reply) -> tuple[Hello, dict[str, str]]:
         rate,
         info=info,
         scan=scan,
+        twist=twist,
         deprecated=deprecated,
         **names,
     )

@@ -22,7 +22,8 @@ class RepeatStatus(str, enum.Enum):
     reported a contact; the controller decides on ``Observation.collided``), ``blocked`` (something stayed
     in the way for ``RepeatConfig.wait_s``), ``step_limit``, ``interrupted``,
     ``link_lost`` (no valid frame for ``frame_timeout_s``, or the link's ``LinkLost``: no reply even to the stop
-    sent after a missed one), ``robot_error`` (a ``RobotError``) and ``robot_restarted``. ``robot_restarted``
+    sent after a missed one), ``robot_error`` (a ``RobotError``), ``robot_too_slow`` (``missed_replies`` step
+    replies in a row came too late: ``runtime.missed_replies``) and ``robot_restarted``. ``robot_restarted``
     (the link saw a new server session: the robot rebooted and is somewhere else) ends the run, or with the
     controller's ``localise`` the robot is stopped and the route searched again on its next frame (at most
     ``MAX_RELOCALISATIONS`` times; the record's detail says so).
@@ -43,6 +44,7 @@ class RepeatStatus(str, enum.Enum):
     INTERRUPTED = "interrupted"  # stop_event or KeyboardInterrupt
     STEP_LIMIT = "step_limit"  # max_steps commands sent
     ROBOT_ERROR = "robot_error"  # the robot cannot be reached or refused a command
+    ROBOT_TOO_SLOW = "robot_too_slow"  # step replies kept missing their wait (RepeatConfig.missed_replies)
 
 
 @dataclass
@@ -54,7 +56,7 @@ class RepeatConfig:
     #: Seconds each command is applied for; None takes the model's metadata dt (the paper's 0.1 s).
     dt: float | None = None
     #: Control steps (commands sent) before giving up: a lost robot must stop. None: 8 per subgoal + 50,
-    #: so that it scales with the route.
+    #: over ``speed``, so that it scales with the route (:meth:`step_limit`).
     max_steps: int | None = None
     #: Seconds without a valid frame before the run ends.
     frame_timeout_s: float = 5.0
@@ -64,6 +66,17 @@ class RepeatConfig:
     safety: SafetyConfig = field(default_factory=SafetyConfig)
     #: Seconds to wait for the way to clear when something is in it, before the run ends as ``blocked``.
     wait_s: float = 10.0
+    #: Fraction of the commanded speed driven (taught pace, VelocityNet and limits alike): a careful first
+    #: repeat at 0.5. The arc each command drives is the same; the route takes 1/speed the time.
+    speed: float = 1.0
+    #: Step replies missed in a row (no reply within the step + the link's timeout; the stop after each was
+    #: answered) before the run ends as ``robot_too_slow``; 0: never.
+    missed_replies: int = 10
+
+    def step_limit(self, subgoals: int) -> int:
+        """``max_steps``, or by default 8 per subgoal + 50 (4x the taught steps at 2 per subgoal) at full
+        speed: a lost robot must stop, a long route must not be cut short."""
+        return self.max_steps or math.ceil((8 * subgoals + 50) / self.speed)
 
     def __post_init__(self) -> None:
         if self.dt is not None and not (math.isfinite(self.dt) and self.dt > 0):
@@ -74,6 +87,10 @@ class RepeatConfig:
             raise ValueError(f"frame_timeout_s must be > 0 seconds, got {self.frame_timeout_s}")
         if not (math.isfinite(self.wait_s) and self.wait_s >= 0):
             raise ValueError(f"wait_s must be >= 0 seconds, got {self.wait_s}")
+        if not (math.isfinite(self.speed) and 0 < self.speed <= 1):
+            raise ValueError(f"speed must be in (0, 1], got {self.speed}")
+        if self.missed_replies < 0:
+            raise ValueError(f"missed_replies must be >= 0, got {self.missed_replies}")
         if self.bad_frame_backoff_s < 0:
             raise ValueError(f"bad_frame_backoff_s must be >= 0, got {self.bad_frame_backoff_s}")
 
@@ -95,7 +112,7 @@ class StepRecord:
     ``policy`` (predict), ``compute`` (image in to command ready), ``robot`` (step round trip plus the
     zero command) and what the robot reports itself (SimClient: ``receive``, ``decode``), ``total``.
     ``status`` is set on the record that ended the run (then no command was sent on it); ``image`` is
-    None only when the run ended before any valid frame.
+    None only when the run ended before any valid frame; ``waited_s`` is set while the way is blocked.
     """
 
     step: int
@@ -114,6 +131,7 @@ class StepRecord:
     image: np.ndarray | None
     status: RepeatStatus | None = None
     detail: str = ""
+    waited_s: float | None = None  # seconds waited so far for a blocked way (None: not waiting)
 
     @property
     def advanced(self) -> int:

@@ -14,10 +14,10 @@ Safety rules, in order of precedence:
 - zero velocity is commanded when the run ends for any reason: finished, stalled, step limit, an
   interrupt (``stop_event`` or KeyboardInterrupt), a robot error, no valid frame in time, or any other
   exception (re-raised after the stop);
-- a frame that fails validation (``BadFrameError`` from the client, or a wrong shape/dtype or a
-  non-finite stamp from any Robot), the reply to the zero command between steps included, is counted
-  and never reaches the policy: the robot is stopped and
-  re-polled with ``observe`` until a valid frame arrives, or ``frame_timeout_s`` passes without one;
+- a frame that fails validation (``BadFrameError`` from the client, or a wrong shape/dtype or a non-finite
+  stamp from any Robot), the reply to the zero command between steps included, is counted and never reaches
+  the policy: the robot is stopped and re-polled with ``observe`` until a valid frame arrives, or
+  ``frame_timeout_s`` passes without one; ``missed_replies`` step replies in a row too late end the run;
 - the step limit ends a run whose robot is lost.
 
 How a run ends is a :class:`RepeatStatus` (its docstring lists when each is produced). Something in the way
@@ -38,6 +38,7 @@ from vtr.runtime.contracts import CONTROL_DT, Observation, Policy, Robot
 from vtr.runtime.controller import Action, Verdict
 from vtr.runtime.follower import RouteController, controller_for_route
 from vtr.runtime.frame import frames_of
+from vtr.runtime.missed_replies import MissedReplies
 from vtr.runtime.protocol import BadFrameError
 from vtr.runtime.repeat_types import RepeatConfig, RepeatStatus, StepRecord, Summary
 from vtr.runtime.robot import RobotError, safe_stop
@@ -60,10 +61,6 @@ def _status_of(value: str, default: RepeatStatus) -> RepeatStatus:
         return RepeatStatus(value)
     except ValueError:
         return default
-
-
-#: Default step limit per subgoal (plus 50): 4x the taught control steps, as subgoals are 2 steps apart.
-STEPS_PER_SUBGOAL = 8
 
 
 class Repeater:
@@ -117,8 +114,7 @@ class Repeater:
         self._w_max = min([math.inf, *(float(b.w_max) for b in bounds)])
         self.on_step = on_step
         self.stop_event = stop_event or threading.Event()
-        # a lost robot must stop; a long route must not be cut short
-        self.max_steps = self.config.max_steps or STEPS_PER_SUBGOAL * len(route) + 50
+        self.max_steps = self.config.step_limit(len(route))
         self.steps = 0
         self.bad_frames = 0
         self.status: RepeatStatus | None = None
@@ -137,15 +133,15 @@ class Repeater:
         #: Zero steps held while something was in the way; when the current wait began (robot clock, wall).
         self.waited_steps = 0
         self._blocked_since: tuple[float, float] | None = None
+        self._missed = MissedReplies(self.config.missed_replies)  # step replies too late, in a row
 
     def _self_bias(self, weight: float) -> np.ndarray | None:
         """(L, 2) ``weight * policy(S, S)`` per subgoal S, or None when off: what the network commands with the
         robot already on the subgoal, taken off every command toward it (ControllerConfig.zero_bias)."""
         if weight <= 0:
             return None
-        return weight * np.array(
-            [np.asarray(self.policy.predict(view, view), np.float64)[:2, 0] for view in self._views]
-        )
+        predict = self.policy.predict
+        return weight * np.array([np.asarray(predict(view, view), np.float64)[:2, 0] for view in self._views])
 
     @property
     def done(self) -> bool:
@@ -256,6 +252,8 @@ class Repeater:
         obs = self._obs
         if self.stop_event.is_set():
             return self._end(RepeatStatus.INTERRUPTED)
+        if self._missed.too_slow:  # each step was stopped already; another would only creep on
+            return self._end(RepeatStatus.ROBOT_TOO_SLOW, self._missed.describe(self.dt))
         t0 = time.perf_counter()
         verdict = self.controller.judge(obs.frame, obs.collided)
         t_error = time.perf_counter()
@@ -275,6 +273,7 @@ class Repeater:
         if decision.prior is not None:  # the taught command into the subgoal, blended in
             a, b, pv, pw = decision.prior
             v, w = (1 - a) * v + a * pv, (1 - b) * w + b * pw
+        v, w = v * self.config.speed, w * self.config.speed  # the same arc, slower
         v_max = min(decision.v_limit, self._v_max)  # v_limit 0: no translation in a taught turn in place
         v, w = max(-v_max, min(v_max, v)), max(-self._w_max, min(self._w_max, w))
         guard = limit_twist(
@@ -289,7 +288,7 @@ class Repeater:
         stage["error"] = (t_error - t0) * 1e3
         stage["policy"] = (t_policy - t_error) * 1e3
         stage["compute"] = (t_policy - t0) * 1e3
-        new_obs = self._fetch(lambda: self.robot.step(v, w, self.dt))
+        new_obs = self._fetch(self._missed.watch(lambda: self.robot.step(v, w, self.dt)))
         self.controller.commanded(v, w, self.dt)  # the progress gate counts what the robot was told
         # the robot's own breakdown of the step round trip (SimClient: receive, decode)
         robot_stage = getattr(self.robot, "last_timing_ms", None) or {}
@@ -315,12 +314,11 @@ class Repeater:
         waited = max(now[0] - since[0], now[1] - since[1])
         if waited >= self.config.wait_s:
             return self._end(RepeatStatus.BLOCKED, f"{evidence}; waited {waited:.1f} s", verdict)
-        new_obs = self._fetch(lambda: self.robot.step(0.0, 0.0, self.dt))
+        new_obs = self._fetch(self._missed.watch(lambda: self.robot.step(0.0, 0.0, self.dt)))
         self.controller.commanded(0.0, 0.0, self.dt)
         self.waited_steps += 1
-        record = self._record(
-            verdict, obs, 0.0, 0.0, False, {}, None, f"{evidence}; waiting up to {self.config.wait_s:g} s"
-        )
+        detail = f"{evidence}; waiting up to {self.config.wait_s:g} s"
+        record = self._record(verdict, obs, 0.0, 0.0, False, {}, None, detail, waited)
         self._obs = new_obs
         return record
 
@@ -334,6 +332,7 @@ class Repeater:
         stage: Mapping[str, float],
         status: RepeatStatus | None = None,
         detail: str = "",
+        waited_s: float | None = None,
     ) -> StepRecord:
         index = self.controller.index
         return StepRecord(
@@ -353,6 +352,7 @@ class Repeater:
             image=obs.image if obs is not None else None,
             status=status,
             detail=detail,
+            waited_s=waited_s,
         )
 
     def _end(self, status: RepeatStatus, detail: str = "", verdict: Verdict | None = None) -> StepRecord:

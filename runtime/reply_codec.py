@@ -2,7 +2,8 @@
 validate them on the client. Pure functions over lists of frames; ``runtime.protocol`` re-exports them.
 
 An image reply is a header and one raw ``rgb8`` frame; its header may carry a range ``scan``
-(``runtime.scan``), read only when the caller passes the scanner announced in ``hello``.
+(``runtime.scan``), read only when the caller passes the scanner announced in ``hello``, and the robot's
+executed ``twist`` (``{"v", "w"}``), read only when ``hello`` announced one.
 """
 
 from __future__ import annotations
@@ -55,6 +56,7 @@ class Reply:
     pose: tuple[float, float, float] | None = None  # (x, y, yaw)
     collided: bool = False
     scan: Scan | None = None  # the range reading, when the caller passed the announced scanner
+    twist: tuple[float, float] | None = None  # (v, w) the robot executed, when the caller expects it
 
 
 def _reply_header(
@@ -87,8 +89,10 @@ def encode_image_reply(
     pose: Any = None,
     collided: bool = False,
     scan: Scan | None = None,
+    twist: tuple[float, float] | None = None,
 ) -> list[bytes]:
-    """An image reply: header (with the range ``scan`` when given) + one raw rgb8 frame."""
+    """An image reply: header (with the range ``scan`` and the executed ``twist`` (v, w) when given) + one raw
+    rgb8 frame."""
     if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
         raise ProtocolError(f"image must be (H, W, 3) uint8, got {image.shape} {image.dtype}")
     header = _reply_header(cmd, seq, session, stamp)
@@ -101,6 +105,8 @@ def encode_image_reply(
     )
     if scan is not None:
         header["scan"] = scan_to_wire(scan)
+    if twist is not None:
+        header["twist"] = {"v": float(twist[0]), "w": float(twist[1])}
     return [header_bytes(header), np.ascontiguousarray(image).tobytes()]
 
 
@@ -130,12 +136,14 @@ def decode_reply(
     expect_shape: tuple[int, int] | None = None,
     max_message_bytes: int = MAX_MESSAGE_BYTES,
     expect_scan: ScanSpec | None = None,
+    expect_twist: bool = False,
 ) -> Reply:
     """Parse and validate a reply; raises :class:`BadFrameError` naming the problem.
 
     ``expect_shape`` is (height, width) of the images the caller can use. ``expect_scan`` is the scanner
     announced in ``hello``: an image reply's ``scan`` (optional, null alike) is then checked against it and
-    decoded; without it the field is not read. An error reply (``ok``
+    decoded; without it the field is not read. ``expect_twist`` (hello announced ``twist``) reads an image reply's
+    executed ``twist`` (optional, null alike) the same way. An error reply (``ok``
     false) decodes without raising: the caller decides what a refusal means. Its ``seq`` may be null
     (the server could not read the request); otherwise it must equal ``expect_seq`` too.
     """
@@ -199,6 +207,9 @@ def decode_reply(
     scan = None
     if expect_scan is not None and header.get("scan") is not None:
         scan = scan_from_wire(header["scan"], expect_scan, err)
+    twist = None
+    if expect_twist and header.get("twist") is not None:
+        twist = twist_from_wire(header["twist"], err)
     return Reply(
         cmd=cmd,
         seq=seq,
@@ -210,4 +221,12 @@ def decode_reply(
         pose=pose,
         collided=collided,
         scan=scan,
+        twist=twist,
     )
+
+
+def twist_from_wire(raw: Any, err: type[BadFrameError] = BadFrameError) -> tuple[float, float]:
+    """An image reply's ``twist``: ``{"v": m/s, "w": rad/s}``, finite numbers (docs/PROTOCOL.md)."""
+    if not isinstance(raw, dict):
+        raise err(f"reply field 'twist' must be an object with 'v' and 'w', got {show(raw)}")
+    return number(raw, "v", err, "twist."), number(raw, "w", err, "twist.")

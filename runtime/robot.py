@@ -9,11 +9,13 @@ evaluation; a real robot bridge implements it on the robot's side.
 from __future__ import annotations
 
 from vtr.runtime.contracts import Observation, ResettableRobot, Robot
+from vtr.runtime.wire_json import BadFrameError
 
 __all__ = [
     "Interrupted",
     "safe_stop",
     "LinkLost",
+    "MissedReply",
     "Observation",
     "ResettableRobot",
     "Robot",
@@ -48,6 +50,16 @@ class Interrupted(RobotError):
     """A wait for the robot was abandoned because the run was asked to stop (Ctrl-C, SIGTERM)."""
 
     status = "interrupted"
+
+
+class MissedReply(BadFrameError):
+    """No reply to a motion command within its wait (its duration + the link's timeout), while the stop sent
+    after it was answered: the robot is there but answered too late, or not at all. The repeat counts these
+    (``RepeatConfig.missed_replies``: enough in a row end it as ``robot_too_slow``)."""
+
+    def __init__(self, message: str, wait_s: float) -> None:
+        super().__init__(message)
+        self.wait_s = wait_s
 
 
 def safe_stop(robot: Robot) -> bool:

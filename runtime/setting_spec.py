@@ -35,6 +35,7 @@ class Setting:
     path: bool = False  # a file path: relative ones in the config file are relative to the file
     takes: str = ""  # what a text setting takes, in words (default: "text", or "a file path")
     flag: str = ""  # default: --key
+    file_only: bool = False  # no flag: a tuning knob of the robot's board, set once in its config file
     metavar: str = ""
     goes: str = ""  # where the value goes: a dotted path into the command's config, or a sentence
     default_text: str = ""  # what --help and the docs say when the default is None or derived

@@ -83,7 +83,7 @@ def add_arguments(
     )
     groups: dict[str, Any] = {}
     for s in for_command(command):
-        if s.name in skip:
+        if s.name in skip or s.file_only:
             continue
         if s.section not in groups:
             title = (
@@ -231,7 +231,8 @@ def markdown() -> str:
         lines += ["", f"## [{section}]", "", f"Read by {', '.join(f'`vtr {c}`' for c in readers)}.", ""]
         lines += ["| key | flag | default | allowed | meaning | goes to |", "|---|---|---|---|---|---|"]
         for s in rows:
-            cells = (f"`{s.key}`", f"`{s.option}`", s.shown_default(), s.allowed(), s.help, s.goes)
+            flag = "(file only)" if s.file_only else f"`{s.option}`"
+            cells = (f"`{s.key}`", flag, s.shown_default(), s.allowed(), s.help, s.goes)
             lines.append("| " + " | ".join(c.replace("|", "\\|") for c in cells) + " |")
     return "\n".join(lines) + "\n"
 

@@ -1,4 +1,6 @@
-"""`vtr teach`: drive a scripted route (ROUTE.json) and record its visual trajectory (a Route .npz).
+"""`vtr teach`: drive a route and record its visual trajectory (a Route .npz): a scripted route (ROUTE.json,
+here), a drive by keyboard in this terminal (``--drive``) or a drive by the robot's own joystick (``--follow``;
+both in ``runtime.teach_drive``), all recorded by one recorder (``runtime.teach_record``).
 
 The robot is reset to the script's start, then each segment is driven in control steps of ``dt``
 (0.1 s, the repeat's step): a segment of duration D takes round(D / dt) steps. Subgoal spacing, chosen
@@ -22,7 +24,7 @@ import math
 import os
 import sys
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -31,16 +33,17 @@ from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT
 from vtr.runtime.hello import accept_hello
 from vtr.runtime.preprocess import image_error
-from vtr.runtime.protocol import jsonable
+from vtr.runtime.protocol import Limits, jsonable
 from vtr.runtime.robot import Observation, ResettableRobot, RobotError
 from vtr.runtime.route import Route
 from vtr.runtime.route_script import RouteScript
-from vtr.runtime.safety import limit_twist
-from vtr.runtime.scan import Scan
 from vtr.runtime.setting_spec import REQUIRED
 from vtr.runtime.settings import default
 from vtr.runtime.settings_cli import add_arguments as add_settings
 from vtr.runtime.settings_cli import resolve
+from vtr.runtime.teach_drive import drive, follow
+from vtr.runtime.teach_record import TeachRecorder, taught_clearance  # noqa: F401  (re-exported)
+from vtr.runtime.teleop_keys import FOLLOW_HELP, HELP, KeyReader, raw_terminal
 
 SPACING_RULES = ("steps", "distance", "image")
 
@@ -136,67 +139,12 @@ def teach(robot: ResettableRobot, script: RouteScript, cfg: TeachConfig | None =
     """Drive ``script`` on ``robot`` and return the recorded Route (not yet saved)."""
     cfg = cfg or TeachConfig()
     info = _robot_info(robot, cfg.dt)
-    obs = robot.reset(pose=script.start, seed=cfg.seed)
-    images: list[np.ndarray] = []
-    poses: list[tuple[float, float, float]] = []
-    commands: list[list[float]] = []
-    scans: list[Scan | None] = []  # the range scan at each subgoal, when the robot has one
-    pending = False  # the last subgoal still waits for the command that follows it
-
-    def record(o: Observation) -> None:
-        nonlocal pending
-        images.append(np.array(o.image, dtype=np.uint8, copy=True))
-        poses.append(o.pose if o.pose is not None else (math.nan, math.nan, math.nan))
-        commands.append([0.0, 0.0])
-        scans.append(o.scan)
-        pending = True
-
-    record(obs)
-    since = 0
+    recorder = TeachRecorder(cfg, robot.reset(pose=script.start, seed=cfg.seed))
     for segment in script.segments:
         for _ in range(max(1, round(segment.duration / cfg.dt))):
-            if pending:
-                commands[-1] = [segment.v, segment.w]
-                pending = False
-            obs = robot.step(segment.v, segment.w, cfg.dt)
-            since += 1
-            if cfg.subgoal_due(since, obs, images[-1], poses[-1]):
-                record(obs)
-                since = 0
+            recorder.step(segment.v, segment.w, robot.step(segment.v, segment.w, cfg.dt))
     robot.stop()
-    if since > 0:
-        record(obs)
-    height, width = images[0].shape[:2]
-    camera = (
-        info.get("camera") if isinstance(info.get("camera"), dict) else {"height": height, "width": width}
-    )
-    return Route(
-        images=np.stack(images),
-        poses=np.array(poses, dtype=np.float64),
-        commands=np.array(commands, dtype=np.float64),
-        name=script.name,
-        camera=camera,
-        spacing=cfg.rule(),
-        map=info.get("map") if isinstance(info.get("map"), str) else None,
-        dt=cfg.dt,
-        clearance=taught_clearance(scans, np.array(commands, dtype=np.float64)),
-    )
-
-
-def taught_clearance(scans: list[Scan | None], commands: np.ndarray) -> np.ndarray | None:
-    """(L,) free distance (m) the teach's range scan showed at each subgoal in its driving direction (the
-    command after it, else the one before; inf: nothing in range), or None when the robot sent no scans.
-    The repeat's stop zone never reaches further than what the teach itself drove up to (runtime.safety)."""
-    if all(s is None for s in scans):
-        return None
-    out = np.full(len(scans), np.nan)
-    for i, scan in enumerate(scans):
-        if scan is None:
-            continue
-        v = commands[i, 0] if commands[i, 0] != 0 or i == 0 else commands[i - 1, 0]
-        seen = limit_twist(-1.0 if v < 0 else 1.0, 0.0, scan).distance
-        out[i] = math.inf if seen is None else seen
-    return out
+    return recorder.finish(script.name, info)
 
 
 # ------------------------------------------------------------------------------------------------- CLI
@@ -214,6 +162,8 @@ class TeachRunConfig:
     #: (runtime/settings.py) give these two and the robot's address, from a flag or the config file.
     timeout_s: float = default("teach.timeout")
     retries: int = default("teach.retries")
+    #: Who drives: "script" (the ROUTE.json), "drive" (keys in this terminal), "follow" (the robot's own driver).
+    mode: str = "script"
 
     def __post_init__(self) -> None:
         check_endpoint(self.sim)
@@ -223,12 +173,20 @@ class TeachRunConfig:
             raise ValueError(f"--timeout must be > 0 seconds, got {self.timeout_s}")
         if self.retries < 1:
             raise ValueError(f"--retries must be >= 1, got {self.retries}")
+        if self.mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, got {self.mode!r}")
 
 
-def run(cfg: TeachRunConfig) -> Route:
+MODES = ("script", "drive", "follow")
+
+
+def run(cfg: TeachRunConfig) -> Route | None:
+    """Teach and save; None when a drive was aborted (nothing saved)."""
     from vtr.runtime.client import SimClient
     from vtr.runtime.route_script import load_route_script
 
+    if cfg.mode != "script":
+        return run_driven(cfg)
     script = load_route_script(cfg.route)
     # a silent robot gets its stop 0.3 s after a step's duration, whatever --timeout allows hello/reset
     with SimClient(cfg.sim, retries=cfg.retries, setup_timeout_s=cfg.timeout_s) as client:
@@ -237,9 +195,58 @@ def run(cfg: TeachRunConfig) -> Route:
     return route
 
 
+def run_driven(
+    cfg: TeachRunConfig, stdin: TextIO | None = None, stdout: TextIO | None = None
+) -> Route | None:
+    """`vtr teach --drive` / `--follow` (runtime.teach_drive): keys from ``stdin``, which must be a terminal."""
+    from vtr.runtime.client import SimClient
+
+    stdin, stdout = stdin or sys.stdin, stdout or sys.stdout
+    try:
+        fd = stdin.fileno()
+    except (OSError, ValueError, AttributeError):  # a pseudo-file (a test's or a notebook's stdin)
+        fd = -1
+    if fd < 0 or not os.isatty(fd):
+        raise ValueError(f"--{cfg.mode} reads keys from a terminal, and stdin is not one")
+    with SimClient(cfg.sim, retries=cfg.retries, setup_timeout_s=cfg.timeout_s) as client:
+        info = _robot_info(client, cfg.teach.dt)
+        hello = client.hello_info
+        first = client.observe()
+        if cfg.mode == "follow" and (hello is None or hello.twist is None) and first.pose is None:
+            raise ValueError(
+                "--follow needs a robot that reports its executed twist (hello 'twist') or its pose; "
+                "this one reports neither (docs/PROTOCOL.md, 'Executed twist')"
+            )
+        print(
+            f"vtr teach --{cfg.mode}: {HELP if cfg.mode == 'drive' else FOLLOW_HELP}", file=stdout, flush=True
+        )
+        with raw_terminal(fd):
+            keys = KeyReader(fd)
+            if cfg.mode == "drive":
+                rec = drive(client, cfg.teach, keys, client.limits or Limits(), stdout, first)
+            else:
+                rec = follow(client, cfg.teach, keys, stdout, first)
+    if rec is None:
+        return None
+    if len(rec) < 2 and rec.since == 0:
+        raise ValueError("nothing was driven: the route would be a single view; nothing saved")
+    route = rec.finish(os.path.splitext(os.path.basename(cfg.out))[0] or "route", info)
+    route.save(cfg.out)
+    return route
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_config_arguments(parser, TeachRunConfig, skip=("sim", "route"))  # optional with --bag
-    parser.add_argument("--route", default=None, help="ROUTE.json: start pose and (v, w, duration) segments")
+    how = parser.add_mutually_exclusive_group()
+    how.add_argument("--route", default=None, help="ROUTE.json: start pose and (v, w, duration) segments")
+    how.add_argument(
+        "--drive", action="store_true", help=f"drive with the keyboard in this terminal and record: {HELP}"
+    )
+    how.add_argument(
+        "--follow",
+        action="store_true",
+        help="record while the robot is driven by its own joystick (sends no motion command; q or Enter saves)",
+    )
     add_config_arguments(parser, TeachConfig)
     add_settings(
         parser, "teach", notes={"robot.address": "or --bag"}
@@ -247,27 +254,41 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run_cli(args: argparse.Namespace) -> int:
+    mode = (
+        "drive" if getattr(args, "drive", False) else "follow" if getattr(args, "follow", False) else "script"
+    )
     try:
         settings = resolve(args, "teach", required=False)
         teach_cfg = config_from_args(TeachConfig, args)
         sim = settings["robot.address"]
-        if sim is REQUIRED or not args.route:
-            raise ValueError("needs --sim and --route (a live robot), or --bag (a recorded drive)")
+        if sim is REQUIRED or (mode == "script" and not args.route):
+            raise ValueError(
+                "needs --sim and one of --route (a scripted drive), --drive (keys) or --follow (the robot's own "
+                "driver), or --bag (a recorded drive)"
+            )
         cfg = config_from_args(
             TeachRunConfig,
             args,
             sim=sim,
+            route=args.route or "",
             teach=teach_cfg,
             timeout_s=settings["teach.timeout"],
             retries=settings["teach.retries"],
+            mode=mode,
         )
     except ValueError as exc:
         print(f"vtr teach: {exc}", file=sys.stderr)
         return 2
     try:
         route = run(cfg)
+    except KeyboardInterrupt:  # Ctrl-C outside raw mode, SIGTERM, SIGHUP: the robot got its stop already
+        print("vtr teach: interrupted; nothing saved", file=sys.stderr)
+        return 130
     except (OSError, ValueError, RobotError) as exc:  # bad ROUTE.json, unreachable or refusing simulator
         print(f"vtr teach: {exc}", file=sys.stderr)
         return 2
+    if route is None:
+        print("vtr teach: aborted; nothing saved", file=sys.stderr)
+        return 130
     print(f"vtr teach: {len(route)} subgoals ({cfg.teach.spacing} spacing) -> {os.path.abspath(cfg.out)}")
     return 0

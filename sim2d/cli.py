@@ -119,7 +119,10 @@ def run_serve(
     cmd_vel_timeout: float = 0.5,
     changes: tuple[str, ...] = (),
     scan: bool = True,
+    drive_script: str | None = None,
+    twist: bool = True,
 ) -> int:
+    from vtr.runtime.route_script import load_route_script
     from vtr.sim2d.config import CameraConfig, SimConfig
 
     try:
@@ -131,11 +134,18 @@ def run_serve(
         return 3
     check_endpoint(bind, bind=True)
     sim_cfg = SimConfig(house=house, noise=noise, changes=changes, camera=CameraConfig(brightness=brightness))
+    script = None if drive_script is None else load_route_script(drive_script)
+    cfg = ServerConfig(
+        bind=bind,
+        sim=sim_cfg,
+        mode=mode,
+        cmd_vel_timeout=cmd_vel_timeout,
+        scan=scan,
+        drive_script=script,
+        twist=twist,
+    )
     try:
-        return int(
-            serve(ServerConfig(bind=bind, sim=sim_cfg, mode=mode, cmd_vel_timeout=cmd_vel_timeout, scan=scan))
-            or 0
-        )
+        return int(serve(cfg) or 0)
     except BindError as err:  # the port is taken, or the interface does not exist
         print(f"vtr sim serve: {err}; choose another --bind", file=sys.stderr)
         return 2
@@ -193,6 +203,19 @@ def add_serve_arguments(parser: argparse.ArgumentParser) -> None:
         help="serve a camera-only robot: no range scanner in hello, no scan in the replies (default: a 181-beam "
         "270 deg scanner, 5 m, sim2d/rangefinder.py)",
     )
+    parser.add_argument(
+        "--no-twist",
+        dest="twist",
+        action="store_false",
+        help="report no executed twist in the replies (default: the commanded twist, docs/PROTOCOL.md)",
+    )
+    parser.add_argument(
+        "--drive-script",
+        default=None,
+        metavar="ROUTE_JSON",
+        help="realtime: the robot drives this ROUTE.json by itself, from its start pose, as its own joystick "
+        "would, starting at the first observe (try `vtr teach --follow` with it) (default: none)",
+    )
 
 
 def add_route_arguments(parser: argparse.ArgumentParser) -> None:
@@ -213,6 +236,8 @@ def run_serve_cli(args: argparse.Namespace) -> int:
         args.cmd_vel_timeout,
         tuple(args.change),
         args.scan,
+        args.drive_script,
+        args.twist,
     )
 
 

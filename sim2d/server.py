@@ -15,7 +15,10 @@ robot before a restart) or any exception while handling one gets an error reply 
 the server keeps serving. The loop polls with a timeout and checks a stop flag, so SIGINT/SIGTERM shut it
 down cleanly. ``hello`` announces the camera, limits and clock (docs/PROTOCOL.md); it names the map, never
 its path on this machine. With ``ServerConfig.scan`` (the default) it also announces the simulator's range
-scanner (sim2d.rangefinder), and every image reply carries a scan taken with the image.
+scanner (sim2d.rangefinder), and every image reply carries a scan taken with the image. With ``ServerConfig.twist``
+(the default) image replies report the executed twist (the one driving the robot: the last step's, zero after a
+stop or the watchdog). With ``ServerConfig.drive_script`` the robot drives a ROUTE.json by itself, as its own
+joystick would (sim2d/joystick.py: how `vtr teach --follow` is tried without a second person).
 
 Only this module (and ``local_robot.py``) couples sim2d to the runtime; the simulator core never
 imports ZeroMQ.
@@ -25,7 +28,6 @@ from __future__ import annotations
 
 import logging
 import math
-import signal
 import threading
 import time
 import uuid
@@ -37,6 +39,7 @@ import zmq
 
 from vtr.runtime import protocol
 from vtr.runtime.protocol import ProtocolError
+from vtr.sim2d.joystick import ScriptedDriver
 from vtr.sim2d.server_config import ServerConfig
 
 log = logging.getLogger(__name__)
@@ -102,6 +105,12 @@ class SimServer:
         #: without one).
         rangefinder = getattr(simulator, "rangefinder", None) if self.cfg.scan else None
         self.scan_spec = None if rangefinder is None else rangefinder.spec
+        #: Requests served, by command (a test asks whether a follower sent any motion command).
+        self.served: dict[str, int] = {}
+        #: The robot's own joystick (a drive script), None: only clients move it.
+        self.driver = None if self.cfg.drive_script is None else ScriptedDriver(self.cfg.drive_script)
+        if self.driver is not None:
+            self.sim.reset(pose=make_pose(*self.cfg.drive_script.start))
         self._stop = threading.Event()
         self._ready = threading.Event()
 
@@ -114,6 +123,8 @@ class SimServer:
         """Realtime: drive the simulator with the current twist up to wall-clock instant ``now``; the
         watchdog zeroes the twist at ``twist_deadline``."""
         now = self.clock() if now is None else now
+        if self.driver is not None:
+            return self._drive_until(now)
         while self._wall < now:
             until = now
             if self.twist_deadline is not None and self.twist_deadline < now:
@@ -124,6 +135,23 @@ class SimServer:
                 if self.twist != (0.0, 0.0):
                     self.watchdog_stops += 1
                 self.twist, self.twist_deadline = (0.0, 0.0), None
+
+    def _drive_until(self, now: float) -> None:
+        """Realtime with a drive script: the joystick's twist, piece by piece up to each change."""
+        rate = self.cfg.realtime_factor
+        while self._wall < now:
+            v, w, change = self.driver.twist(float(self.sim.time))
+            until = (
+                now if math.isinf(change) else min(now, self._wall + max(change - self.sim.time, 1e-6) / rate)
+            )
+            self.twist = (v, w)
+            self._advance((until - self._wall) * rate)
+            self._wall = until
+        self.twist = self.driver.twist(float(self.sim.time))[:2]
+        if not self.driver.holding(float(self.sim.time)):
+            self.driver = (
+                None  # the script is over: an ordinary robot from now on (a reset restarts its clock)
+            )
 
     def _advance(self, remaining: float) -> None:
         advance = getattr(self.sim, "advance", None)  # no render when the simulator offers it
@@ -185,6 +213,17 @@ class SimServer:
             cmd, seq = protocol.peek_cmd_seq(frames)
             return self._error(str(exc), cmd, seq)
         self.last_cmd = req.cmd
+        self.served[req.cmd] = self.served.get(req.cmd, 0) + 1
+        if self.driver is not None and req.cmd in ("step", "reset"):
+            self.catch_up()
+            if self.driver is not None and self.driver.holding(float(self.sim.time)):
+                return self._error(
+                    "the robot is driven by its own joystick (a drive script); it takes no motion command "
+                    "until the script ends",
+                    req.cmd,
+                    req.seq,
+                    "robot_error",
+                )
         if req.session is not None and req.session != self.session and req.cmd in protocol.GUARDED_COMMANDS:
             return self._error(
                 f"session mismatch: this is session {self.session}, the request was for {req.session} "
@@ -209,8 +248,9 @@ class SimServer:
     def _image_reply(self, req: protocol.Request, image: Any) -> list[bytes]:
         collided, self._contact = bool(self.sim.collided) or self._contact, False
         scan = self.sim.scan() if self.scan_spec is not None else None
+        twist = self.twist if self.cfg.twist else None
         return protocol.encode_image_reply(
-            req.cmd, req.seq, self.session, float(self.sim.time), image, self.sim.pose, collided, scan
+            req.cmd, req.seq, self.session, float(self.sim.time), image, self.sim.pose, collided, scan, twist
         )
 
     def _dispatch(self, req: protocol.Request) -> list[bytes]:
@@ -224,6 +264,9 @@ class SimServer:
             self._wall = self.clock()
             return self._image_reply(req, image)
         if req.cmd == "observe":
+            if self.driver is not None:  # the follower's first look starts the joystick
+                self.driver.start(float(sim.time))
+                self.twist = self.driver.twist(float(sim.time))[:2]
             return self._image_reply(req, sim.observe())
         if req.cmd == "step":
             v, w, duration = req.fields["v"], req.fields["w"], req.fields["duration"]
@@ -257,6 +300,8 @@ class SimServer:
         }
         if self.scan_spec is not None:
             fields["scan"] = self.scan_spec.to_dict()
+        if self.cfg.twist:  # the twist driving the robot: the last step's command (or the drive script's)
+            fields["twist"] = {"source": "commanded"}
         return fields
 
     # ------------------------------------------------------------------ socket loop
@@ -320,39 +365,9 @@ class SimServer:
             ctx.term()
 
 
-def serve(cfg: ServerConfig, simulator: Any = None) -> int:
-    """`vtr sim serve`: build the simulator (unless given), serve until SIGINT/SIGTERM, return 0."""
-    if simulator is None:
-        from vtr.sim2d import SimConfig, Simulator  # type: ignore[attr-defined]  # pymunk lives behind this
-
-        simulator = Simulator(cfg.sim if cfg.sim is not None else SimConfig())
-        simulator.reset()
-    server = SimServer(simulator, cfg)
-    previous = {}
-    if threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            previous[sig] = signal.signal(sig, lambda *_: server.stop())
-    try:
-        thread = threading.Thread(target=_announce, args=(server,), daemon=True)
-        thread.start()
-        server.serve_forever()
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
-    print(f"vtr sim serve: stopped after {server.requests} requests ({server.errors} refused)", flush=True)
-    return 0
-
-
-def _announce(server: SimServer) -> None:
-    try:
-        endpoint = server.wait_ready()
-    except TimeoutError:
-        return
-    print(f"vtr sim serve: listening on {endpoint} (session {server.session}, {server.cfg.mode})", flush=True)
-
-
-# Background runs (threads, child processes) live in server_launch; their names stay importable from here.
-from vtr.sim2d.server_launch import ServerProcess, ServerThread, start_server_process  # noqa: E402
+# Background runs (threads, child processes) and `vtr sim serve`'s loop live in server_launch; their names stay
+# importable from here.
+from vtr.sim2d.server_launch import ServerProcess, ServerThread, serve, start_server_process  # noqa: E402
 
 __all__ = [
     "Deferred",

@@ -39,6 +39,10 @@ class ServerConfig:
     cmd_vel_timeout: float = 0.5
     #: Announce the simulator's range scanner and send a scan with every image (False: a camera-only robot).
     scan: bool = True
+    #: Report the executed twist (the one the robot is driving with) in every image reply, announced in hello.
+    twist: bool = True
+    #: A RouteScript the robot drives by itself, as its own joystick would (sim2d/joystick.py; realtime only).
+    drive_script: Any = None
 
     def __post_init__(self) -> None:
         check_endpoint(self.bind, bind=True)
@@ -59,6 +63,10 @@ class ServerConfig:
             raise ValueError(f"mode must be 'lockstep' or 'realtime', got {self.mode!r}")
         if not (math.isfinite(self.realtime_factor) and self.realtime_factor > 0):
             raise ValueError(f"realtime_factor must be a positive number, got {self.realtime_factor!r}")
+        if self.drive_script is not None and self.mode != "realtime":
+            raise ValueError(
+                "a drive script needs --mode realtime: in lockstep nothing moves between requests"
+            )
         if not (math.isfinite(self.cmd_vel_timeout) and self.cmd_vel_timeout >= 0):
             raise ValueError(
                 f"cmd_vel_timeout must be >= 0 seconds (0 disables), got {self.cmd_vel_timeout!r}"

@@ -1,5 +1,6 @@
-"""Run a SimServer in the background: a daemon thread (tests, notebooks) or a spawned child process that can
-be terminated or killed (crash tests, benchmarks)."""
+"""Run a SimServer: in the foreground until SIGINT/SIGTERM (`vtr sim serve`, :func:`serve`), or in the background,
+a daemon thread (tests, notebooks) or a spawned child process that can be terminated or killed (crash tests,
+benchmarks)."""
 
 from __future__ import annotations
 
@@ -118,3 +119,34 @@ def start_server_process(
             process.join(1.0)
             raise RuntimeError(f"simulator server did not start on {cfg.bind} (exit code {process.exitcode})")
     return ServerProcess(process=process, endpoint=parent.recv())
+
+
+def serve(cfg: ServerConfig, simulator: Any = None) -> int:
+    """`vtr sim serve`: build the simulator (unless given), serve until SIGINT/SIGTERM, return 0."""
+    if simulator is None:
+        from vtr.sim2d import SimConfig, Simulator  # type: ignore[attr-defined]  # pymunk lives behind this
+
+        simulator = Simulator(cfg.sim if cfg.sim is not None else SimConfig())
+        simulator.reset()
+    server = _sim_server(simulator, cfg)
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, lambda *_: server.stop())
+    try:
+        thread = threading.Thread(target=_announce, args=(server,), daemon=True)
+        thread.start()
+        server.serve_forever()
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+    print(f"vtr sim serve: stopped after {server.requests} requests ({server.errors} refused)", flush=True)
+    return 0
+
+
+def _announce(server: SimServer) -> None:
+    try:
+        endpoint = server.wait_ready()
+    except TimeoutError:
+        return
+    print(f"vtr sim serve: listening on {endpoint} (session {server.session}, {server.cfg.mode})", flush=True)

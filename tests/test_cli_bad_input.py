@@ -73,7 +73,7 @@ CASES = {
     "repeat: http address": (_repeat(sim="http://127.0.0.1:5601"), "http://"),
     "repeat: no port": (_repeat(sim="tcp://127.0.0.1"), "no port"),
     "repeat: no transport": (_repeat(sim="127.0.0.1:5555"), "tcp://"),
-    "repeat: threads 0": (_repeat("--threads", "0"), "--threads"),
+    "repeat: speed 0": (_repeat("--speed", "0"), "--speed"),
     "repeat: wait -1": (_repeat("--wait", "-1"), "--wait"),
     "repeat: timeout 0": (_repeat("--timeout", "0"), "--timeout"),
     "repeat: stop beyond slowdown": (_repeat("--stop-distance", "0.9"), "--stop-distance"),

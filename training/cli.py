@@ -22,10 +22,19 @@ from vtr.runtime.preprocess import PREPROCESSINGS
 from vtr.training.config import MAX_RATIO
 
 
-def _add_common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--preset", default="default", help="tiny | default | paper (default: default)")
-    p.add_argument("--out", required=True, help="output folder (checkpoints, metrics.jsonl, report.json)")
-    p.add_argument("--resume", action="store_true", help="continue from the checkpoint in --out")
+def _add_common(p: argparse.ArgumentParser, pipeline: bool = False) -> None:
+    if pipeline:  # `vtr train all`: the recipe gives both
+        p.add_argument("--preset", default=None, help="tiny | default | paper (default: the recipe's)")
+        p.add_argument("--out", default=None, help="run folder (default: runs/RECIPE)")
+    else:
+        p.add_argument("--preset", default="default", help="tiny | default | paper (default: default)")
+        p.add_argument("--out", required=True, help="output folder (checkpoints, metrics.jsonl, report.json)")
+    resume = (
+        "kept for old scripts: a rerun always resumes"
+        if pipeline
+        else "continue from the checkpoint in --out"
+    )
+    p.add_argument("--resume", action="store_true", help=resume)
     p.add_argument("--steps", type=int, help="override the preset's number of optimiser steps")
     p.add_argument("--batch-size", type=int, help="override the preset's batch size (per process)")
     p.add_argument("--lr", type=float, help="override the learning rate (paper: 1e-4; default preset: 1e-3)")
@@ -71,9 +80,9 @@ def _add_common(p: argparse.ArgumentParser) -> None:
     )
 
 
-def add_common_arguments(p: argparse.ArgumentParser) -> None:
-    """The options every training stage shares (``vtr train all`` adds its own)."""
-    _add_common(p)
+def add_common_arguments(p: argparse.ArgumentParser, pipeline: bool = False) -> None:
+    """The options every training stage shares (``vtr train all`` adds its own; ``pipeline``: its defaults)."""
+    _add_common(p, pipeline)
 
 
 def add_viewnet_arguments(p: argparse.ArgumentParser) -> None:

@@ -204,8 +204,9 @@ def run(cfg: CollectConfig) -> dict[str, Any]:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out",
-        default="data/house.npz",
-        help="dataset file (.npz), written atomically (default: data/house.npz)",
+        default=None,
+        help="dataset: a file (.npz, written atomically; default data/house.npz) or, with --houses and --sim, "
+        "a folder of shards (default data/houses, data/robot)",
     )
     parser.add_argument(
         "--frames",
@@ -278,6 +279,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run_cli(args: argparse.Namespace) -> int:
     import json
 
+    if args.out is None:  # a file for one simulated house, a folder of shards for many houses or a robot
+        many = args.houses or args.house_seeds
+        args.out = "data/houses" if many else "data/robot" if args.sim is not None else "data/house.npz"
     if args.houses or args.house_seeds:
         from vtr.training.collect_houses import main_houses
 

@@ -145,8 +145,46 @@ def record_house(out: str, house: str, seed: int, frames: int, cfg: CollectConfi
     return {"seed": seed, "entries": entries, **tallies}
 
 
-def run_houses(cfg: HousesConfig, progress: bool = True) -> dict[str, Any]:
-    """Record every house of `cfg` with a pool of workers; returns a summary (frames/s included)."""
+def houses_meta(cfg: HousesConfig) -> dict[str, Any]:
+    """The index's metadata of a dataset recorded with `cfg`."""
+    return {
+        "source": "vtr collect --houses",
+        "house_seeds": list(cfg.seeds),
+        "named_houses": list(cfg.named),
+        "frames_per_house": cfg.frames_per_house,
+        "noise": cfg.collect.noise,
+        "seed": cfg.collect.seed,
+        "collect_config": {k: v for k, v in asdict(cfg.collect).items() if k not in ("progress", "out")},
+    }
+
+
+def recorded_houses(cfg: HousesConfig, meta: dict[str, Any]) -> dict[int, list]:
+    """The houses of `cfg` that the dataset at ``cfg.out`` already holds in full (seed key -> index entries);
+    a dataset recorded with other settings is a ValueError (one line), never mixed with this one."""
+    from vtr.training.shards import read_index
+
+    doc = read_index(cfg.out)
+    if not doc or not doc.get("shards"):
+        return {}
+    same = ("seed", "noise", "collect_config")
+    if doc.get("image_size") != cfg.collect.image_size or any(doc["meta"].get(k) != meta[k] for k in same):
+        raise ValueError(f"{cfg.out} holds houses recorded with other settings; choose another folder")
+    by_house: dict[str, list] = {}
+    for entry in doc["shards"]:
+        by_house.setdefault(str(entry.get("house")), []).append(entry)
+    done = {}
+    for house, key, frames in cfg.tasks():
+        entries = by_house.get(house, [])
+        if entries and sum(int(e.get("frames", 0)) for e in entries) == frames:
+            done[key] = entries
+    return done
+
+
+def run_houses(cfg: HousesConfig, progress: bool = True, resume: bool = False) -> dict[str, Any]:
+    """Record every house of `cfg` with a pool of workers; returns a summary (frames/s included).
+
+    ``resume``: keep the houses the folder already holds in full (recorded with the same settings) and
+    record only the others: an interrupted collection loses at most the houses being recorded."""
     from tqdm import tqdm
 
     from vtr.training.shards import write_index
@@ -158,27 +196,24 @@ def run_houses(cfg: HousesConfig, progress: bool = True) -> dict[str, Any]:
     counter = ctx.Value("q", 0)
     tasks = cfg.tasks()
     total = sum(frames for _, _, frames in tasks)
-    meta = {
-        "source": "vtr collect --houses",
-        "house_seeds": list(cfg.seeds),
-        "named_houses": list(cfg.named),
-        "frames_per_house": cfg.frames_per_house,
-        "noise": cfg.collect.noise,
-        "seed": cfg.collect.seed,
-        "collect_config": {k: v for k, v in asdict(cfg.collect).items() if k not in ("progress", "out")},
-    }
-    entries: dict[int, list] = {}
+    meta = houses_meta(cfg)
+    entries: dict[int, list] = recorded_houses(cfg, meta) if resume else {}
+    kept = sum(frames for _, k, frames in tasks if k in entries)
     summary: dict[str, Any] = {"out": str(out), "houses": len(tasks), "frames": total, "workers": workers}
+    if kept:
+        summary["kept_frames"] = kept
     collisions, commands = 0, {}
     bar = tqdm(total=total, desc=f"collect {len(tasks)} houses", disable=not progress, dynamic_ncols=True)
+    bar.update(kept)
     t0 = time.perf_counter()
     with ProcessPoolExecutor(
         max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=(counter,)
     ) as pool:
-        pending = {pool.submit(record_house, str(out), h, k, n, cfg.collect) for h, k, n in tasks}
+        todo = [(h, k, n) for h, k, n in tasks if k not in entries]
+        pending = {pool.submit(record_house, str(out), h, k, n, cfg.collect) for h, k, n in todo}
         while pending:
             finished, pending = wait(pending, timeout=0.5, return_when=FIRST_COMPLETED)
-            bar.update(counter.value - bar.n)
+            bar.update(kept + counter.value - bar.n)
             for fut in finished:
                 res = fut.result()  # a worker's exception surfaces here
                 entries[res["seed"]] = res["entries"]
@@ -187,12 +222,12 @@ def run_houses(cfg: HousesConfig, progress: bool = True) -> dict[str, Any]:
                     commands[k] = commands.get(k, 0) + v
                 shards = [e for _, k, _ in tasks if k in entries for e in entries[k]]
                 write_index(out, cfg.collect.image_size, cfg.collect.dt, meta, shards)
-    bar.update(counter.value - bar.n)
+    bar.update(kept + counter.value - bar.n)
     bar.close()
     elapsed = time.perf_counter() - t0
     summary.update(
         seconds=round(elapsed, 2),
-        frames_per_s=round(total / elapsed, 1),
+        frames_per_s=round((total - kept) / elapsed, 1),
         collisions=collisions,
         commands=commands,
         episodes=sum(e["episodes"] for es in entries.values() for e in es),

@@ -1,8 +1,9 @@
 """`vtr collect --sim ADDR`: record a training dataset from any robot or simulator that serves the protocol.
 
-    vtr collect --sim tcp://127.0.0.1:5555 --out data/mybuilding.npz --frames 7024
+    vtr collect --sim tcp://127.0.0.1:5555 --out data/mybuilding --frames 7024
 
-Same dataset as the in-process collection (training/dataset.py). The robot's map is unknown, so the
+The dataset is a folder of shards (training/shards.py, as `vtr collect --houses` writes), read by `vtr train`
+like any dataset. The robot's map is unknown, so the
 :class:`ExplorationDriver` keeps it safe with what the protocol gives: on ``collided`` the pair is cut (a collided
 step did not follow its command), the robot backs off and turns away by 90-180 degrees. Commands mix what repeat
 meets: turns in place both ways, creeping, straight runs, fast arcs, reverse and stops, each held for a few frames,
@@ -15,8 +16,10 @@ pose along those taught routes (yaw turned by up to +-35 degrees), so the data c
 they lie from the robot's start pose. It needs a robot that accepts ``reset`` with a pose (a simulator; on a
 real robot drive it there, or record a teleoperated bag).
 
-Resumable: an existing ``--out`` is extended (new episodes appended) until it holds ``--frames`` frames; the file
-is rewritten atomically every ``--save-every`` frames and on Ctrl-C, so a crash loses at most that much.
+Resumable: an existing ``--out`` is extended (new episodes appended) until it holds ``--frames`` frames. Every
+``--save-every`` frames, at the next episode's end, and on Ctrl-C, the frames since the last checkpoint are
+appended as one shard (training/robot_recording.py): a checkpoint writes only them, never the frames before, and
+a crash loses at most the shard being written.
 """
 
 from __future__ import annotations
@@ -35,8 +38,8 @@ from vtr.runtime.address import check_endpoint
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT
 from vtr.runtime.hello import Hello
-from vtr.training.dataset import DatasetError, save_dataset
-from vtr.training.robot_recording import Recording, check_resumable, load_existing
+from vtr.training.dataset import DatasetError
+from vtr.training.robot_recording import Recording, check_out, check_resumable, load_existing
 
 # (kind, probability): the driving mix repeat meets
 COMMAND_MIX = (
@@ -54,7 +57,7 @@ class RobotCollectConfig:
     """How `vtr collect --sim` drives a protocol robot."""
 
     sim: str = opt(None, "record from this robot/simulator endpoint instead of in-process", metavar="ADDR")
-    out: str = "data/robot.npz"  # dataset file, extended when it exists
+    out: str = "data/robot"  # dataset folder (shards), extended when it exists
     frames: int = 7024  # frames the dataset holds when done
     seed: int = 0  # command choice
     dt: float = CONTROL_DT  # s per command (the repeat's control step)
@@ -64,7 +67,7 @@ class RobotCollectConfig:
     segment_max: int = 14
     backoff_steps: int = 4  # reverse steps after a collision
     reset_every: int = opt(0, "--sim: reset every k episodes when the robot can; 0: only when stuck")
-    save_every: int = opt(1000, "--sim: frames between atomic checkpoints")
+    save_every: int = opt(1000, "--sim: frames between checkpoints (a new shard at the next episode's end)")
     timeout_s: float = opt(2.0, "--sim: seconds to wait for each reply", flag="--timeout")
     retries: int = opt(3, "--sim: tries per request (hello, observe, stop; never a motion command)")
     around: tuple[str, ...] = opt(
@@ -76,6 +79,7 @@ class RobotCollectConfig:
 
     def __post_init__(self) -> None:
         check_endpoint(self.sim)
+        check_out(self.out)
         for name in (
             "frames",
             "dt",
@@ -161,7 +165,7 @@ def collect(cfg: RobotCollectConfig, client: Any, log: Any = sys.stdout) -> dict
     v_max, w_max = min(hello.limits.v_max, protocol.V_MAX), min(hello.limits.w_max, protocol.W_MAX)
     rec = load_existing(cfg.out)
     check_resumable(rec, camera, cfg.dt, cfg.out)
-    start_frames = len(rec.images)
+    start_frames = rec.frames
     if start_frames >= cfg.frames:
         print(
             f"collect: {cfg.out} already holds {start_frames} frames (>= {cfg.frames}); nothing to do",
@@ -194,13 +198,13 @@ def collect(cfg: RobotCollectConfig, client: Any, log: Any = sys.stdout) -> dict
             f"the robot's images are {w}x{h}; datasets hold square images: crop them in the bridge"
         )
     episode_len = int(rng.integers(cfg.episode_min, cfg.episode_max + 1))
-    in_episode, recent_hits, last_save, t0, last_print = 0, [], start_frames, time.monotonic(), 0.0
+    in_episode, recent_hits, t0, last_print = 0, [], time.monotonic(), 0.0
     episodes_done = 0
     try:
-        while len(rec.images) < cfg.frames:
+        while rec.frames < cfg.frames:
             rec.add(obs)
             in_episode += 1
-            if len(rec.images) >= cfg.frames:
+            if rec.frames >= cfg.frames:
                 break
             kind, v, w = driver.next()
             try:
@@ -208,7 +212,7 @@ def collect(cfg: RobotCollectConfig, client: Any, log: Any = sys.stdout) -> dict
             except protocol.BadFrameError:  # the frame after this one is unknown: cut the episode here
                 rec.count("bad_frames")
                 new, kind = client.observe(), "cut"
-            step = len(rec.images)
+            step = rec.frames
             if new.collided:
                 rec.count("collisions")
                 recent_hits = [s for s in recent_hits if step - s < 40] + [step]
@@ -227,13 +231,12 @@ def collect(cfg: RobotCollectConfig, client: Any, log: Any = sys.stdout) -> dict
                 elif can_reset and (stuck or due):
                     new, recent_hits = client.reset(seed=cfg.seed + rec.episode), []
                     rec.count("resets")
+                if len(rec.images) >= cfg.save_every:  # a checkpoint: these episodes become a shard
+                    rec.save(cfg.dt)
             else:
                 rec.commands[-1] = (v, w)
                 rec.count(kind)
             obs = new
-            if len(rec.images) - last_save >= cfg.save_every:
-                save_dataset(cfg.out, rec.to_frame_data())
-                last_save = len(rec.images)
             if cfg.progress and time.monotonic() - last_print > 5.0:
                 last_print = time.monotonic()
                 _progress(rec, start_frames, cfg.frames, time.monotonic() - t0, log)
@@ -241,17 +244,15 @@ def collect(cfg: RobotCollectConfig, client: Any, log: Any = sys.stdout) -> dict
         try:
             client.stop()
         finally:
-            if len(rec.images) >= 2 and len(rec.images) > last_save:
-                rec.commands[-1] = (0.0, 0.0)  # the last frame ends its episode
-                save_dataset(cfg.out, rec.to_frame_data())
+            rec.save(cfg.dt)  # the last frame ends its episode
     elapsed = time.monotonic() - t0
     if cfg.progress:
         _progress(rec, start_frames, cfg.frames, elapsed, log)
     return {
         "out": cfg.out,
-        "frames": len(rec.images),
-        "added": len(rec.images) - start_frames,
-        "episodes": len(set(rec.episodes)),
+        "frames": rec.frames,
+        "added": rec.frames - start_frames,
+        "episodes": rec.n_episodes,
         "seconds": round(elapsed, 1),
         "counts": dict(sorted(rec.counts.items())),
         "reset": can_reset,
@@ -259,11 +260,11 @@ def collect(cfg: RobotCollectConfig, client: Any, log: Any = sys.stdout) -> dict
 
 
 def _progress(rec: Recording, start: int, target: int, elapsed: float, log: Any) -> None:
-    added = len(rec.images) - start
+    added = rec.frames - start
     rate = added / elapsed if elapsed > 0 else 0.0
-    eta = (target - len(rec.images)) / rate if rate > 0 else float("inf")
+    eta = (target - rec.frames) / rate if rate > 0 else float("inf")
     print(
-        f"collect: {len(rec.images)}/{target} frames, {len(set(rec.episodes))} episodes, "
+        f"collect: {rec.frames}/{target} frames, {rec.n_episodes} episodes, "
         f"{rec.counts.get('collisions', 0)} collisions, {rate:.0f} frames/s, eta {eta:.0f} s",
         file=log,
         flush=True,

@@ -61,6 +61,58 @@ def write_index(root: str | os.PathLike, image_size: int, dt: float, meta: dict,
     write_text_atomic(Path(root) / INDEX, json.dumps(doc, indent=1, sort_keys=True) + "\n")
 
 
+def read_index(root: str | os.PathLike) -> dict | None:
+    """The index of the dataset folder ``root`` (checked to be ours), or None when there is none yet."""
+    path = Path(root) / INDEX
+    if not path.exists():
+        return None
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as err:
+        raise DatasetError(f"dataset {root}: cannot read {INDEX} ({err})") from None
+    if (
+        not isinstance(doc, dict)
+        or doc.get("format") != FORMAT
+        or doc.get("format_version") != FORMAT_VERSION
+    ):
+        raise DatasetError(f"dataset {root}: {INDEX} is not a {FORMAT} version {FORMAT_VERSION} index")
+    if not isinstance(doc.get("shards", []), list):
+        raise DatasetError(f"dataset {root}: {INDEX} lists no shards")
+    return doc
+
+
+class ShardAppender:
+    """Grows a dataset folder one shard at a time (`vtr collect --sim`): an append writes the new shard's files
+    and rewrites the index, never an earlier shard, so its cost does not grow with the dataset (the index adds
+    about 80 bytes a shard). A crash loses at most the shard being written: the index names only whole shards,
+    and a shard whose files were written but not indexed is overwritten by the next run's first append."""
+
+    def __init__(self, root: str | os.PathLike, prefix: str = "part") -> None:
+        self.root, self.prefix = Path(root), prefix
+        doc = read_index(root) or {}
+        self.shards: list[dict] = list(doc.get("shards", []))
+        self.meta: dict = dict(doc.get("meta", {}))
+        self.image_size: int | None = doc.get("image_size")
+        self.dt: float | None = doc.get("dt")
+        self.frames = sum(int(e.get("frames", 0)) for e in self.shards)
+        self.episodes = sum(int(e.get("episodes", 0)) for e in self.shards)
+
+    def append(self, arrays: dict[str, np.ndarray], house: str, meta: dict, dt: float) -> None:
+        """Write one shard (``ARRAYS``; episode ids contiguous within it), then the index naming it."""
+        images, episodes = arrays["images"], arrays["episodes"]
+        if self.image_size is None:
+            self.image_size = int(images.shape[1])
+        self.root.mkdir(parents=True, exist_ok=True)
+        name = f"{self.prefix}_{len(self.shards):06d}"
+        write_shard(self.root, name, arrays)
+        n_episodes = int(episodes[-1] - episodes[0]) + 1
+        self.shards.append({"name": name, "frames": len(images), "episodes": n_episodes, "house": house})
+        self.meta, self.dt = dict(meta), dt
+        self.frames += len(images)
+        self.episodes += n_episodes
+        write_index(self.root, self.image_size, dt, self.meta, self.shards)
+
+
 class ShardedImages:
     """The images of all shards as one lazy (T, S, S, 3) uint8 array: indexing gathers from memory maps."""
 
@@ -113,16 +165,9 @@ def load_sharded(path: str | os.PathLike, image_size: int | None = None) -> Fram
 
     The returned FrameData has two extra attributes: ``houses`` (T,) int32 and ``house_names`` (list)."""
     root = Path(path)
-    try:
-        doc = json.loads((root / INDEX).read_text(encoding="utf-8"))
-    except (OSError, ValueError) as err:
-        raise DatasetError(f"dataset {root}: cannot read {INDEX} ({err})") from None
-    if (
-        not isinstance(doc, dict)
-        or doc.get("format") != FORMAT
-        or doc.get("format_version") != FORMAT_VERSION
-    ):
-        raise DatasetError(f"dataset {root}: {INDEX} is not a {FORMAT} version {FORMAT_VERSION} index")
+    doc = read_index(root)
+    if doc is None:
+        raise DatasetError(f"dataset {root}: {INDEX} is missing")
     shards = doc.get("shards") or []
     if not shards:
         raise DatasetError(f"dataset {root}: the index lists no shards (collection unfinished?)")

@@ -21,6 +21,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run_cli(args: argparse.Namespace) -> int:
     if not args.bag:
         return teach.run_cli(args)
+    if args.drive or args.follow or args.route:
+        print(
+            "vtr teach: --bag makes a route from a recorded drive; leave out --route, --drive and --follow",
+            file=sys.stderr,
+        )
+        return 2
     try:
         teach_cfg = config_from_args(TeachConfig, args)
     except ValueError as exc:

@@ -74,7 +74,7 @@ def test_collect_repeat_and_eval_work_on_the_example_unchanged(
     from vtr import cli
     from vtr.training.dataset import load_dataset
 
-    data = tmp_path / "room.npz"
+    data = tmp_path / "room"  # `collect --sim` records a folder of shards
     assert (
         cli.main(["collect", "--sim", endpoint, "--out", str(data), "--frames", "200", "--no-progress"]) == 0
     )

@@ -34,6 +34,9 @@ FAULTS = (
     "scan_short",  # announces a scanner, sends one beam fewer
     "scan_missing",  # announces a scanner, sends no scan
     "scan_unannounced",  # sends scans without announcing a scanner
+    "twist_missing",  # announces its executed twist, sends none
+    "twist_backwards",  # reports w with the wrong sign
+    "twist_unannounced",  # sends twists without announcing them
     "old_hello",  # hello as the protocol's first text had it: no dt, no mode, camera.camera_height
     "hello_two_wrong",  # hello announces no limits and mode "turbo"
 )
@@ -124,12 +127,18 @@ class FaultyRobot:
         if cmd == "hello" and fault == "scan_unannounced":
             header.pop("scan")
         if cmd == "hello" and fault == "old_hello":
-            for key in ("dt", "mode", "cmd_vel_timeout", "realtime_factor", "scan"):
+            for key in ("dt", "mode", "cmd_vel_timeout", "realtime_factor", "scan", "twist"):
                 header.pop(key, None)
             header["camera"]["camera_height"] = header["camera"].pop("height_m")
         if cmd == "hello" and fault == "hello_two_wrong":
             header.pop("limits")
             header["mode"] = "turbo"
+        if cmd == "hello" and fault == "twist_unannounced":
+            header.pop("twist")
+        if rest and "twist" in header and fault == "twist_missing":
+            header.pop("twist")
+        if rest and "twist" in header and fault == "twist_backwards":
+            header["twist"]["w"] = -header["twist"]["w"]
         if rest and "scan" in header and fault == "scan_short":
             header["scan"]["ranges"] = header["scan"]["ranges"][:-1]
         if rest and "scan" in header and fault == "scan_missing":

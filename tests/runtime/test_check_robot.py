@@ -37,6 +37,18 @@ def test_a_camera_only_robot_passes_the_scan_check_saying_so(simulator: Simulato
     assert (found["scan"].status, found["scan"].detail) == (PASS, "no range sensor: camera-only safety")
 
 
+def test_our_simulators_executed_twist_is_checked(simulator: Simulator) -> None:
+    with ServerThread(simulator) as server:
+        found = {r.name: r for r in run_checks(server.endpoint, timeout_s=2.0)}
+    assert found["twist"].status == PASS and found["twist"].detail.startswith("commanded; turning at w=0.5")
+    with ServerThread(simulator, ServerConfig(bind="tcp://127.0.0.1:*", twist=False)) as server:
+        found = {r.name: r for r in run_checks(server.endpoint, timeout_s=2.0)}
+    assert (found["twist"].status, found["twist"].detail) == (
+        PASS,
+        "not reported: `vtr teach --follow` goes by the pose",
+    )
+
+
 def test_our_simulators_scan_is_reported(simulator: Simulator) -> None:
     with ServerThread(simulator) as server:
         found = {r.name: r for r in run_checks(server.endpoint, timeout_s=2.0)}
@@ -76,6 +88,9 @@ def test_the_cli_prints_one_line_per_check_and_exits_zero(
         ("scan_short", "scan", FAIL, "has 180 values, but hello announced 181 beams"),
         ("scan_missing", "scan", FAIL, "the 'observe' reply carries no 'scan'"),
         ("scan_unannounced", "scan", WARN, "hello announces no scanner"),
+        ("twist_missing", "twist", FAIL, "the 'observe' reply carries none"),
+        ("twist_backwards", "twist", FAIL, "counter-clockwise positive"),
+        ("twist_unannounced", "twist", WARN, "hello does not announce one"),
     ],
 )
 def test_each_fault_fails_its_check(

@@ -39,7 +39,8 @@ def test_the_first_texts_hello_parses_and_takes_the_documented_defaults() -> Non
     assert accepted.dt == 0.1  # the route's
     assert "does not announce 'dt' and 'mode'" in warnings[0] and "the route's 0.1 s" in warnings[0]
     assert "say 'camera.height_m'" in warnings[1]
-    assert set(ADDED_FIELDS) == {"dt", "mode", "cmd_vel_timeout", "realtime_factor", "scan"}
+    assert set(ADDED_FIELDS) == {"dt", "mode", "cmd_vel_timeout", "realtime_factor", "scan", "twist"}
+    assert hello.twist is None  # no executed twist: `vtr teach --follow` goes by the pose
 
 
 def test_every_wrong_field_is_read_on_its_own() -> None:

@@ -37,6 +37,8 @@ def test_the_document_has_examples_of_every_command_and_reply_kind():
     assert len(examples("json-refused")) >= 3
     assert any("scan" in h for h in headers if h.get("cmd") == "hello" and "ok" in h)
     assert any("scan" in h for h in headers if h.get("cmd") in protocol.IMAGE_COMMANDS and "ok" in h)
+    assert any("twist" in h for h in headers if h.get("cmd") == "hello" and "ok" in h)
+    assert any("twist" in h for h in headers if h.get("cmd") in protocol.IMAGE_COMMANDS and "ok" in h)
 
 
 def announced_scan() -> ScanSpec:
@@ -55,9 +57,16 @@ def test_every_example_decodes_through_the_codec(text):
         return
     scan = header.get("scan")
     expect_scan = announced_scan() if scan is not None and header.get("cmd") != "hello" else None
+    twist = header.get("twist") if header.get("cmd") != "hello" else None
     reply = protocol.decode_reply(
-        frames, expect_cmd=header["cmd"], expect_seq=header["seq"], expect_scan=expect_scan
+        frames,
+        expect_cmd=header["cmd"],
+        expect_seq=header["seq"],
+        expect_scan=expect_scan,
+        expect_twist=twist is not None,
     )
+    if twist is not None:
+        assert reply.twist == (twist["v"], twist["w"])
     assert reply.ok is header["ok"] and reply.session == header["session"]
     if reply.cmd == "hello":
         hello = parse_hello(reply)
@@ -66,6 +75,7 @@ def test_every_example_decodes_through_the_codec(text):
             and hello.limits.v_max == header["limits"]["v_max"]
         )
         assert (hello.scan is None) == (scan is None)
+        assert hello.twist == (header.get("twist") or {}).get("source")
     elif expect_scan is not None:
         assert reply.scan is not None and reply.scan.beams == len(scan["ranges"]) == expect_scan.beams
 

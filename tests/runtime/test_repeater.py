@@ -230,7 +230,7 @@ def test_an_unexpected_exception_stops_the_robot_and_propagates():
 
 def test_every_status_has_a_distinct_value():
     values = [s.value for s in RepeatStatus]
-    assert len(set(values)) == len(values) == 10
+    assert len(set(values)) == len(values) == 11
     assert RepeatStatus("link_lost") is RepeatStatus.LINK_LOST
     assert RepeatStatus(Action.BLOCKED.value) is RepeatStatus.BLOCKED  # a BLOCKED decision ends as blocked
 
@@ -244,3 +244,18 @@ def test_a_failing_on_step_callback_stops_the_robot_and_propagates():
     with pytest.raises(OSError, match="disk full"):
         rep.run()
     assert robot.calls[-1] == "stop" and rep.done and rep.steps == 1
+
+
+def test_speed_scales_every_command_alike_and_gives_the_run_as_many_more_steps():
+    seen: list[StepRecord] = []
+    route = flat_route(0, 100, 200)
+    full = Repeater(Frames([250] * 3), Constant(), route, config=RepeatConfig(PAPER))
+    half = Repeater(
+        Frames([250] * 3), Constant(), route, config=RepeatConfig(PAPER, speed=0.5), on_step=seen.append
+    )
+    half.step()
+    assert (seen[-1].v, seen[-1].w) == pytest.approx((0.1, 0.05))  # the same arc (v / w), half as fast
+    assert half.max_steps == 2 * full.max_steps
+    for bad in (0.0, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="speed"):
+            RepeatConfig(speed=bad)

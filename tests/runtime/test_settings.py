@@ -52,7 +52,7 @@ def test_docs_settings_md_is_what_the_schema_generates() -> None:
     text = (ROOT / "docs" / "SETTINGS.md").read_text()
     assert text == markdown(), "regenerate: python -m vtr.runtime.settings_cli > docs/SETTINGS.md"
     for s in SETTINGS:
-        assert f"| `{s.key}` | `{s.option}` |" in text
+        assert f"| `{s.key}` | {'(file only)' if s.file_only else f'`{s.option}`'} |" in text
 
 
 def test_repeat_help_has_at_most_16_options_with_defaults_and_units(
@@ -62,7 +62,7 @@ def test_repeat_help_has_at_most_16_options_with_defaults_and_units(
         main(["repeat", "--help"])
     text = capsys.readouterr().out
     options = set(re.findall(r"^  (--[\w-]+)", text, re.M)) - {"--config", "--help"}
-    assert len(options) <= 16 and options == {s.option for s in for_command("repeat")}
+    assert len(options) <= 16 and options == {s.option for s in for_command("repeat") if not s.file_only}
     flat = " ".join(text.split())
     assert "(default: 10 s; a number >= 0 s)" in flat and "(default: 0.25 m; a number in [0, 10] m)" in flat
     for removed in (
@@ -158,7 +158,7 @@ def test_a_bad_file_stops_teach_and_check_robot_too(
     [
         (["--wait", "-1"], ["--wait", "-1 is out of range", "a number >= 0 s"]),
         (["--wait", "soon"], ["--wait", "'soon' is not a number >= 0 s"]),
-        (["--threads", "0"], ["--threads", "0 is out of range", "an integer >= 1"]),
+        (["--speed", "1.5"], ["--speed", "1.5 is out of range", "a number in (0, 1] x"]),
         (["--foxglove", "70000"], ["--foxglove", "[0, 65535]"]),
         (["--profile", "fast"], ["--profile", "fast is not one of default, paper"]),
         (
@@ -181,6 +181,18 @@ def test_a_missing_required_setting_names_the_flag_and_the_key(capsys: pytest.Ca
     assert "needs --model (or model in the config file's [repeat])" in line
 
 
+def test_a_file_only_setting_has_no_flag_but_the_file_sets_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert BY_NAME["repeat.threads"].file_only
+    with pytest.raises(SystemExit):
+        _parse(*COMMON, "--threads", "2")
+    assert "unrecognized arguments: --threads" in capsys.readouterr().err
+    path = _toml(tmp_path, "[repeat]\nthreads = 2\n")
+    assert resolve(_parse(*COMMON, "--config", path), "repeat")["repeat.threads"] == 2
+    assert "| `threads` | (file only) |" in markdown()
+
+
 def test_schema_ranges_are_the_configs_own(tmp_path: Path) -> None:
     """The schema's bounds neither refuse what the configs take nor let through what they refuse."""
     base = resolve(_parse(*COMMON), "repeat").values
@@ -190,6 +202,7 @@ def test_schema_ranges_are_the_configs_own(tmp_path: Path) -> None:
         ("repeat.wait", 0.0, -0.01),
         ("repeat.threads", 1, 0),
         ("repeat.timeout", 1e-3, 0.0),
+        ("repeat.speed", 1.0, 1.01),
     ):
         config_from_settings({**base, name: BY_NAME[name].checked(good)})
         with pytest.raises(ValueError):
@@ -206,6 +219,7 @@ def test_every_value_goes_where_the_schema_says() -> None:
         "repeat.threads": 2,
         "repeat.timeout": 0.5,
         "repeat.foxglove": 0,
+        "repeat.speed": 0.5,
     }
     changed |= {"repeat.mcap": "x.mcap", "repeat.model": "n.onnx", "repeat.route": "q.npz"}
     changed |= {"repeat.motion": "continuous", "robot.address": "tcp://10.1.1.1:7"}

@@ -67,7 +67,7 @@ class CorridorRobot:
 
 def config(tmp_path: Path, frames: int, **kw: object) -> RobotCollectConfig:
     return RobotCollectConfig(
-        sim="tcp://127.0.0.1:9", out=str(tmp_path / "d.npz"), frames=frames, progress=False, **kw
+        sim="tcp://127.0.0.1:9", out=str(tmp_path / "d"), frames=frames, progress=False, **kw
     )
 
 
@@ -76,7 +76,7 @@ def test_collected_from_our_simulator_over_the_wire(
 ) -> None:
     sim = Simulator(SimConfig())
     sim.reset()
-    out = tmp_path / "house.npz"
+    out = tmp_path / "house"
     with ServerThread(sim) as server:
         code = cli.main(
             ["collect", "--sim", server.endpoint, "--out", str(out), "--frames", "300", "--no-progress"]
@@ -95,7 +95,7 @@ def test_collected_from_our_simulator_over_the_wire(
 def test_collisions_are_never_recorded_as_pairs_and_the_robot_backs_off(tmp_path: Path) -> None:
     robot = CorridorRobot()
     summary = collect(config(tmp_path, 600, seed=3), robot)
-    data = load_dataset(tmp_path / "d.npz")
+    data = load_dataset(tmp_path / "d")
     assert summary["counts"]["collisions"] > 0
     # limits: the robot's v_max (2.0) is capped at the model's 0.5; its w_max (0.6) is kept
     assert np.abs(data.commands[:, 0]).max() <= 0.5 and np.abs(data.commands[:, 1]).max() <= 0.6 + 1e-6
@@ -121,9 +121,9 @@ def test_a_robot_without_reset_drives_continuously(tmp_path: Path) -> None:
 
 def test_resume_appends_episodes(tmp_path: Path) -> None:
     collect(config(tmp_path, 150), CorridorRobot())
-    first = load_dataset(tmp_path / "d.npz")
+    first = load_dataset(tmp_path / "d")
     summary = collect(config(tmp_path, 400), CorridorRobot())
-    both = load_dataset(tmp_path / "d.npz")
+    both = load_dataset(tmp_path / "d")
     assert summary["added"] == 250 and len(both) == 400
     np.testing.assert_array_equal(both.images[:150], first.images)
     assert both.episodes[150] == first.episodes.max() + 1
@@ -133,7 +133,7 @@ def test_resume_appends_episodes(tmp_path: Path) -> None:
 def test_a_robot_lost_mid_run_leaves_what_was_recorded(tmp_path: Path) -> None:
     with pytest.raises(RobotError):
         collect(config(tmp_path, 500, save_every=10_000), CorridorRobot(fail_after=120))
-    data = load_dataset(tmp_path / "d.npz")
+    data = load_dataset(tmp_path / "d")
     assert len(data) == 121 and tuple(data.commands[-1]) == (0.0, 0.0)
 
 
@@ -162,7 +162,7 @@ def test_a_camera_that_is_not_square_is_refused_before_driving(tmp_path: Path) -
     robot._obs = lambda collided=False: Observation(np.zeros((6, 8, 3), np.uint8), 0.0)  # type: ignore[method-assign]
     with pytest.raises(ValueError, match="images are 8x6; datasets hold square images"):
         collect(config(tmp_path, 50), robot)
-    assert robot.steps == [] and not (tmp_path / "d.npz").exists()
+    assert robot.steps == [] and not (tmp_path / "d").exists()
 
 
 def test_around_starts_every_episode_along_the_taught_routes(tmp_path: Path) -> None:
@@ -180,7 +180,7 @@ def test_around_starts_every_episode_along_the_taught_routes(tmp_path: Path) -> 
         starts[:, 0] < 0.5, starts[:, 2], (starts[:, 2] - math.pi + math.pi) % (2 * math.pi) - math.pi
     )
     assert np.abs(yaw_offset).max() <= math.radians(35) and np.abs(yaw_offset).max() > 0.05
-    assert load_dataset(tmp_path / "d.npz").meta["around"] == [str(route)]
+    assert load_dataset(tmp_path / "d").meta["around"] == [str(route)]
     no_reset = CorridorRobot(can_reset=False)
     with pytest.raises(RobotError, match="reset is not supported"):  # --around needs reset with a pose
         collect(config(tmp_path / "x", 50, around=(str(route),)), no_reset)

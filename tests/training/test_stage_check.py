@@ -49,13 +49,24 @@ def test_train_all_stops_after_the_viewnet_stage(
     data: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     out = tmp_path / "run"
-    argv = ["train", "all", "--preset", "tiny", "--data", str(data), "--out", str(out)]
+    argv = [
+        "train",
+        "all",
+        "--recipe",
+        "paper-house",
+        "--preset",
+        "tiny",
+        "--data",
+        str(data),
+        "--out",
+        str(out),
+    ]
     assert cli.main([*argv, "--viewnet-steps", "1", "--no-int8"]) == 1
     err = capsys.readouterr().err
     assert "vtr train all: ViewNet did not learn" in err
     assert (out / "viewnet" / "model.pt").exists() and not (out / "velocitynet").exists()
     # run again: the finished stage is checked again, not skipped past
-    assert cli.main([*argv, "--no-int8"]) == 1
+    assert cli.main([*argv, "--viewnet-steps", "1", "--no-int8"]) == 1
     assert not (out / "velocitynet").exists()
 
 

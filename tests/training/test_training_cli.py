@@ -189,6 +189,8 @@ def test_train_all_collects_trains_and_exports(tmp_path: Path, monkeypatch: pyte
     args = [
         "train",
         "all",
+        "--recipe",
+        "paper-house",  # the one-house recipe: collect an .npz, one VelocityNet stage
         *TINY,
         "--data",
         str(data),
