@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vtr.runtime.floor_view import Camera, FloorTiles, path_weights, taught_offset
+from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.matching import MatchConfig, Matcher
 
 
@@ -211,14 +212,13 @@ class ObstructionDetector:
     def blocked(self) -> bool:
         return self.growth.blocked
 
-    def scores(self, view: np.ndarray, position: float, exhaustive: bool = False) -> np.ndarray:
-        """Each path-region tile's distance to the taught views where the robot is: ``view``, a (H, W, 3)
-        uint8 image; ``position``: the localiser's estimate, in subgoal units. The taught views are tried
+    def scores(self, view: Frame | np.ndarray, position: float, exhaustive: bool = False) -> np.ndarray:
+        """Each path-region tile's distance to the taught views where the robot is: ``view``, a frame (or a
+        (H, W, 3) uint8 image); ``position``: the localiser's estimate, in subgoal units. The taught views are tried
         cheapest first (subgoals ``k`` and ``k + 1`` as they are, then ``k`` warped, then its shifts), each
         only for the tiles none before matched, so a matched tile's score is under ``tile_threshold`` but
         not always its least; ``exhaustive``: the least distance of every tile (for studies)."""
-        if view.shape != self.subgoals.shape[1:] or view.dtype != np.uint8:
-            raise ValueError(f"view must be {self.subgoals.shape[1:]} uint8, got {view.shape} {view.dtype}")
+        view = as_frame(view, self.subgoals.shape[1:3])  # a frame as it is; an array checked here, once
         floor, thr = self.floor, -1.0 if exhaustive else self.cfg.tile_threshold
         own = floor.features(floor.pool(view))
         k, offset = taught_offset(self.poses, position)

@@ -166,7 +166,7 @@ def test_bad_settings_and_inputs_are_refused():
     views, poses = route(3)
     with pytest.raises(ValueError, match="subgoals"):
         ObstructionDetector(views.astype(np.float32), poses)
-    with pytest.raises(ValueError, match="view must be"):
+    with pytest.raises(ValueError, match=r"image \(64, 128, 3\) uint8, expected"):
         ObstructionDetector(views, poses).update(views[0, :64], 0.0, True)
 
 
