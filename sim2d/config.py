@@ -28,7 +28,8 @@ class CameraConfig:
     fov_deg: float = CAMERA.fov_deg
     """Horizontal field of view in degrees; square pixels, so the vertical fov follows from the aspect ratio."""
     camera_height: float = CAMERA.height_m
-    """Height of the optical centre above the floor (m); must stay below every furniture height."""
+    """Height of the optical centre above the floor (m), below wall_height; furniture lower than the camera is
+    seen from above (its top, sim2d.camera_tops)."""
     wall_height: float = 2.5
     """Height of the walls (m); the ceiling is drawn above it."""
     brightness: float = 1.0
