@@ -208,7 +208,7 @@ def add_serve_arguments(parser: argparse.ArgumentParser) -> None:
         default="",
         metavar="SPEC",
         help="camera sensor realism (sim2d/sensor.py), e.g. blur=0.04,noise=6,flicker=0.15,gain_drift=0.1,"
-        "wb_drift=0.05,jpeg=30,k1=-0.2 (blur: exposure time in s; default: the ideal camera)",
+        "wb_drift=0.05,jpeg=30,k1=-0.2; blur is the exposure time in s (default: none, the ideal camera)",
     )
     parser.add_argument(
         "--mode",
