@@ -126,20 +126,28 @@ def describe(cfg: SensorConfig) -> str:
 
 
 # ------------------------------------------------------------------------------------------ operations
-def _bilinear(image: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """float32 (H', W', 3): ``image`` sampled at fractional (rows, cols), clamped to its edges."""
-    h, w = image.shape[:2]
-    r = np.clip(rows, 0, h - 1)
-    c = np.clip(cols, 0, w - 1)
-    r0 = np.minimum(r.astype(np.intp), h - 2 if h > 1 else 0)
-    c0 = np.minimum(c.astype(np.intp), w - 2 if w > 1 else 0)
-    fr = (r - r0).astype(np.float32)[..., None]
-    fc = (c - c0).astype(np.float32)[..., None]
+def _sampler(h: int, w: int, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bilinear sampling of an (h, w) image at fractional (rows, cols), clamped to its edges, as (4, N) flat
+    pixel indices and (4, N) float32 weights."""
+    rows, cols = np.broadcast_arrays(np.asarray(rows, np.float32), np.asarray(cols, np.float32))
+    r = np.clip(rows, 0, h - 1).ravel()
+    c = np.clip(cols, 0, w - 1).ravel()
+    r0 = np.minimum(r.astype(np.int32), max(h - 2, 0))
+    c0 = np.minimum(c.astype(np.int32), max(w - 2, 0))
+    fr, fc = r - r0, c - c0
     r1, c1 = np.minimum(r0 + 1, h - 1), np.minimum(c0 + 1, w - 1)
-    img = image.astype(np.float32, copy=False)
-    top = img[r0, c0] * (1 - fc) + img[r0, c1] * fc
-    bottom = img[r1, c0] * (1 - fc) + img[r1, c1] * fc
-    return top * (1 - fr) + bottom * fr
+    idx = np.stack([r0 * w + c0, r0 * w + c1, r1 * w + c0, r1 * w + c1])
+    wts = np.stack([(1 - fr) * (1 - fc), (1 - fr) * fc, fr * (1 - fc), fr * fc])
+    return idx, wts
+
+
+def _sample(image: np.ndarray, idx: np.ndarray, wts: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """float32 (H', W', 3): ``image`` sampled with _sampler's indices and weights."""
+    flat = image.reshape(-1, image.shape[-1]).astype(np.float32)
+    acc = np.take(flat, idx[0], axis=0) * wts[0][:, None]
+    for k in range(1, 4):
+        acc += np.take(flat, idx[k], axis=0) * wts[k][:, None]
+    return acc.reshape(*shape, image.shape[-1])
 
 
 def _to_uint8(x: np.ndarray) -> np.ndarray:
@@ -156,16 +164,29 @@ def motion_blur(image: np.ndarray, shift_px: float, zoom: float) -> np.ndarray:
         return image
     n = int(min(MAX_BLUR_SAMPLES, math.ceil(extent) + 1))
     cy, cx = (h - 1) / 2, (w - 1) / 2
-    rows = np.arange(h, dtype=np.float32)[:, None] - cy
-    cols = np.arange(w, dtype=np.float32)[None, :] - cx
-    acc = np.zeros((h, w, 3), np.float32)
+    rows = np.arange(h, dtype=np.float32) - cy
+    cols = np.arange(w, dtype=np.float32) - cx
+    img = image.astype(np.float32)
+    acc = np.zeros(image.shape, np.float32)
     for t in np.linspace(0.0, 1.0, n):
         s = 1.0 + zoom * t
-        acc += _bilinear(image, np.broadcast_to(rows / s + cy, (h, w)), cols / s + cx - shift_px * t)
+        # a slide and a zoom about the centre are separable: rows first, then columns (linear in each)
+        r0, r1, fr = _linear(rows / s + cy, h)
+        tmp = img[r0] * (1 - fr)[:, None, None] + img[r1] * fr[:, None, None]
+        c0, c1, fc = _linear(cols / s + cx - shift_px * t, w)
+        acc += tmp[:, c0] * (1 - fc)[None, :, None] + tmp[:, c1] * fc[None, :, None]
     return _to_uint8(acc / n)
 
 
-_DISTORTION_MAPS: dict[tuple[int, int, float], tuple[np.ndarray, np.ndarray]] = {}
+def _linear(x: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Linear interpolation at fractional positions ``x`` along an axis of ``n``, clamped to its ends:
+    (lower index, upper index, weight of the upper)."""
+    x = np.clip(x, 0, n - 1)
+    i0 = np.minimum(x.astype(np.intp), max(n - 2, 0))
+    return i0, np.minimum(i0 + 1, n - 1), (x - i0).astype(np.float32)
+
+
+_DISTORTION_MAPS: dict[tuple[int, int, float], tuple[np.ndarray, np.ndarray]] = {}  # (h, w, k1): sampler
 
 
 def radial_distortion(image: np.ndarray, k1: float) -> np.ndarray:
@@ -185,9 +206,8 @@ def radial_distortion(image: np.ndarray, k1: float) -> np.ndarray:
         scale = (1.0 + k1) / (1.0 + k1 * r2)  # source radius / output radius
         if len(_DISTORTION_MAPS) > 16:
             _DISTORTION_MAPS.clear()
-        _DISTORTION_MAPS[key] = (y * scale * norm + cy, x * scale * norm + cx)
-    rows, cols = _DISTORTION_MAPS[key]
-    return _to_uint8(_bilinear(image, rows, cols))
+        _DISTORTION_MAPS[key] = _sampler(h, w, y * scale * norm + cy, x * scale * norm + cx)
+    return _to_uint8(_sample(image, *_DISTORTION_MAPS[key], (h, w)))
 
 
 def apply_gains(image: np.ndarray, gains: np.ndarray) -> np.ndarray:
