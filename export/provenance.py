@@ -13,6 +13,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from vtr.runtime.contracts import CAMERA
 from vtr.runtime.model_meta import PREFIX, CameraRange
 
 RECIPE_KEY = PREFIX + "recipe"
@@ -93,7 +94,8 @@ def provenance_props(
 def camera_of(data_meta: Mapping[str, Any]) -> dict[str, float]:
     """The training camera's field of view and height, where the dataset recorded them (robots, bags; the
     simulator's ``camera_height`` read as ``height_m``); and, for data collected across cameras, the range
-    they span (``cameras``: one [fov deg, height m] per episode, as runtime.model_meta.ModelMeta fields).
+    they span (``collect_config``'s ``fov_range`` / ``height_range``, `vtr collect --fov-range`, or ``cameras``:
+    one [fov deg, height m] per episode), as runtime.model_meta.ModelMeta fields.
     A dataset of one camera records no range, so its model keeps the one-camera rule."""
     cam = data_meta.get("camera") or {}
     out = {}
@@ -102,6 +104,18 @@ def camera_of(data_meta: Mapping[str, Any]) -> dict[str, float]:
     height = cam.get("height_m", cam.get("camera_height"))
     if isinstance(height, int | float):
         out["camera_height_m"] = float(height)
+    collect = data_meta.get("collect_config") or {}
+    fovs, heights = collect.get("fov_range"), collect.get("height_range")
+    if (
+        fovs or heights
+    ):  # recorded across houses with cameras drawn from these ranges (vtr collect --fov-range)
+        fovs = fovs or [out.get("camera_fov_deg", CAMERA.fov_deg)] * 2
+        heights = heights or [out.get("camera_height_m", CAMERA.height_m)] * 2
+        out.update(
+            CameraRange((float(fovs[0]), float(fovs[1])), (float(heights[0]), float(heights[1]))).props()
+        )
+        out["camera_fov_deg"] = (float(fovs[0]) + float(fovs[1])) / 2
+        out["camera_height_m"] = (float(heights[0]) + float(heights[1])) / 2
     cameras = data_meta.get("cameras")
     if isinstance(cameras, list) and cameras:
         try:
