@@ -1,6 +1,7 @@
-"""Sensor conditions: the repeat's camera gives what a real sensor gives (sim2d.sensor), the route taught with
-the ideal camera. Each is a ``SensorConfig`` the repeat's simulator applies to every frame, registered as a
-condition of the condition suite (``vtr eval --suite conditions --conditions sensor_blur ...``).
+"""Sensor conditions: the robot's camera gives what a real sensor gives (sim2d.sensor), at teach and at repeat
+alike (the same lens and sensor; the noise, flicker and blur differ frame by frame). Each is a ``SensorConfig``
+the simulator applies to every frame, registered as a condition of the condition suite
+(``vtr eval --suite conditions --conditions sensor_blur ...``).
 
 The levels are those of the project's target (issue 20): motion blur of a 1/25 s exposure, noise of 6 levels
 (a small sensor in a dim room), the exposure flickering by +-15% with slow drifts of gain and white balance,
