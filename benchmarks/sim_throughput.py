@@ -30,6 +30,8 @@ class SimBenchConfig:
     width: int = opt(CAMERA.width, "camera width in pixels")
     height: int = opt(CAMERA.height, "camera height in pixels")
     supersample: int = opt(1, "camera supersampling factor")
+    fov: float = opt(CAMERA.fov_deg, "camera horizontal field of view in degrees")
+    camera_height: float = opt(CAMERA.height_m, "camera height above the floor in metres")
     duration: float = opt(CONTROL_DT, "simulated seconds per step (the paper's control step)")
     house: str = opt("house", "map to benchmark")
     json_path: str | None = opt(None, "write the results as JSON here (atomically)", flag="--json")
@@ -75,7 +77,13 @@ def run(cfg: SimBenchConfig) -> dict:
     sim = Simulator(
         SimConfig(
             house=cfg.house,
-            camera=CameraConfig(width=cfg.width, height=cfg.height, supersample=cfg.supersample),
+            camera=CameraConfig(
+                width=cfg.width,
+                height=cfg.height,
+                supersample=cfg.supersample,
+                fov_deg=cfg.fov,
+                camera_height=cfg.camera_height,
+            ),
         )
     )
     routes = _route_commands(cfg.duration)
@@ -144,6 +152,7 @@ def format_table(r: dict) -> str:
     c = r["config"]
     rows = [
         ("frame", f"{c['width']}x{c['height']} x{c['supersample']} supersample"),
+        ("camera", f"{c.get('fov', 90):g} deg at {c.get('camera_height', 0.3):g} m"),
         ("steps/s (physics + render)", f"{r['steps_per_s']:.0f}  (target {r['target_steps_per_s']})"),
         ("steps/s from the median step", f"{r['steps_per_s_from_median']:.0f}"),
         ("step ms median / mean", f"{r['step_ms_median']:.3f} / {r['step_ms_mean']:.3f}"),

@@ -17,6 +17,7 @@ import numpy as np
 
 from vtr.evaluation.conditions import BLOCKING_SCENES, LIGHTING, PATH_SCENES, SCENES, box_distance
 from vtr.evaluation.metrics import off_route
+from vtr.evaluation.sensor_conditions import SENSORS
 from vtr.runtime.controller import ControllerConfig
 from vtr.runtime.matching import MatchConfig
 
@@ -37,6 +38,8 @@ class Condition:
     scene: str | None = None
     expect: str = "finished"
     clear_after_s: float | None = None
+    camera: tuple[float, float] | None = None  # (fov deg, height m) of teach and repeat; None: the default
+    sensor: str | None = None  # a sensor_conditions.SENSORS key: the repeat's camera sensor realism
 
     def __post_init__(self) -> None:
         if self.expect not in EXPECTATIONS:
@@ -50,6 +53,7 @@ CONDITIONS: dict[str, Condition] = {
     "offset_10cm_10deg": Condition(offset=(0.10, 10.0)),
     **{name: Condition(light=name) for name in LIGHTING},
     **{name: Condition(scene=name) for name in (*SCENES, *PATH_SCENES) if name not in BLOCKING_SCENES},
+    **{name: Condition(sensor=name) for name in SENSORS},
     # a box on the taught path half-way along: stop before it (status blocked, no contact) ...
     "box_on_path": Condition(scene="box_on_path", expect="blocked"),
     # ... and, taken away after the robot has waited 2 s in front of it, resume and finish
@@ -173,12 +177,20 @@ def run_once(
     from vtr.evaluation.runs import repeat_closed_loop
     from vtr.evaluation.scoring import score
     from vtr.runtime.light import LightMatchedPolicy
-    from vtr.sim2d import CameraConfig, SimConfig, Simulator
+    from vtr.sim2d import SimConfig, Simulator
+    from vtr.sim2d.config import camera_config
     from vtr.sim2d.local_robot import LocalRobot
 
     h, w = route.images.shape[1:3]
     robot: Any = LocalRobot(
-        Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=cond.noise, house=house)),
+        Simulator(
+            SimConfig(
+                camera=camera_config(w, h, cond.camera),
+                sensor=SENSORS.get(cond.sensor or ""),
+                noise=cond.noise,
+                house=house,
+            )
+        ),
         scan=method.scan,
     )
     clearing = None

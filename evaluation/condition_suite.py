@@ -29,6 +29,7 @@ import numpy as np
 from vtr.evaluation.condition_run import CONDITIONS, CONTROLLERS, cached_policy, run_once
 from vtr.evaluation.condition_tables import markdown
 from vtr.evaluation.metrics import off_path
+from vtr.evaluation.sensor_conditions import SENSORS
 from vtr.runtime.status_line import Progress
 
 HELDOUT_DIR = Path(__file__).resolve().parents[1] / "sim2d" / "routes" / "heldout"
@@ -110,7 +111,9 @@ def evaluate_task(task: tuple[Path, str, SuiteConfig]) -> list[dict[str, Any]]:
     os.environ.setdefault("OMP_NUM_THREADS", str(cfg.threads))
     cond = CONDITIONS[cond_name]
     models = {"fp32": cfg.model, "int8": cfg.int8_model}
-    route, script = teach(path, tuple(cached_policy(cfg.model, cfg.threads).image_shape), cfg.dt)
+    shape = tuple(cached_policy(cfg.model, cfg.threads).image_shape)
+    # the robot's own camera (its field of view, height and sensor) is the same at teach and repeat
+    route, script = teach(path, shape, cfg.dt, camera=cond.camera, sensor=SENSORS.get(cond.sensor or ""))
     task_key = {"route": path.stem, "condition": cond_name}
     out = []
     with tempfile.TemporaryDirectory() as tmp:

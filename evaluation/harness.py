@@ -148,27 +148,44 @@ def route_files(names: tuple[str, ...]) -> list[Path]:
     return out
 
 
-def make_robot(noise: float, image_size: tuple[int, int], house: str = "house", scan: bool = False) -> Any:
-    """An in-process simulated robot; ``scan`` adds the range scanner's reading to every observation."""
-    from vtr.sim2d import CameraConfig, SimConfig, Simulator
+def make_robot(
+    noise: float,
+    image_size: tuple[int, int],
+    house: str = "house",
+    scan: bool = False,
+    camera: tuple[float, float] | None = None,
+    sensor: Any = None,
+) -> Any:
+    """An in-process simulated robot; ``scan`` adds the range scanner's reading to every observation;
+    ``camera``: (field of view deg, height m), None for the default camera; ``sensor``: a
+    sim2d.sensor.SensorConfig applied to every frame (None: the ideal camera)."""
+    from vtr.sim2d import SimConfig, Simulator
+    from vtr.sim2d.config import camera_config
     from vtr.sim2d.local_robot import LocalRobot
 
     h, w = image_size
-    sim = Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=noise, house=house))
+    sim = Simulator(SimConfig(camera=camera_config(w, h, camera), sensor=sensor, noise=noise, house=house))
     return LocalRobot(sim, scan=scan)
 
 
 def teach(
-    script: Path | RouteScript, image_size: tuple[int, int], dt: float, house: str = "house"
+    script: Path | RouteScript,
+    image_size: tuple[int, int],
+    dt: float,
+    house: str = "house",
+    camera: tuple[float, float] | None = None,
+    sensor: Any = None,
 ) -> tuple[Any, Any]:
     """Drive the scripted route (a ROUTE.json path or a RouteScript) noise-free in ``house`` with
-    `runtime.teach`; returns (Route, RouteScript)."""
+    `runtime.teach` (``camera``: (fov deg, height m), None: the default; ``sensor``: the camera's sensor
+    realism, as the robot's own camera has it at teach time too); returns (Route, RouteScript)."""
     from vtr.runtime.teach import TeachConfig
     from vtr.runtime.teach import teach as teach_route
 
     if not isinstance(script, RouteScript):
         script = load_route_script(script)
-    robot = make_robot(0.0, image_size, house, scan=True)  # the route keeps the free distance its scan saw
+    # the route keeps the free distance its scan saw
+    robot = make_robot(0.0, image_size, house, scan=True, camera=camera, sensor=sensor)
     return teach_route(robot, script, TeachConfig(dt=dt, seed=0)), script
 
 

@@ -28,6 +28,21 @@ from vtr.runtime.status_line import Progress
 MAX_HOUSES = 1000
 
 
+def parse_camera(spec: str) -> tuple[float, float]:
+    """``"FOV,HEIGHT"`` -> (fov deg, height m), checked as sim2d.CameraConfig checks them."""
+    from vtr.sim2d.config import camera_config
+
+    try:
+        fov, height = (float(v) for v in spec.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected FOV,HEIGHT (degrees, metres), got {spec!r}") from None
+    try:
+        camera_config(128, 128, (fov, height))
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
+    return fov, height
+
+
 def parse_houses(spec: str) -> tuple[str, ...]:
     """House names from ``A:B`` (random:A .. random:B-1, as a Python range) or a comma list whose items are
     seeds (``A``: random:A) or map names/paths (``house``: the paper-style map); ValueError otherwise."""
@@ -78,6 +93,7 @@ class HouseSuiteConfig:
     oracle: bool = False  # also repeat with the pose oracle (evaluation.runs.PoseOracle): switching's floor
     max_steps_factor: float = 8.0  # step limit = factor * subgoals + 50
     dt: float = 0.1
+    camera: tuple[float, float] | None = None  # (fov deg, height m) of teach and repeat; None: the default
     threads: int = 1
     workers: int = 2
     json_path: Path | None = None
@@ -127,7 +143,7 @@ def evaluate_route(task: tuple[str, int, HouseSuiteConfig]) -> dict[str, Any]:
     ) as err:  # no valid route, or a house that cannot be built: say so, go on
         return {**out, "error": str(err), "wall_s": time.perf_counter() - t0}
     policy = cached_policy(Path(cfg.model), cfg.threads)
-    route, _ = teach(script, tuple(policy.image_shape), cfg.dt, house)
+    route, _ = teach(script, tuple(policy.image_shape), cfg.dt, house, camera=cfg.camera)
     h = load_house(house)
     xy = route.poses[:, :2]
     out.update(
@@ -143,7 +159,7 @@ def evaluate_route(task: tuple[str, int, HouseSuiteConfig]) -> dict[str, Any]:
         meta = policy.meta
         oracle = PoseOracle(meta.v_max, meta.w_max, meta.horizon, cfg.dt, tuple(policy.image_shape))
         methods.append(("pose_oracle", oracle, CONTROLLERS["after_no_light_matching"]))
-    condition = Condition(noise=cfg.noise)
+    condition = Condition(noise=cfg.noise, camera=cfg.camera)
     for name, pol, method in methods:
         for s in cfg.seeds:
             run = run_once(route, script, condition, house, s, method, pol, cfg, keep_path=True)
@@ -278,6 +294,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=3,
         help="generated routes per house, route seeds 0..N-1 (default: %(default)s)",
     )
+    g.add_argument(
+        "--camera",
+        type=parse_camera,
+        default=None,
+        metavar="FOV,HEIGHT",
+        help="teach and repeat with this camera: horizontal field of view (deg) and height above the floor (m), "
+        "e.g. 65,0.3 (default: the shipped model's camera, 90,0.3)",
+    )
 
 
 def run_cli(args: argparse.Namespace) -> int:
@@ -298,6 +322,7 @@ def run_cli(args: argparse.Namespace) -> int:
         workers=args.workers,
         oracle=args.oracle,
         json_path=args.json_path,
+        camera=getattr(args, "camera", None),
     )
     result = run(cfg)
     print(markdown(result))

@@ -13,7 +13,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from vtr.runtime.model_meta import PREFIX
+from vtr.runtime.contracts import CAMERA
+from vtr.runtime.model_meta import PREFIX, CameraRange
 
 RECIPE_KEY = PREFIX + "recipe"
 DATA_KEY = PREFIX + "data"
@@ -91,11 +92,44 @@ def provenance_props(
 
 
 def camera_of(data_meta: Mapping[str, Any]) -> dict[str, float]:
-    """The training camera's field of view and height, where the dataset recorded them (robots, bags)."""
+    """The training camera's field of view and height, where the dataset recorded them (robots, bags; the
+    simulator's ``camera_height`` read as ``height_m``); and, for data collected across cameras, the range
+    they span (``collect_config``'s ``fov_range`` / ``height_range``, `vtr collect --fov-range`, or ``cameras``:
+    one [fov deg, height m] per episode), as runtime.model_meta.ModelMeta fields.
+    A dataset of one camera records no range, so its model keeps the one-camera rule."""
     cam = data_meta.get("camera") or {}
     out = {}
     if isinstance(cam.get("fov_deg"), int | float):
         out["camera_fov_deg"] = float(cam["fov_deg"])
-    if isinstance(cam.get("height_m"), int | float):
-        out["camera_height_m"] = float(cam["height_m"])
+    height = cam.get("height_m", cam.get("camera_height"))
+    if isinstance(height, int | float):
+        out["camera_height_m"] = float(height)
+    collect = data_meta.get("collect_config") or {}
+    fovs, heights = collect.get("fov_range"), collect.get("height_range")
+    if (
+        fovs or heights
+    ):  # recorded across houses with cameras drawn from these ranges (vtr collect --fov-range)
+        fovs = fovs or [out.get("camera_fov_deg", CAMERA.fov_deg)] * 2
+        heights = heights or [out.get("camera_height_m", CAMERA.height_m)] * 2
+        out.update(
+            CameraRange((float(fovs[0]), float(fovs[1])), (float(heights[0]), float(heights[1]))).props()
+        )
+        out["camera_fov_deg"] = (float(fovs[0]) + float(fovs[1])) / 2
+        out["camera_height_m"] = (float(heights[0]) + float(heights[1])) / 2
+    cameras = data_meta.get("cameras")
+    if isinstance(cameras, list) and cameras:
+        try:
+            pairs = [(float(f), float(h)) for f, h in cameras]
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"data meta 'cameras' must be [fov_deg, height_m] pairs, got {cameras!r:.80}"
+            ) from None
+        rng = CameraRange.of(pairs)
+        if rng.fov_deg[0] < rng.fov_deg[1] or rng.height_m[0] < rng.height_m[1]:
+            out.update(rng.props())
+            # the nominal camera: the middle of the range
+            out["camera_fov_deg"] = sum(rng.fov_deg) / 2
+            out["camera_height_m"] = sum(rng.height_m) / 2
+        else:
+            out["camera_fov_deg"], out["camera_height_m"] = pairs[0]
     return out

@@ -241,27 +241,30 @@ def check_camera(
 ) -> list[str]:
     """Raise CameraMismatchError when robot, route and model cameras differ; returns notes on what could not
     be compared (a field one side does not record)."""
-    notes: list[str] = []
-    for name, other in (("route", route), ("model", model)):
-        if other is None:
-            notes.append(f"the {name} records no camera; not compared")
-            continue
-        if (other.width, other.height) != (robot.width, robot.height):
+    return _compare(robot, "route", route) + _compare(robot, "model", model)
+
+
+def _compare(robot: CameraSpec, name: str, other: CameraSpec | None) -> list[str]:
+    """check_camera for one of route and model."""
+    if other is None:
+        return [f"the {name} records no camera; not compared"]
+    if (other.width, other.height) != (robot.width, robot.height):
+        raise CameraMismatchError(
+            f"the robot's camera gives {robot.width}x{robot.height} images but the {name} was made with "
+            f"{other.width}x{other.height}"
+        )
+    notes = []
+    for label, a, b, tol, unit in (
+        ("field of view", robot.fov_deg, other.fov_deg, FOV_TOLERANCE_DEG, " deg"),
+        ("camera height", robot.height_m, other.height_m, HEIGHT_TOLERANCE_M, " m"),
+    ):
+        if a is None or b is None:
+            notes.append(f"{label} of the robot or the {name} unknown; not compared")
+        elif abs(a - b) > tol:
             raise CameraMismatchError(
-                f"the robot's camera gives {robot.width}x{robot.height} images but the {name} was made with "
-                f"{other.width}x{other.height}"
+                f"the robot's {label} is {a:g}{unit} but the {name} was made with {b:g}{unit} "
+                f"(tolerance {tol:g}{unit})"
             )
-        for label, a, b, tol, unit in (
-            ("field of view", robot.fov_deg, other.fov_deg, FOV_TOLERANCE_DEG, " deg"),
-            ("camera height", robot.height_m, other.height_m, HEIGHT_TOLERANCE_M, " m"),
-        ):
-            if a is None or b is None:
-                notes.append(f"{label} of the robot or the {name} unknown; not compared")
-            elif abs(a - b) > tol:
-                raise CameraMismatchError(
-                    f"the robot's {label} is {a:g}{unit} but the {name} was made with {b:g}{unit} "
-                    f"(tolerance {tol:g}{unit})"
-                )
     return notes
 
 
@@ -283,11 +286,44 @@ def route_camera(camera: Any) -> CameraSpec | None:
     return camera_from_dict(camera, CameraMismatchError, "route camera.")
 
 
+def check_camera_range(robot: CameraSpec, model: Any) -> list[str]:
+    """A model trained across cameras (``model.camera_range``, runtime.model_meta) takes a robot whose field
+    of view and height lie inside that range (widened by the tolerances above); outside it, or with an image
+    size it was not made for, CameraMismatchError in one line naming the range and the fine-tune command."""
+    from vtr.runtime.model_meta import FINE_TUNE_HINT
+
+    rng = model.camera_range
+    if (model.image_width, model.image_height) != (robot.width, robot.height):
+        raise CameraMismatchError(
+            f"the robot's camera gives {robot.width}x{robot.height} images but the model was made with "
+            f"{model.image_width}x{model.image_height}"
+        )
+    notes = []
+    for label, value, (lo, hi), tol, unit in (
+        ("field of view", robot.fov_deg, rng.fov_deg, FOV_TOLERANCE_DEG, " deg"),
+        ("camera height", robot.height_m, rng.height_m, HEIGHT_TOLERANCE_M, " m"),
+    ):
+        if value is None:
+            notes.append(f"{label} of the robot unknown; not compared with the model's range ({rng})")
+        elif not lo - tol <= value <= hi + tol:
+            raise CameraMismatchError(
+                f"the robot's {label} is {value:g}{unit}, outside the range the model was trained on ({rng}); "
+                f"{FINE_TUNE_HINT}"
+            )
+    return notes
+
+
 def check_robot_fits(hello: Hello, route_cam: dict[str, Any] | None, model: Any) -> list[str]:
     """Refuse (RobotMismatchError, one line) a robot whose camera differs from the route's or the model's
-    (``model``: a ModelMeta; then a CameraMismatchError), whose limits are below the model's, or whose steps
-    cannot last the model's dt. Returns notes on what could not be compared."""
-    notes = check_camera(hello.camera, route_camera(route_cam), model.camera)
+    (``model``: a ModelMeta; then a CameraMismatchError; a model trained across cameras takes any camera
+    inside its range, check_camera_range), whose limits are below the model's, or whose steps cannot last
+    the model's dt. Returns notes on what could not be compared."""
+    if getattr(model, "camera_range", None) is not None:
+        notes = _compare(hello.camera, "route", route_camera(route_cam)) + check_camera_range(
+            hello.camera, model
+        )
+    else:
+        notes = check_camera(hello.camera, route_camera(route_cam), model.camera)
     for name, unit in (("v_max", "m/s"), ("w_max", "rad/s")):
         mine, robots = getattr(model, name), getattr(hello.limits, name)
         if mine > robots + 1e-9:

@@ -14,8 +14,47 @@ FORMAT_VERSION = 1
 INPUT_CURRENT = "current"
 INPUT_SUBGOAL = "subgoal"
 #: Metadata a model may lack (older exports); read as None.
-OPTIONAL_FIELDS = ("camera_fov_deg", "camera_height_m")
+OPTIONAL_FIELDS = (
+    "camera_fov_deg",
+    "camera_height_m",
+    "camera_fov_min_deg",
+    "camera_fov_max_deg",
+    "camera_height_min_m",
+    "camera_height_max_m",
+)
+#: What a robot whose camera the model was not trained for runs first (training/README.md, fine-tuning).
+FINE_TUNE_HINT = (
+    "collect data with this camera and fine-tune: vtr collect ... then vtr train velocitynet "
+    "--init models/velocitynet.pt --viewnet models/viewnet.pt --data DATA --out DIR"
+)
 OUTPUT_VELOCITIES = "velocities"  # (B, 2, N): row 0 = v (m/s), row 1 = w (rad/s)
+
+
+@dataclass(frozen=True)
+class CameraRange:
+    """Fields of view (deg) and heights (m) a model was trained across, each (min, max)."""
+
+    fov_deg: tuple[float, float]
+    height_m: tuple[float, float]
+
+    def __str__(self) -> str:
+        (f0, f1), (h0, h1) = self.fov_deg, self.height_m
+        return f"fov {f0:g}-{f1:g} deg, height {h0:g}-{h1:g} m"
+
+    def props(self) -> dict[str, float]:
+        """The ModelMeta fields that record this range."""
+        return {
+            "camera_fov_min_deg": self.fov_deg[0],
+            "camera_fov_max_deg": self.fov_deg[1],
+            "camera_height_min_m": self.height_m[0],
+            "camera_height_max_m": self.height_m[1],
+        }
+
+    @classmethod
+    def of(cls, cameras: list[tuple[float, float]]) -> CameraRange:
+        """The range spanned by (fov deg, height m) pairs (the episodes of a dataset)."""
+        fovs, heights = [c[0] for c in cameras], [c[1] for c in cameras]
+        return cls((min(fovs), max(fovs)), (min(heights), max(heights)))
 
 
 @dataclass(frozen=True)
@@ -33,11 +72,31 @@ class ModelMeta:
     #: The camera the training images came from (None: not recorded, as in models exported before it was).
     camera_fov_deg: float | None = CAMERA.fov_deg  # degrees, horizontal
     camera_height_m: float | None = CAMERA.height_m  # metres above the floor
+    #: The range of cameras the training images came from, for a model trained across cameras (None: one
+    #: camera, the one above; such a model keeps the 2 deg / 2 cm rule of runtime.hello).
+    camera_fov_min_deg: float | None = None
+    camera_fov_max_deg: float | None = None
+    camera_height_min_m: float | None = None
+    camera_height_max_m: float | None = None
 
     @property
     def camera(self) -> CameraSpec:
         """The camera this model expects: its input size, and the field of view and height it was trained on."""
         return CameraSpec(self.image_width, self.image_height, self.camera_fov_deg, self.camera_height_m)
+
+    @property
+    def camera_range(self) -> CameraRange | None:
+        """The cameras the model was trained across (None: a model of one camera, or one exported before
+        ranges were recorded)."""
+        bounds = (
+            self.camera_fov_min_deg,
+            self.camera_fov_max_deg,
+            self.camera_height_min_m,
+            self.camera_height_max_m,
+        )
+        if any(b is None for b in bounds):
+            return None
+        return CameraRange((float(bounds[0]), float(bounds[1])), (float(bounds[2]), float(bounds[3])))  # type: ignore[arg-type]
 
     def __post_init__(self) -> None:
         if self.image_height <= 0 or self.image_width <= 0:
@@ -47,6 +106,20 @@ class ModelMeta:
         check_preprocessing(self.preprocessing)
         if not (self.v_max > 0 and self.w_max > 0 and self.dt > 0):
             raise ValueError(f"v_max, w_max and dt must be positive: {self}")
+        bounds = (
+            self.camera_fov_min_deg,
+            self.camera_fov_max_deg,
+            self.camera_height_min_m,
+            self.camera_height_max_m,
+        )
+        if any(b is not None for b in bounds):
+            if any(b is None for b in bounds):
+                raise ValueError(
+                    "a camera range needs all four of camera_fov_min/max_deg, camera_height_min/max_m"
+                )
+            fmin, fmax, hmin, hmax = (float(b) for b in bounds)  # type: ignore[arg-type]
+            if not (0 < fmin <= fmax < 180 and 0 < hmin <= hmax):
+                raise ValueError(f"bad camera range: fov {fmin:g}..{fmax:g} deg, height {hmin:g}..{hmax:g} m")
 
     def to_props(self) -> dict[str, str]:
         return {PREFIX + k: str(v) for k, v in asdict(self).items() if v is not None}

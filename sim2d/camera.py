@@ -6,7 +6,9 @@ One frame is:
    view (one small matmul gives every ray/segment cross product at once: sim2d.rays, which the
    rangefinder shares), keeping two layers per column:
    the nearest wall and the nearest furniture in front of it (furniture is lower than walls, so the wall
-   shows above it; furniture hidden behind other furniture is not drawn, a limit of two layers);
+   shows above it; furniture hidden behind other furniture is not drawn, a limit of two layers). A camera
+   above some furniture keeps a third layer, the second nearest piece, and draws the tops of pieces lower
+   than itself (sim2d.camera_tops, a 2.5D raycaster's floor-and-top rule);
 2. per column and layer, one lookup in a (segment, depth bin) table gives the texture block to read
    (mip level and distance shading of that bin), the texture column, and the texture row as a linear
    function of the pixel's ray slope, v = a - yr * b; per pixel, 0 <= v < v_top says whether the pixel
@@ -31,6 +33,7 @@ import math
 
 import numpy as np
 
+from vtr.sim2d.camera_tops import draw_tops, far_sides, top_tables
 from vtr.sim2d.config import CameraConfig
 from vtr.sim2d.house import House
 from vtr.sim2d.rays import Surfaces, inverse_depths
@@ -53,13 +56,8 @@ class Camera:
         self.rw, self.rh = cfg.width * ss, cfg.height * ss
         f = cfg.focal_px * ss
         self.focal = f
-        too_low = [fu.name for fu in house.furniture if fu.height <= cfg.camera_height]
-        if too_low:
-            # The renderer draws vertical faces only; a top face seen from above would be missing.
-            raise ValueError(
-                f"CameraConfig.camera_height ({cfg.camera_height} m) must be below every furniture height; "
-                f"lower than it: {', '.join(too_low)}"
-            )
+        # Furniture whose top the camera looks down on: then two furniture layers per column, and tops.
+        self.tops = any(fu.height < cfg.camera_height - 1e-6 for fu in house.furniture)
 
         # ---- rays: column c looks along (1, -xc) in the camera frame (x forward, y left)
         self.xc = (np.arange(self.rw) + 0.5 - self.rw / 2) / f  # (W,)
@@ -147,6 +145,13 @@ class Camera:
             .astype(np.float32)
         )
         self._max_furniture_height = max((fu.height for fu in house.furniture), default=0.0)
+        # Piece of each furniture segment (segments are walls first, then each piece's edges in order).
+        counts = [len(fu.vertices) for fu in house.furniture]
+        self._seg_piece = np.concatenate(
+            [np.full(self.n_walls, -1), np.repeat(np.arange(len(counts)), counts)]
+        )
+        if self.tops:
+            self._top_tab, self._top_dh = top_tables(self, house, centres, bin_light)
 
         # ---- floor rows (below the horizon): ground depth, mip level, shading
         below = yr > 0
@@ -237,20 +242,31 @@ class Camera:
         n = len(front)
         # (W, n) 1 / forward depth of each column's ray on each front face, <= 0 where it misses
         inv_t, s_num, denom = inverse_depths(dirs, self._surfaces.e_perp_t[:, front], ap[front], t_num[front])
-        k = np.zeros((2, self.rw), dtype=np.intp)
+        layers = 3 if self.tops else 2
+        k = np.zeros((layers, self.rw), dtype=np.intp)
         if n_w > 0:
             k[0] = np.argmax(inv_t[:, :n_w], axis=1)
+        k[1:] = k[0]
         if n > n_w:
             k[1] = np.argmax(inv_t[:, n_w:], axis=1) + n_w
-        else:
-            k[1] = k[0]
         cols = self._cols
-        best = inv_t[cols, k]  # (2, W) 1 / depth
+        best = inv_t[cols, k]  # (layers, W) 1 / depth
+        out: dict[str, np.ndarray] = {"dx": dirs[:, 0], "dy": dirs[:, 1]}
+        if self.tops and n > n_w:
+            # the second nearest piece (what shows above a low piece in front of it): faces of the nearest
+            # piece masked out, as a ray meets a convex piece's front once (twice only at a shared corner)
+            piece = self._seg_piece[front[n_w:]]
+            others = np.where(piece[None, :] == piece[k[1] - n_w][:, None], 0.0, inv_t[:, n_w:])
+            k[2] = np.argmax(others, axis=1) + n_w
+            best[2] = others[cols[0], k[2] - n_w]
         hit = best > 1.0 / self.cfg.max_range
-        hit[1] &= best[1] > best[0]  # furniture only in front of the wall
-        depth = np.divide(1.0, best, out=np.full((2, self.rw), _NO_HIT), where=hit)
-        s = np.divide(s_num[cols, k], denom[cols, k], out=np.zeros((2, self.rw)), where=hit)
-        return {"depth": depth, "seg": front[k] if n else k, "s": s, "dx": dirs[:, 0], "dy": dirs[:, 1]}
+        hit[1:] &= best[1:] > best[0]  # furniture only in front of the wall
+        depth = np.divide(1.0, best, out=np.full((layers, self.rw), _NO_HIT), where=hit)
+        s = np.divide(s_num[cols, k], denom[cols, k], out=np.zeros((layers, self.rw)), where=hit)
+        seg = front[k] if n else k
+        if self.tops:
+            out["t_out"] = far_sides(self, dirs, ap, t_num, beyond, seg, depth)
+        return {"depth": depth, "seg": seg, "s": s, **out}
 
     def render(self, x: float, y: float, yaw: float) -> np.ndarray:
         """The (height, width, 3) uint8 RGB image seen from pose (x, y, yaw)."""
@@ -290,19 +306,23 @@ class Camera:
         fxy[1] += fxy[0]
         np.add(fxy[1], self._floor_off[rows], out=idx[r0:])
 
-        # ---- walls, then furniture on top, each within the bounding box of rows and columns it can cover
+        # ---- walls, then furniture far to near (painter's order), each within the bounding box of rows and
+        # columns it can cover
         heights = (cfg.wall_height, self._max_furniture_height)
-        for layer, cols in ((0, wall_cols), (1, np.flatnonzero(depth[1] < _NO_HIT))):
+        for layer in (0, 2, 1) if self.tops else (0, 1):
+            cols = wall_cols if layer == 0 else np.flatnonzero(depth[layer] < _NO_HIT)
             if cols.size == 0:
                 continue
             c0, c1 = int(cols[0]), int(cols[-1]) + 1
             d_near = float(depth[layer, c0:c1].min())
             # Rows where z in [0, height) can show: yr in ((h_cam - height) / d, h_cam / d].
-            t0 = max(0, math.floor(centre + f * (h_cam - heights[layer]) / d_near) - 1)
+            t0 = max(0, math.floor(centre + f * (h_cam - heights[min(layer, 1)]) / d_near) - 1)
             b1 = min(rh, math.ceil(centre + f * h_cam / d_near) + 2)
+            cs = slice(c0, c1)
+            if layer and self.tops:  # the top of a piece lower than the camera, where the column sees it
+                draw_tops(self, idx, rc, layer, cs)
             if b1 <= t0:
                 continue
-            cs = slice(c0, c1)
             v = tf[layer, cs, 2] - self.yr_col[t0:b1] * b[layer, cs]  # (h, w) texture row
             vis = v >= 0
             vis &= v < tf[layer, cs, 3]

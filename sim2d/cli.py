@@ -1,7 +1,7 @@
 """`vtr sim`: the simulator from the command line.
 
 vtr sim snapshot --out house.png [--x X --y Y --yaw YAW] [--start NAME]
-vtr sim serve --bind tcp://127.0.0.1:5555 [--noise 0.05] [--no-scan]
+vtr sim serve --bind tcp://127.0.0.1:5555 [--noise 0.05] [--no-scan] [--fov 70 --camera-height 0.45] [--sensor SPEC]
 vtr sim route --house random:SEED --seed K --out route.json   (a generated route to `vtr teach`)
 """
 
@@ -16,6 +16,7 @@ from pathlib import Path
 from vtr.runtime.address import check_endpoint
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.commands import Command
+from vtr.runtime.contracts import CAMERA
 
 
 @dataclass(frozen=True)
@@ -121,9 +122,14 @@ def run_serve(
     scan: bool = True,
     drive_script: str | None = None,
     twist: bool = True,
+    camera: dict[str, float | int] | None = None,
+    sensor: str = "",
 ) -> int:
+    """``camera``: CameraConfig fields besides brightness (fov_deg, camera_height, width, height);
+    ``sensor``: a sim2d.sensor spec (blur=0.04,noise=4,...), empty for the ideal camera."""
     from vtr.runtime.route_script import load_route_script
     from vtr.sim2d.config import CameraConfig, SimConfig
+    from vtr.sim2d.sensor import parse_sensor
 
     try:
         from vtr.sim2d.server import BindError, ServerConfig, serve
@@ -133,7 +139,13 @@ def run_serve(
         )
         return 3
     check_endpoint(bind, bind=True)
-    sim_cfg = SimConfig(house=house, noise=noise, changes=changes, camera=CameraConfig(brightness=brightness))
+    sim_cfg = SimConfig(
+        house=house,
+        noise=noise,
+        changes=changes,
+        camera=CameraConfig(brightness=brightness, **(camera or {})),  # type: ignore[arg-type]
+        sensor=parse_sensor(sensor) if sensor else None,
+    )
     script = None if drive_script is None else load_route_script(drive_script)
     cfg = ServerConfig(
         bind=bind,
@@ -182,6 +194,31 @@ def add_serve_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--change", action="append", default=[], metavar="SPEC", help=_CHANGE_HELP)
     parser.add_argument(
         "--brightness", type=float, default=1.0, help="camera brightness multiplier (default: 1.0)"
+    )
+    parser.add_argument(
+        "--fov",
+        type=float,
+        default=CAMERA.fov_deg,
+        help="camera horizontal field of view, degrees (default: 90)",
+    )
+    parser.add_argument(
+        "--camera-height",
+        type=float,
+        default=CAMERA.height_m,
+        help="camera height above the floor, metres (default: 0.3)",
+    )
+    parser.add_argument(
+        "--size",
+        default=f"{CAMERA.width}x{CAMERA.height}",
+        metavar="WxH",
+        help="image size in pixels, rendered at that resolution (default: 128x128)",
+    )
+    parser.add_argument(
+        "--sensor",
+        default="",
+        metavar="SPEC",
+        help="camera sensor realism (sim2d/sensor.py), e.g. blur=0.04,noise=6,flicker=0.15,gain_drift=0.1,"
+        "wb_drift=0.05,jpeg=30,k1=-0.2; blur is the exposure time in s (default: none, the ideal camera)",
     )
     parser.add_argument(
         "--mode",
@@ -238,7 +275,18 @@ def run_serve_cli(args: argparse.Namespace) -> int:
         args.scan,
         args.drive_script,
         args.twist,
+        {"fov_deg": args.fov, "camera_height": args.camera_height, **_size(args.size)},
+        args.sensor,
     )
+
+
+def _size(spec: str) -> dict[str, int]:
+    """``"WxH"`` -> {"width": W, "height": H} (ValueError, one line, otherwise)."""
+    try:
+        w, h = (int(v) for v in spec.lower().split("x"))
+    except ValueError:
+        raise ValueError(f"--size {spec!r}: expected WIDTHxHEIGHT in pixels, e.g. 160x120") from None
+    return {"width": w, "height": h}
 
 
 def run_route_cli(args: argparse.Namespace) -> int:

@@ -7,8 +7,9 @@ from dataclasses import dataclass, field
 
 from vtr.runtime.contracts import CAMERA, ROBOT_RADIUS, V_MAX, W_MAX, Pose
 from vtr.runtime.scan import MAX_BEAMS, MAX_SCAN_RANGE
+from vtr.sim2d.sensor import SensorConfig
 
-__all__ = ["V_MAX", "W_MAX", "CameraConfig", "Pose", "RangefinderConfig", "SimConfig"]
+__all__ = ["V_MAX", "W_MAX", "CameraConfig", "Pose", "RangefinderConfig", "SimConfig", "camera_config"]
 
 
 def _finite_positive(name: str, value: float) -> None:
@@ -27,7 +28,8 @@ class CameraConfig:
     fov_deg: float = CAMERA.fov_deg
     """Horizontal field of view in degrees; square pixels, so the vertical fov follows from the aspect ratio."""
     camera_height: float = CAMERA.height_m
-    """Height of the optical centre above the floor (m); must stay below every furniture height."""
+    """Height of the optical centre above the floor (m), below wall_height; furniture lower than the camera is
+    seen from above (its top, sim2d.camera_tops)."""
     wall_height: float = 2.5
     """Height of the walls (m); the ceiling is drawn above it."""
     brightness: float = 1.0
@@ -67,6 +69,15 @@ class CameraConfig:
     def focal_px(self) -> float:
         """Focal length in (output) pixels."""
         return 0.5 * self.width / math.tan(math.radians(self.fov_deg) / 2.0)
+
+
+def camera_config(width: int, height: int, camera: tuple[float, float] | None = None) -> CameraConfig:
+    """A width x height CameraConfig; ``camera``: (horizontal field of view in degrees, height above the floor
+    in m), None for the default camera (the shipped model's)."""
+    if camera is None:
+        return CameraConfig(width=width, height=height)
+    fov, h = camera
+    return CameraConfig(width=width, height=height, fov_deg=float(fov), camera_height=float(h))
 
 
 @dataclass(frozen=True)
@@ -137,6 +148,9 @@ class SimConfig:
     """Clamp on |w| (rad/s)."""
     max_step_duration: float = 10.0
     """Longest duration accepted by one step() (s), a guard against a typo running for hours."""
+    sensor: SensorConfig | None = None
+    """Camera sensor realism applied to every frame (sim2d.sensor: motion blur from the commanded motion,
+    lens distortion, exposure and white-balance drift and flicker, noise, JPEG); None: the ideal image."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.house, str) or not self.house:
@@ -151,6 +165,10 @@ class SimConfig:
             _finite_positive(f"SimConfig.{name}", getattr(self, name))
         if not 0.05 <= self.robot_radius <= 0.5:
             raise ValueError(f"SimConfig.robot_radius must be in [0.05, 0.5] m, got {self.robot_radius!r}")
+        if self.sensor is not None and not isinstance(self.sensor, SensorConfig):
+            raise ValueError(
+                f"SimConfig.sensor must be a SensorConfig or None, got {type(self.sensor).__name__}"
+            )
         if not isinstance(self.rangefinder, RangefinderConfig):
             raise ValueError(f"SimConfig.rangefinder must be a RangefinderConfig, got {self.rangefinder!r}")
         if abs(self.rangefinder.x_m) >= self.robot_radius:

@@ -19,6 +19,7 @@ from vtr.sim2d.config import Pose, SimConfig
 from vtr.sim2d.house import House, load_house
 from vtr.sim2d.physics import World, advance, build_world, pose_of
 from vtr.sim2d.rangefinder import Rangefinder
+from vtr.sim2d.sensor import Sensor, describe
 
 
 @dataclass
@@ -90,6 +91,11 @@ class Simulator:
         self.cfg = cfg if cfg is not None else SimConfig()
         self.house: House = load_house(self.cfg.house, self.cfg.changes)
         self.camera = Camera(self.house, self.cfg.camera)
+        sensor = self.cfg.sensor
+        self._sensor = (
+            Sensor(sensor, self.cfg.camera.focal_px) if sensor is not None and sensor.active else None
+        )
+        self._command = (0.0, 0.0)  # the last commanded (v, w): the motion the sensor blurs
         self._rangefinder: Rangefinder | None = None
         self._rng = np.random.default_rng(0)
         self._state: SimState | None = None
@@ -115,6 +121,9 @@ class Simulator:
         self._rng = np.random.default_rng(seed)
         world = build_world(self.house, pose, self.cfg.robot_radius)
         self._state = SimState(world, 0.0, False, draw_bias(self.cfg, seed))
+        self._command = (0.0, 0.0)
+        if self._sensor is not None:
+            self._sensor.reset(seed)
         return self.observe()
 
     def set_house(self, house: str) -> None:
@@ -145,11 +154,15 @@ class Simulator:
                 f"step duration must be in [0, {self.cfg.max_step_duration}] s, got {duration!r}"
             )
         self._state = sim_step(self._require(), v, w, float(duration), self._rng, self.cfg)
+        self._command = clamp_command(v, w, self.cfg)
 
     def observe(self) -> np.ndarray:
         """The camera image at the current pose (no time advance)."""
         p = self.pose
-        return self.camera.render(p.x, p.y, p.yaw)
+        image = self.camera.render(p.x, p.y, p.yaw)
+        if self._sensor is not None:
+            image = self._sensor.apply(image, *self._command, self.time)
+        return image
 
     @property
     def rangefinder(self) -> Rangefinder:
@@ -204,5 +217,6 @@ class Simulator:
             "robot_radius": self.cfg.robot_radius,
             "physics_dt": self.cfg.physics_dt,
             "noise": self.cfg.noise,
+            **({"sensor": describe(self.cfg.sensor)} if self.cfg.sensor is not None else {}),
             "time": self.time,
         }

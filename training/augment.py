@@ -9,6 +9,11 @@ clean recorded ones; only what VelocityNet sees is changed.
 Per image (each op's parameters drawn per image): brightness gain, contrast about the image mean, gamma,
 per-channel colour balance, one side darker (a horizontal gain ramp), a 3x3 blur, Gaussian sensor noise
 and a rectangular occluder of random colour (a box, a person, a moved chair in front of the camera).
+
+Then, with ``sensor_probability`` (0 by default: the shipped recipe is unchanged), a camera's sensor realism
+through the simulator's own implementation (sim2d.sensor, numpy and OpenCV on the CPU): motion blur of a
+random turn and drive during the exposure, radial lens distortion, JPEG compression; all drawn from the same
+torch generator, so a seed gives the same images.
 """
 
 from __future__ import annotations
@@ -36,13 +41,33 @@ class AugmentConfig:
     noise_std: tuple[float, float] = (0.0, 0.03)  # Gaussian sensor noise, in [0, 1] pixel units
     occluder_probability: float = 0.25  # chance of one rectangle of random colour
     occluder_size: tuple[float, float] = (0.1, 0.35)  # its sides, as fractions of the image's
+    sensor_probability: float = 0.0  # chance of the sensor ops below (sim2d.sensor) for an image
+    blur_shift_px: tuple[float, float] = (0.0, 4.0)  # motion blur: sideways slide (either way), pixels
+    blur_zoom: tuple[float, float] = (0.0, 0.03)  # motion blur: growth about the centre (driving forward)
+    k1: tuple[float, float] = (-0.25, 0.05)  # radial distortion (negative: barrel)
+    jpeg_probability: float = 0.5  # of those images, the chance of JPEG compression ...
+    jpeg_quality: tuple[float, float] = (25.0, 90.0)  # ... at a quality in this range
 
     def __post_init__(self) -> None:
         for name in ("brightness", "contrast", "gamma", "colour", "side_low", "noise_std", "occluder_size"):
             lo, hi = getattr(self, name)
             if not 0 <= lo <= hi:
                 raise ValueError(f"AugmentConfig.{name} must be a range 0 <= low <= high, got {(lo, hi)}")
-        for name in ("side_probability", "blur_probability", "occluder_probability"):
+        for name in ("blur_shift_px", "blur_zoom", "jpeg_quality"):
+            lo, hi = getattr(self, name)
+            if not 0 <= lo <= hi:
+                raise ValueError(f"AugmentConfig.{name} must be a range 0 <= low <= high, got {(lo, hi)}")
+        if not -0.5 <= self.k1[0] <= self.k1[1] <= 0.5:
+            raise ValueError(f"AugmentConfig.k1 must be a range within [-0.5, 0.5], got {self.k1}")
+        if self.jpeg_quality[1] > 100 or self.jpeg_quality[0] < 1:
+            raise ValueError(f"AugmentConfig.jpeg_quality must lie within 1..100, got {self.jpeg_quality}")
+        for name in (
+            "side_probability",
+            "blur_probability",
+            "occluder_probability",
+            "sensor_probability",
+            "jpeg_probability",
+        ):
             if not 0 <= getattr(self, name) <= 1:
                 raise ValueError(f"AugmentConfig.{name} must be in [0, 1], got {getattr(self, name)}")
         if self.occluder_size[1] > 1 or self.side_low[1] > 1:
@@ -94,6 +119,41 @@ def photometric(images: torch.Tensor, cfg: AugmentConfig, gen: torch.Generator) 
     return x.clamp(0, 1).to(images.dtype)
 
 
+def sensor(images: torch.Tensor, cfg: AugmentConfig, gen: torch.Generator) -> torch.Tensor:
+    """float (B, 3, H, W) in [0, 1] -> the same, with sim2d.sensor's motion blur, lens distortion and JPEG
+    applied to each image with ``cfg.sensor_probability`` (parameters drawn per image from ``gen``)."""
+    from vtr.sim2d.sensor import jpeg, motion_blur, radial_distortion
+
+    b = images.shape[0]
+    chosen = torch.rand(b, generator=gen) < cfg.sensor_probability
+    draws = (
+        torch.rand(b, 5, generator=gen).double().numpy()
+    )  # drawn for every image: the stream stays aligned
+    if not chosen.any():
+        return images
+    out = images.clone()
+    for i in torch.nonzero(chosen).flatten().tolist():
+        u = draws[i]
+        img = (images[i].detach().float().clamp(0, 1).permute(1, 2, 0).cpu().numpy() * 255 + 0.5).astype(
+            "uint8"
+        )
+        shift = (cfg.blur_shift_px[0] + (cfg.blur_shift_px[1] - cfg.blur_shift_px[0]) * u[0]) * (
+            1 if u[1] < 0.5 else -1
+        )
+        zoom = cfg.blur_zoom[0] + (cfg.blur_zoom[1] - cfg.blur_zoom[0]) * u[2]
+        img = motion_blur(img, shift, zoom)
+        img = radial_distortion(
+            img, round(cfg.k1[0] + (cfg.k1[1] - cfg.k1[0]) * u[3], 3)
+        )  # few distinct maps
+        if u[4] < cfg.jpeg_probability:
+            q = cfg.jpeg_quality[0] + (cfg.jpeg_quality[1] - cfg.jpeg_quality[0]) * u[4] / max(
+                cfg.jpeg_probability, 1e-9
+            )
+            img = jpeg(img, int(round(q)))
+        out[i] = torch.from_numpy(img).to(images.device, torch.float32).permute(2, 0, 1) / 255.0
+    return out.to(images.dtype)
+
+
 class InputPipeline(nn.Module):
     """VelocityNet as the MPC loss sees it in training: both inputs augmented (while ``net`` is in training
     mode and ``augment`` is given) and normalised as the runtime will (``preprocessing``).
@@ -118,4 +178,7 @@ class InputPipeline(nn.Module):
         if self.augment is not None and self.net.training:
             current = photometric(current, self.augment, self.gen)
             subgoal = photometric(subgoal, self.augment, self.gen)
+            if self.augment.sensor_probability > 0:
+                current = sensor(current, self.augment, self.gen)
+                subgoal = sensor(subgoal, self.augment, self.gen)
         return self.net(normalise(current, self.preprocessing), normalise(subgoal, self.preprocessing))

@@ -201,6 +201,17 @@ def run(cfg: CollectConfig) -> dict[str, Any]:
     }
 
 
+def _range(text: str) -> tuple[float, float]:
+    """``A:B`` -> (A, B), A <= B (a one-line argparse error otherwise)."""
+    try:
+        lo, hi = (float(v) for v in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected A:B (numbers), got {text!r}") from None
+    if not lo <= hi:
+        raise argparse.ArgumentTypeError(f"expected A <= B, got {text!r}")
+    return lo, hi
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out",
@@ -254,6 +265,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     houses.add_argument(
         "--workers", type=int, default=0, help="worker processes (default 0: one per CPU core)"
+    )
+    houses.add_argument(
+        "--fov-range",
+        type=_range,
+        default=None,
+        metavar="A:B",
+        help="cameras across houses: each house's horizontal field of view drawn from A..B degrees "
+        "(default: none, the shipped 90)",
+    )
+    houses.add_argument(
+        "--height-range",
+        type=_range,
+        default=None,
+        metavar="A:B",
+        help="each house's camera height drawn from A..B metres (default: none, the shipped 0.3)",
     )
     rec = parser.add_argument_group("recovery views of a simulator dataset (a folder as --out)")
     rec.add_argument(

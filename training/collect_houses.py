@@ -88,18 +88,29 @@ def _tick() -> None:
             _progress.value += 1
 
 
+def house_camera(cfg: CollectConfig, seed: int) -> Any:
+    """The CameraConfig a house records with: the shipped camera, or one drawn for this house (``seed``) from
+    ``cfg.fov_range`` and ``cfg.height_range``."""
+    from vtr.runtime.contracts import CAMERA
+    from vtr.sim2d.config import camera_config
+
+    if cfg.fov_range is None and cfg.height_range is None:
+        return camera_config(cfg.image_size, cfg.image_size)
+    u = np.random.default_rng([cfg.seed, seed, 11]).random(2)
+    f0, f1 = cfg.fov_range or (CAMERA.fov_deg, CAMERA.fov_deg)
+    h0, h1 = cfg.height_range or (CAMERA.height_m, CAMERA.height_m)
+    camera = (round(f0 + (f1 - f0) * u[0], 1), round(h0 + (h1 - h0) * u[1], 3))
+    return camera_config(cfg.image_size, cfg.image_size, camera)
+
+
 def record_house(out: str, house: str, seed: int, frames: int, cfg: CollectConfig) -> dict[str, Any]:
     """Record one house into shard files named after it; returns its index entries and tallies."""
     from vtr.runtime.atomic import atomic_path
-    from vtr.sim2d import CameraConfig, SimConfig, Simulator
+    from vtr.sim2d import SimConfig, Simulator
     from vtr.training.collect import Recording, drive
     from vtr.training.shards import MAX_SHARD_FRAMES, shard_paths
 
-    sim = Simulator(
-        SimConfig(
-            house=house, camera=CameraConfig(width=cfg.image_size, height=cfg.image_size), noise=cfg.noise
-        )
-    )
+    sim = Simulator(SimConfig(house=house, camera=house_camera(cfg, seed), noise=cfg.noise))
     entries, tallies = [], {"collisions": 0, "commands": {}}
     done, part = 0, 0
     while done < frames:
@@ -250,6 +261,8 @@ def main_houses(args: Any) -> int:
         image_size=args.image_size,
         mix="repeat",
         reverse_fraction=0.2,
+        fov_range=getattr(args, "fov_range", None),
+        height_range=getattr(args, "height_range", None),
     )
     per_house = args.frames_per_house or max(2, args.frames // len(seeds))
     cfg = HousesConfig(

@@ -60,6 +60,10 @@ class CollectConfig:
     reverse_fraction: float = 0.1  # share of translation segments driven backwards
     progress: bool = True  # show a tqdm progress bar
     mix: str = "paper"  # command mix, a key of training.collect.MIXES ("paper" or "repeat")
+    # Cameras across houses (`vtr collect --houses`): each house records with a field of view (deg) and a height
+    # (m) drawn uniformly from these ranges; None: the shipped camera. The export writes the range into the model.
+    fov_range: tuple[float, float] | None = None
+    height_range: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         _check_positive(self, "frames", "dt", "image_size", "episode_min", "episode_max", "segment_min")
@@ -74,6 +78,12 @@ class CollectConfig:
             raise ValueError(f"CollectConfig.noise must be >= 0, got {self.noise!r}")
         if self.lookahead < 0:
             raise ValueError(f"CollectConfig.lookahead must be >= 0, got {self.lookahead!r}")
+        for name, lo_limit, hi_limit in (("fov_range", 1.0, 170.0), ("height_range", 0.05, 2.0)):
+            rng = getattr(self, name)
+            if rng is not None and not (len(rng) == 2 and lo_limit <= rng[0] <= rng[1] <= hi_limit):
+                raise ValueError(
+                    f"CollectConfig.{name} must be (low, high) within {lo_limit:g}..{hi_limit:g}, got {rng!r}"
+                )
         if self.mix not in ("paper", "repeat"):
             raise ValueError(f"CollectConfig.mix must be 'paper' or 'repeat', got {self.mix!r}")
         if not 0 <= self.reverse_fraction <= 1:

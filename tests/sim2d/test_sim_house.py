@@ -153,7 +153,7 @@ def test_camera_layers_furniture_wall_floor_ceiling(tmp_path):
     assert not np.any(np.all(back == (255, 0, 0), axis=-1))
 
 
-def test_camera_must_stay_below_furniture(tmp_path):
+def test_camera_must_stay_below_the_walls(tmp_path):
     path = write(tmp_path, tiny_house())
-    with pytest.raises(ValueError, match="below every furniture height; lower than it: box"):
-        Simulator(SimConfig(house=str(path), camera=CameraConfig(camera_height=1.0)))
+    with pytest.raises(ValueError, match=r"camera_height \(2.5\) must be below wall_height"):
+        Simulator(SimConfig(house=str(path), camera=CameraConfig(camera_height=2.5)))

@@ -90,3 +90,19 @@ def test_augment_config_validation():
         AugmentConfig(brightness=(1.5, 0.6))
     with pytest.raises(ValueError, match="occluder_probability"):
         AugmentConfig(occluder_probability=2.0)
+
+
+def test_sensor_augmentation_is_deterministic_per_seed_and_off_by_default():
+    from vtr.training.augment import sensor
+
+    x = images(6, seed=3)
+    on = AugmentConfig(sensor_probability=1.0, blur_shift_px=(2.0, 4.0), k1=(-0.25, -0.1))
+    a = sensor(x, on, torch.Generator().manual_seed(5))
+    b = sensor(x, on, torch.Generator().manual_seed(5))
+    c = sensor(x, on, torch.Generator().manual_seed(6))
+    assert a.shape == x.shape and a.dtype == x.dtype and 0 <= a.min() and a.max() <= 1
+    assert torch.equal(a, b) and not torch.equal(a, c)
+    assert (a - x).abs().mean(dim=(1, 2, 3)).min() > 0.01  # every image changed
+    assert torch.equal(sensor(x, AugmentConfig(), torch.Generator().manual_seed(5)), x)  # probability 0
+    with pytest.raises(ValueError, match="k1"):
+        AugmentConfig(k1=(-0.9, 0.0))
