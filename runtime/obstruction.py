@@ -40,6 +40,9 @@ import numpy as np
 from vtr.runtime.floor_view import Camera, FloorTiles, path_weights, taught_offset
 from vtr.runtime.matching import MatchConfig, Matcher
 
+#: Commands faster than this (m/s) count as driving forward (``update``'s ``forward``).
+FORWARD_SPEED = 0.02
+
 
 @dataclass(frozen=True)
 class ObstructionConfig:
@@ -257,4 +260,4 @@ class ObstructionDetector:
         return self.growth.update(*self.shares(self.scores(view, position)), forward)
 
 
-__all__ = ["Growth", "ObstructionConfig", "ObstructionDetector", "ObstructionVerdict"]
+__all__ = ["FORWARD_SPEED", "Growth", "ObstructionConfig", "ObstructionDetector", "ObstructionVerdict"]

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from vtr.runtime.obstruction import ObstructionConfig, ObstructionDetector
+from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionConfig, ObstructionDetector
 
 DEV_SEEDS = tuple(range(100, 106))
 DISTANCES = (1.0, 0.8, 0.6, 0.45, 0.35)
@@ -48,8 +48,6 @@ RUN_CONDITIONS = (
     "furniture_moved",
     "floor_recoloured",
 )
-#: Commands faster than this (m/s) count as driving forward.
-FORWARD_SPEED = 0.02
 
 
 def dev_route(seed: int, image_shape: tuple[int, int] = (128, 128)) -> tuple[Any, Any]:
