@@ -70,7 +70,8 @@ def scene_house(scene: str, tmp: Path, poses: np.ndarray) -> tuple[str, dict[str
 def view_shares(route: Any, cfg: ObstructionConfig, tmp: Path) -> dict[str, list[float | None]]:
     """Per DISTANCES: the path region's unmatched share with the box ("box") and without it under each
     of LIGHTS, the robot on the taught path that far from the box's centre."""
-    from vtr.evaluation.conditions import LIGHTING, box_of
+    from vtr.evaluation.conditions import LIGHTING
+    from vtr.evaluation.path_boxes import box_of
     from vtr.sim2d import Simulator
     from vtr.sim2d.config import Pose, SimConfig
 
@@ -109,7 +110,8 @@ def view_shares(route: Any, cfg: ObstructionConfig, tmp: Path) -> dict[str, list
 def watched_run(route: Any, script: Any, cond_name: str, seed: int, cfg: ObstructionConfig) -> dict[str, Any]:
     """One closed-loop repeat (the suite's ``after``) under ``cond_name`` with the detector watching."""
     from vtr.evaluation.condition_run import AFTER, CONDITIONS, cached_policy, start_pose
-    from vtr.evaluation.conditions import LIGHTING, LitRobot, box_distance, box_of
+    from vtr.evaluation.conditions import LIGHTING, LitRobot
+    from vtr.evaluation.path_boxes import box_distance, box_of
     from vtr.models import find_model
     from vtr.runtime.follower import Follower
     from vtr.runtime.light import LightMatchedPolicy
