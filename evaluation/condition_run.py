@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from vtr.evaluation.conditions import BLOCKING_SCENES, LIGHTING, PATH_SCENES, SCENES
+from vtr.evaluation.conditions import BLOCKING_SCENES, LIGHTING, MOVING_SCENES, PATH_SCENES, SCENES
 from vtr.evaluation.metrics import off_route
 from vtr.evaluation.path_boxes import box_distance
 from vtr.runtime.controller import ControllerConfig
@@ -173,6 +173,7 @@ def run_once(
     with the path box: ``box_face_m``, and ``cleared_at_s`` (simulated time it was taken away, None if
     never). ``cfg`` needs dt and max_steps_factor (a SuiteConfig)."""
     from vtr.evaluation.conditions import LitRobot
+    from vtr.evaluation.moving_box import CrossingRobot
     from vtr.evaluation.path_boxes import ClearingRobot, path_box, write_cleared_house
     from vtr.evaluation.runs import repeat_closed_loop
     from vtr.evaluation.scoring import score
@@ -185,9 +186,11 @@ def run_once(
         Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=cond.noise, house=house)),
         scan=method.scan,
     )
-    clearing = None
+    clearing = crossing = None
     if cond.clear_after_s is not None:
         clearing = robot = ClearingRobot(robot, str(write_cleared_house(house)), cond.clear_after_s, cfg.dt)
+    if cond.scene in MOVING_SCENES:
+        crossing = robot = CrossingRobot(robot, path_box(house) or {})
     if cond.light:
         robot = LitRobot(robot, LIGHTING[cond.light])
     if method.match_light:
@@ -209,6 +212,8 @@ def run_once(
         extra["box_face_m"] = box_distance(box, *log.poses[-1][:2])  # nearest face (contact at its radius)
     if box is not None:  # how near it came to the box at all
         extra["box_closest_m"] = min(box_distance(box, *p[:2]) for p in log.poses)
+    if crossing is not None:  # the box moved: where it was at each step
+        extra["box_closest_m"], extra["box_started_at_s"] = crossing.closest, crossing.started_at
     if clearing is not None:
         extra["cleared_at_s"] = clearing.cleared_at
     return {

@@ -6,9 +6,10 @@ Two kinds, each deterministic and named so a run is reproducible from the comman
   the runtime receives (the taught route is untouched): global gain, a colour cast, one side darker.
 - **scene** (``SCENES``): a changed house, written as a modified copy of the house JSON that the repeat's
   simulator loads: one wall per room re-textured, every piece of furniture moved, part of the floor
-  re-coloured; and, relative to the taught path (``PATH_SCENES``), a box placed beside it, or one placed
-  on it half-way along (the way blocked by design: the robot must stop before it). The robot's physics
-  sees moved furniture and the boxes.
+  re-coloured; and, relative to the taught path (``PATH_SCENES``), a box placed beside it
+  (``obstacle_beside_path``, ``box_beside_path``), one placed on it half-way along (the way blocked by
+  design: the robot must stop before it), or one that crosses it ahead of the robot (``moving_obstacle``,
+  evaluation.moving_box). The robot's physics sees moved furniture and the boxes.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from vtr.evaluation.moving_box import box_crossing_path
 from vtr.evaluation.path_boxes import box_beside_path, box_on_path
 from vtr.runtime.robot import Observation
 from vtr.sim2d.config import SimConfig
@@ -197,9 +199,12 @@ PATH_SCENES: dict[str, Callable[[dict[str, Any], np.ndarray | None], None]] = {
     "obstacle_beside_path": _obstacle_beside_path,
     "box_on_path": box_on_path,
     "box_beside_path": box_beside_path,
+    "moving_obstacle": box_crossing_path,
 }
 #: Scenes that block the taught path by design: no PathBlocked refusal (the robot must stop before them).
 BLOCKING_SCENES = ("box_on_path",)
+#: Scenes whose box moves during the run (evaluation.moving_box.CrossingRobot moves it).
+MOVING_SCENES = ("moving_obstacle",)
 
 
 def write_scene_house(

@@ -18,7 +18,7 @@ from vtr.runtime.robot import Observation
 PATH_BOX_SIDE, BOX_NAME = 0.25, "box"
 
 
-def _along(path: np.ndarray, fraction: float) -> tuple[float, float, float]:
+def along_path(path: np.ndarray, fraction: float) -> tuple[float, float, float]:
     """The (x, y, yaw) ``fraction`` of the way along the taught path's length (yaw of the gap it lies on)."""
     xy = path[:, :2]
     gaps = np.hypot(*np.diff(xy, axis=0).T)
@@ -38,8 +38,8 @@ def box_on_path(house: dict[str, Any], path: np.ndarray | None) -> None:
 
     if path is None or len(path) < 2 or not np.hypot(*np.diff(path[:, :2], axis=0).T).sum() > 0:
         raise ValueError("the box_on_path scene needs a taught path that moves")
-    cx, cy, yaw = _along(path, 0.5)
-    box = _box(cx, cy, yaw)
+    cx, cy, yaw = along_path(path, 0.5)
+    box = box_item(cx, cy, yaw)
     reach = START_CLEARANCE + PATH_BOX_SIDE / math.sqrt(2)  # a start this close may touch the box
     starts = [p for p in house["start_poses"] if math.hypot(p["x"] - cx, p["y"] - cy) > reach]
     changed = {**house, "start_poses": starts, "furniture": [*house["furniture"], box]}
@@ -47,7 +47,7 @@ def box_on_path(house: dict[str, Any], path: np.ndarray | None) -> None:
     house.update(changed)
 
 
-def _box(cx: float, cy: float, yaw: float) -> dict[str, Any]:
+def box_item(cx: float, cy: float, yaw: float) -> dict[str, Any]:
     """The path scenes' box (a PATH_BOX_SIDE cube-ish crate, 40 cm tall) at (cx, cy), square to ``yaw``."""
     return {
         "name": BOX_NAME,
@@ -65,7 +65,7 @@ def _box(cx: float, cy: float, yaw: float) -> dict[str, Any]:
 BESIDE_OFFSET = 0.40
 
 
-def _dense(path: np.ndarray, per_gap: int = 4) -> np.ndarray:
+def densified(path: np.ndarray, per_gap: int = 4) -> np.ndarray:
     xy = path[:, :2]
     t = np.arange(per_gap) / per_gap
     return np.vstack([(xy[:-1, None] * (1 - t)[:, None] + xy[1:, None] * t[:, None]).reshape(-1, 2), xy[-1:]])
@@ -79,12 +79,12 @@ def box_beside_path(house: dict[str, Any], path: np.ndarray | None) -> None:
 
     if path is None or len(path) < 2 or not np.hypot(*np.diff(path[:, :2], axis=0).T).sum() > 0:
         raise ValueError("the box_beside_path scene needs a taught path that moves")
-    dense, before = _dense(path), House(house, "unchanged")
+    dense, before = densified(path), House(house, "unchanged")
     for fraction in (0.5, 0.4, 0.6, 0.3, 0.7):
-        x, y, yaw = _along(path, fraction)
+        x, y, yaw = along_path(path, fraction)
         for side in (1.0, -1.0):
             cx, cy = x - side * math.sin(yaw) * BESIDE_OFFSET, y + side * math.cos(yaw) * BESIDE_OFFSET
-            box = _box(cx, cy, yaw)
+            box = box_item(cx, cy, yaw)
             nearest = min(box_distance(box, px, py) for px, py in dense)
             if nearest < BESIDE_OFFSET - PATH_BOX_SIDE / 2 - 1e-3 or before.clearance(cx, cy) < PATH_BOX_SIDE:
                 continue  # another part of the path passes nearer, or furniture stands there already
