@@ -1,8 +1,8 @@
 """Furniture that moves during a run (the evaluation's moving obstacle): a house and its camera with one
 piece translated, everything else shared. Loading a house anew costs over a second (the floor mosaic, the
 wall faces, the camera's texture atlas); a translated piece changes only its faces' end points and the
-obstacle edges, so this takes a few milliseconds (a median of 5 ms per move on the shared 2-core machine, where
-loading the house took 1.7 s). ``Simulator.move_furniture`` uses both."""
+obstacle edges: a median of 5 ms per move on the shared 2-core machine, where loading the house took 1.7 s.
+``Simulator.move_furniture`` uses both."""
 
 from __future__ import annotations
 
