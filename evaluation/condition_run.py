@@ -210,7 +210,7 @@ def run_once(
     extra: dict[str, Any] = {}
     if box is not None and cond.scene in BLOCKING_SCENES:  # where the robot ended: its centre to the box's
         extra["box_face_m"] = box_distance(box, *log.poses[-1][:2])  # nearest face (contact at its radius)
-    if box is not None:  # how near it came to the box at all
+    if box is not None and clearing is None:  # how near it came to the box (taken away: it drives through)
         extra["box_closest_m"] = min(box_distance(box, *p[:2]) for p in log.poses)
     if crossing is not None:  # the box moved: where it was at each step
         extra["box_closest_m"], extra["box_started_at_s"] = crossing.closest, crossing.started_at
@@ -224,6 +224,8 @@ def run_once(
         "on_route": not beside,  # metrics.off_route: mean nearest-point error and final position in bounds
         **extra,
         "contacts": log.collisions,
+        "waited_steps": log.waited_steps,  # held still for something in the way (ended or not)
+        "detail": log.detail,
         "subgoals_reached": log.subgoals_reached,
         "subgoals": len(route),
         "steps": log.steps,

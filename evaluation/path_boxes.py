@@ -72,9 +72,10 @@ def densified(path: np.ndarray, per_gap: int = 4) -> np.ndarray:
 
 
 def box_beside_path(house: dict[str, Any], path: np.ndarray | None) -> None:
-    """The box of ``box_on_path``, square to the path, ``BESIDE_OFFSET`` to its side: beside the half-way point,
-    left then right, else beside a point further from it (0.4, 0.6, 0.3, 0.7 of the way), where no other part of
-    the path comes nearer, the floor is free and the house stays valid. The robot must pass it."""
+    """The box of ``box_on_path``, square to the path, ``BESIDE_OFFSET`` to its side: beside the half-way
+    point, left then right, else beside a point further from it (0.4, 0.6, 0.3, 0.7 of the way), where no
+    other part of the path comes nearer, the floor is free and the house stays valid. The robot must pass
+    it."""
     from vtr.sim2d.house import START_CLEARANCE, House
 
     if path is None or len(path) < 2 or not np.hypot(*np.diff(path[:, :2], axis=0).T).sum() > 0:

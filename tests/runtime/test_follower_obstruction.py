@@ -1,4 +1,4 @@
-"""The follower stops for what is in the way, camera only (runtime.obstruction wired into runtime.follower)."""
+"""The follower stops for what is in the way, camera only (runtime.obstruction in runtime.follower)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from vtr.runtime.follower import Follower
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
 from vtr.runtime.route import Route
 
-#: The box's half side (m): the robot touches it with its centre this far plus its radius from the box's centre.
+#: The box's half side (m): the robot touches it with its centre this plus its radius from the box's.
 HALF_BOX = 0.125
 
 

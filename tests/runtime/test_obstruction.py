@@ -139,3 +139,21 @@ def test_other_image_sizes_keep_the_path_region_on_the_floor():
     assert det.share(views[1], 1.0) == 0.0 and det.share(views[1], 1.5) == 0.0
     with pytest.raises(ValueError, match="multiple of the tile size"):
         ObstructionDetector(views[:, :100])
+
+
+def test_the_way_clears_once_the_far_floor_is_seen_again_though_the_near_floor_mismatches():
+    """Taken away while the robot stood a little off its pose: the floor near it still mismatches, the far
+    end of the corridor is seen again."""
+    views, poses = route()
+    det = ObstructionDetector(views, poses)
+    for d in np.arange(1.6, 0.4, -0.05):
+        det.update(box_at(views[3], d), 3.0, forward=True)
+    assert det.blocked
+    near_only = with_blob(views[3], slice(112, 128), slice(40, 88))
+    verdict = det.update(near_only, 3.0, forward=False)
+    assert verdict.blocked and verdict.fraction > det.cfg.clear_fraction
+    assert verdict.hidden <= det.cfg.clear_hidden
+    verdict = det.update(near_only, 3.0, forward=False)
+    assert not verdict.blocked and "way clear" in verdict.note
+    with pytest.raises(ValueError, match="clear_hidden"):
+        ObstructionConfig(clear_hidden=0.3)
