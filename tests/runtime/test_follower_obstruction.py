@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -119,3 +120,34 @@ def test_blocked_is_not_the_end_for_the_follower():
         follower.commanded(0.25, 0.0, 0.1)
         x += 0.025
     assert actions[-1] is Action.BLOCKED and follower.status is None
+
+
+class FastWall:
+    """A wall clock that runs a second per reading: a lockstep robot on a heavily loaded machine."""
+
+    def __init__(self) -> None:
+        self.now = 0.0
+
+    def monotonic(self) -> float:
+        self.now += 1.0
+        return self.now
+
+    def __getattr__(self, name: str):
+        return getattr(time, name)
+
+
+def test_the_wait_runs_on_the_robots_clock_and_on_the_wall_clock_only_where_that_is_stuck(monkeypatch):
+    import vtr.runtime.repeater as repeater
+
+    monkeypatch.setattr(repeater, "time", FastWall())
+    robot = FloorRobot(box_x=1.2)
+    rep = repeat(robot, wait_s=2.0)
+    assert rep.status is RepeatStatus.BLOCKED and 20 <= rep.waited_steps <= 22  # 2 s of 0.1 s steps
+
+    class Stuck(FloorRobot):  # its stamps never move
+        def observe(self) -> Observation:
+            return replace(super().observe(), stamp=0.0)
+
+    stuck = Stuck(box_x=1.2)
+    rep = repeat(stuck, wait_s=2.0)
+    assert rep.status is RepeatStatus.BLOCKED and rep.waited_steps <= 3
