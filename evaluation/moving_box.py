@@ -1,7 +1,7 @@
 """A box that crosses the taught path ahead of the robot and goes on (the condition suite's
 ``moving_obstacle``): someone carrying a crate across the room. The scene puts the path scenes' box beside
 the path half-way along (``box_crossing_path``); :class:`CrossingRobot` starts it moving once the robot is
-``TRIGGER_M`` from the crossing point, at ``SPEED`` m/s straight across to as far on the other side, through
+``TRIGGER_M`` from the crossing point, at ``SPEED`` m/s straight across to the other side, through
 ``Simulator.move_furniture``. The robot should finish the route without touching it: stop for it or pass
 behind it."""
 
@@ -18,8 +18,11 @@ from vtr.runtime.robot import Observation
 #: The box starts moving when the robot's centre is this far (m) from the crossing point, and moves at this
 #: speed (m/s): with the robot at 0.2 m/s it crosses the path about 1 m ahead of the robot.
 TRIGGER_M, SPEED = 1.5, 0.4
-#: How far to the side (m, the box's centre from the path) it starts and ends, the farthest that fits.
-SWEEP_SIDES = (0.8, 0.65, 0.5)
+#: How far to the side (m, the box's centre from the path) it starts and ends, the farthest that fits on
+#: each side (0.45: its face 0.155 m clear of the robot's body on the path).
+SWEEP_SIDES = (0.8, 0.65, 0.5, 0.45)
+#: Where along the path (share of its length) it may cross, tried in this order.
+CROSSINGS = (0.5, 0.4, 0.6, 0.3, 0.7)
 
 
 def _sweep_free(house: Any, start: np.ndarray, end: np.ndarray) -> bool:
@@ -29,48 +32,61 @@ def _sweep_free(house: Any, start: np.ndarray, end: np.ndarray) -> bool:
     return bool((house.clearances(points) >= PATH_BOX_SIDE / math.sqrt(2) + 0.02).all())
 
 
+def _farthest(
+    house: Any, dense: np.ndarray, centre: np.ndarray, normal: np.ndarray, yaw: float
+) -> np.ndarray | None:
+    """The place along ``normal`` from ``centre`` on the path farthest out (of SWEEP_SIDES) that the box
+    can reach from the path, no part of the path (``dense``) nearer to it than to ``centre``."""
+    for side_m in SWEEP_SIDES:
+        point = centre + side_m * normal
+        nearest = min(box_distance(box_item(*point, yaw), px, py) for px, py in dense)
+        if nearest >= side_m - PATH_BOX_SIDE / 2 - 1e-3 and _sweep_free(house, centre, point):
+            return point
+    return None
+
+
 def box_crossing_path(house: dict[str, Any], path: np.ndarray | None) -> None:
-    """The box beside the path where it will cross: square to the path, half-way along (else 0.4, 0.6 of
-    the way), on the side from which the sweep straight across to the mirror point is free floor and
-    neither end comes nearer than its side offset to any part of the path."""
+    """The box beside the path where it will cross: square to the path, half-way along (else CROSSINGS), as
+    far to one side as SWEEP_SIDES allows, with a free sweep straight across the path to as far on the
+    other side as they allow (the item's ``sweep_to``), neither end nearer to any part of the path than its
+    side offset. Generated routes keep 0.3 m from furniture, so a symmetric sweep often does not fit."""
     from vtr.sim2d.house import House
 
     if path is None or len(path) < 2 or not np.hypot(*np.diff(path[:, :2], axis=0).T).sum() > 0:
         raise ValueError("the moving_obstacle scene needs a taught path that moves")
     dense, before = densified(path), House(house, "unchanged")
-    for side_m in SWEEP_SIDES:
-        for fraction in (0.5, 0.4, 0.6):
-            x, y, yaw = along_path(path, fraction)
-            for side in (1.0, -1.0):
-                normal = np.array([-math.sin(yaw), math.cos(yaw)]) * side * side_m
-                start, end = np.array([x, y]) + normal, np.array([x, y]) - normal
-                ends = [box_item(*start, yaw), box_item(*end, yaw)]
-                far = min(box_distance(b, px, py) for b in ends for px, py in dense)
-                if far < side_m - PATH_BOX_SIDE / 2 - 1e-3 or not _sweep_free(before, start, end):
-                    continue
-                box = {**ends[0], "crossing": [x, y]}  # where it crosses (the house ignores the key)
-                changed = {**house, "furniture": [*house["furniture"], box]}
-                try:
-                    House(changed, "moving_obstacle")
-                except ValueError:
-                    continue
-                house.update(changed)
-                return
+    for fraction in CROSSINGS:
+        x, y, yaw = along_path(path, fraction)
+        centre, normal = np.array([x, y]), np.array([-math.sin(yaw), math.cos(yaw)])
+
+        left, right = (_farthest(before, dense, centre, side * normal, yaw) for side in (1.0, -1.0))
+        if left is None or right is None:
+            continue
+        for start, end in ((left, right), (right, left)):
+            # where it crosses and where it goes (the house ignores the keys)
+            box = {**box_item(*start, yaw), "crossing": [x, y], "sweep_to": [float(end[0]), float(end[1])]}
+            changed = {**house, "furniture": [*house["furniture"], box]}
+            try:
+                House(changed, "moving_obstacle")
+            except ValueError:
+                continue
+            house.update(changed)
+            return
     raise ValueError("no free floor for a box to cross this path")
 
 
 class CrossingRobot:
     """Wraps a LocalRobot whose house has the crossing ``box`` (:func:`box_crossing_path`'s item): moves it
-    straight across the path, through its ``crossing`` point to as far on the other side, once the robot
+    straight across the path, through its ``crossing`` point to ``sweep_to`` on the other side, once the robot
     comes within ``TRIGGER_M`` of that point, before each step by the distance it covers in that step; where
     it would overlap the robot it waits. ``closest``: the least distance (m) from the robot's centre to the
     box's nearest face so far (contact at the robot's radius)."""
 
     def __init__(self, robot: Any, box: dict[str, Any]) -> None:
         self.robot = robot
-        self.crossing = np.asarray(box["crossing"], dtype=np.float64)
         self.start = np.asarray(box["center"], dtype=np.float64)
-        self.end = 2 * self.crossing - self.start
+        self.end = np.asarray(box["sweep_to"], dtype=np.float64)
+        self.crossing = np.asarray(box["crossing"], dtype=np.float64)
         self.length = float(np.hypot(*(self.end - self.start)))
         self.angle_deg = float(box.get("angle_deg", 0.0))
         self.travelled = 0.0

@@ -30,6 +30,7 @@ def test_the_box_waits_beside_the_path_half_way_along(crossing_house):
     box = box_of(data)
     assert box is not None and box["size"] == [PATH_BOX_SIDE] * 2
     assert box["crossing"] == pytest.approx([2.8, 3.0]) and box["center"] == pytest.approx([2.8, 3.8])
+    assert box["sweep_to"] == pytest.approx([2.8, 2.2])
     cond = CONDITIONS["moving_obstacle"]
     assert cond.scene in MOVING_SCENES and cond.expect == "finished"
 
