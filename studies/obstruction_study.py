@@ -9,7 +9,7 @@ Development routes only: generated in the paper-style house with route seeds 100
   (contact comes at 0.17 + 0.125 m); the unmatched share of the path region against the taught views at
   that point (the subgoal before it and the one after), with the box, and without it under changed light.
 - **runs** (``--part runs``): closed-loop repeats by the default controller (the condition suite's
-  ``after``) under the box and under conditions that must not stop the robot (light, a box beside the
+  ``after``, its own obstruction stop off: ``after_no_obstruction``) under the box and under conditions that must not stop the robot (light, a box beside the
   path, changed walls and furniture, noise, start offsets). The detector watches each view against the
   subgoals where the route localiser places the robot, without acting: when it would have fired, and how
   far from the box's nearest face the robot was then; for the other conditions, whether it fired at all.
@@ -130,7 +130,7 @@ def watched_run(route: Any, script: Any, cond_name: str, seed: int, cfg: Obstruc
     if cond.light:
         robot = LitRobot(robot, LIGHTING[cond.light])
     box = box_of(data) if cond_name == "box_on_path" else None
-    follower = Follower.for_route(route, replace(AFTER))
+    follower = Follower.for_route(route, replace(AFTER, obstruction=False))  # the study watches, never acts
     detector = ObstructionDetector(route.images, route.travel_poses(), cfg)
     trace: list[tuple[float, float, bool, float | None]] = []  # shares, forward, robot to the box's face
     fired: dict[str, Any] = {}
