@@ -183,3 +183,20 @@ def test_the_box_beside_the_path_stands_clear_of_the_robot_on_it(tmp_path):
     gap, _ = path_clearance(data, path)
     assert gap >= ROBOT_RADIUS + 0.1 - 1e-6
     assert CONDITIONS["box_beside_path"].expect == "finished"
+
+
+def test_the_stop_table_counts_how_runs_ended():
+    from vtr.evaluation.condition_tables import stops
+
+    base = {"controller": "after", "model": "fp32", "ran": True, "contacts": 0, "on_route": True}
+    runs = [
+        {**base, "condition": "box_on_path", "status": "blocked", "completed": True, "box_face_m": 0.4},
+        {**base, "condition": "box_on_path", "status": "blocked", "completed": True, "box_face_m": 0.5},
+        {**base, "condition": "box_on_path", "status": "collided", "completed": False, "contacts": 1},
+        {**base, "condition": "noise_0.05", "status": "finished", "completed": True},
+        {**base, "condition": "noise_0.05", "status": "finished", "completed": False, "on_route": False},
+        {**base, "condition": "noise_0.05", "ran": False, "status": "path_blocked"},
+    ]
+    table = stops([{"runs": runs}])
+    assert "| after | fp32 | box_on_path | 3 | 0 | 2 | 1 | 2 | 0.40 / 0.45 | - |" in table
+    assert "| after | fp32 | noise_0.05 | 2 | 1 | 0 | 0 | 1 | - | - |" in table
