@@ -26,7 +26,8 @@ def markdown(result: dict[str, Any]) -> str:
         f"{OFF_PATH_M * 100:.0f} cm away are counted beside it), or, under box_on_path, stopped as blocked "
         "without touching the box (beside it: the robot's centre to the box's nearest face at the end; "
         "contact at 0.17 m); errors "
-        "are means over completed runs (nearest-point position error per taught pose, the paper's metric).",
+        "are means over completed runs that finished (nearest-point position error per taught pose, the paper's "
+        "metric).",
         "",
         "| controller | model | condition | completed | mean err (mm) | max err (mm) | yaw (deg) | cross-track (mm) "
         "| final (mm / deg) | runs w/ contact | steps / taught | failures |",
