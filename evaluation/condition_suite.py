@@ -145,7 +145,7 @@ def aggregate(runs: list[dict[str, Any]]) -> list[dict[str, Any]]:
     for (ctrl, model, cond), rs in groups.items():
         ran = [r for r in rs if r["ran"]]
         # errors over completed runs that drove the route: one stopped before a box (box_on_path) has none
-        done = [r for r in ran if r["completed"] and r["status"] == "finished"]
+        done = [r for r in ran if r["completed"] and r.get("status") != "blocked"]
 
         def mean(key: str, among: list[dict[str, Any]] = done) -> float | None:
             return float(np.mean([r[key] for r in among])) if among else None
