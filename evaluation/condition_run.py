@@ -15,8 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from vtr.evaluation.conditions import BLOCKING_SCENES, LIGHTING, PATH_SCENES, SCENES, box_distance
+from vtr.evaluation.conditions import BLOCKING_SCENES, LIGHTING, MOVING_SCENES, PATH_SCENES, SCENES
 from vtr.evaluation.metrics import off_route
+from vtr.evaluation.path_boxes import box_distance
 from vtr.evaluation.sensor_conditions import SENSORS
 from vtr.runtime.controller import ControllerConfig
 from vtr.runtime.matching import MatchConfig
@@ -95,6 +96,8 @@ CONTROLLERS: dict[str, Method] = {
     "before": Method(ControllerConfig.before()),  # the previous default: raw error, one e_m per route
     "after": Method(AFTER, match_light=True),
     "after_scan": Method(AFTER, match_light=True, scan=True),  # the same robot with a range scanner
+    # the camera-only obstruction stop off (runtime.obstruction): what the issue found
+    "after_no_obstruction": Method(replace(AFTER, obstruction=False), match_light=True),
     # the release before the route localiser: threshold switching, plateau, stall guard, progress gate
     "rules": Method(replace(AFTER, switching="rules"), match_light=True),
     "after_ff_0": Method(replace(AFTER, feed_forward=0.0), match_light=True),
@@ -173,7 +176,9 @@ def run_once(
     and the control steps per taught control step (``keep_path``: and the repeated x, y in mm precision);
     with the path box: ``box_face_m``, and ``cleared_at_s`` (simulated time it was taken away, None if
     never). ``cfg`` needs dt and max_steps_factor (a SuiteConfig)."""
-    from vtr.evaluation.conditions import ClearingRobot, LitRobot, path_box, write_cleared_house
+    from vtr.evaluation.conditions import LitRobot
+    from vtr.evaluation.moving_box import CrossingRobot
+    from vtr.evaluation.path_boxes import ClearingRobot, path_box, write_cleared_house
     from vtr.evaluation.runs import repeat_closed_loop
     from vtr.evaluation.scoring import score
     from vtr.runtime.light import LightMatchedPolicy
@@ -193,9 +198,11 @@ def run_once(
         ),
         scan=method.scan,
     )
-    clearing = None
+    clearing = crossing = None
     if cond.clear_after_s is not None:
         clearing = robot = ClearingRobot(robot, str(write_cleared_house(house)), cond.clear_after_s, cfg.dt)
+    if cond.scene in MOVING_SCENES:
+        crossing = robot = CrossingRobot(robot, path_box(house) or {})
     if cond.light:
         robot = LitRobot(robot, LIGHTING[cond.light])
     if method.match_light:
@@ -211,10 +218,14 @@ def run_once(
     touched = log.collisions > 0
     beside = off_route(s["position_error_m"]["mean"], s["final_pose_error"]["position_m"])
     completed, cause = judged(cond.expect, log.outcome, log.detail, touched, beside)
-    box = path_box(house) if cond.scene in BLOCKING_SCENES else None
+    box = path_box(house)
     extra: dict[str, Any] = {}
-    if box is not None:  # where the robot ended: its centre to the box's nearest face (contact at its radius)
-        extra["box_face_m"] = box_distance(box, *log.poses[-1][:2])
+    if box is not None and cond.scene in BLOCKING_SCENES:  # where the robot ended: its centre to the box's
+        extra["box_face_m"] = box_distance(box, *log.poses[-1][:2])  # nearest face (contact at its radius)
+    if box is not None and clearing is None:  # how near it came to the box (taken away: it drives through)
+        extra["box_closest_m"] = min(box_distance(box, *p[:2]) for p in log.poses)
+    if crossing is not None:  # the box moved: where it was at each step
+        extra["box_closest_m"], extra["box_started_at_s"] = crossing.closest, crossing.started_at
     if clearing is not None:
         extra["cleared_at_s"] = clearing.cleared_at
     return {
@@ -222,8 +233,11 @@ def run_once(
         "status": log.outcome,
         "completed": completed,
         "cause": cause,
+        "on_route": not beside,  # metrics.off_route: mean nearest-point error and final position in bounds
         **extra,
         "contacts": log.collisions,
+        "waited_steps": log.waited_steps,  # held still for something in the way (ended or not)
+        "detail": log.detail,
         "subgoals_reached": log.subgoals_reached,
         "subgoals": len(route),
         "steps": log.steps,

@@ -148,7 +148,8 @@ def aggregate(runs: list[dict[str, Any]]) -> list[dict[str, Any]]:
     rows = []
     for (ctrl, model, cond), rs in groups.items():
         ran = [r for r in rs if r["ran"]]
-        done = [r for r in ran if r["completed"]]
+        # errors over completed runs that drove the route: one stopped before a box (box_on_path) has none
+        done = [r for r in ran if r["completed"] and r.get("status") != "blocked"]
 
         def mean(key: str, among: list[dict[str, Any]] = done) -> float | None:
             return float(np.mean([r[key] for r in among])) if among else None
@@ -162,9 +163,9 @@ def aggregate(runs: list[dict[str, Any]]) -> list[dict[str, Any]]:
                 "condition": cond,
                 "runs": len(ran),
                 "not_run": len(rs) - len(ran),
-                "completed": len(done),
+                "completed": sum(r["completed"] for r in ran),
                 "completed_off_path": off_path(done),
-                "completion_rate": len(done) / len(ran) if ran else None,
+                "completion_rate": sum(r["completed"] for r in ran) / len(ran) if ran else None,
                 "mean_position_error_m": mean("position_error_m"),
                 "max_position_error_m": mean("max_position_error_m"),
                 "mean_yaw_error_deg": mean("yaw_error_deg"),

@@ -9,6 +9,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from vtr.evaluation.metrics import OFF_PATH_M
 
 
@@ -24,7 +26,8 @@ def markdown(result: dict[str, Any]) -> str:
         f"{OFF_PATH_M * 100:.0f} cm away are counted beside it), or, under box_on_path, stopped as blocked "
         "without touching the box (beside it: the robot's centre to the box's nearest face at the end; "
         "contact at 0.17 m); errors "
-        "are means over completed runs (nearest-point position error per taught pose, the paper's metric).",
+        "are means over completed runs that finished (nearest-point position error per taught pose, the paper's "
+        "metric).",
         "",
         "| controller | model | condition | completed | mean err (mm) | max err (mm) | yaw (deg) | cross-track (mm) "
         "| final (mm / deg) | runs w/ contact | steps / taught | failures |",
@@ -70,19 +73,53 @@ def comparison(results: list[dict[str, Any]]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def stops(results: list[dict[str, Any]]) -> str:
+    """One Markdown table of how runs ended, per (controller, model, condition) over several suite results
+    (issue 19's obstruction conditions): runs, finished on the route (metrics.off_route), stopped as
+    blocked, runs with a contact, completed (did what the condition expects), and with a path box the
+    robot's centre to its nearest face: at the end (min / median), and the closest it came (min)."""
+
+    def spread(values: list[float]) -> str:
+        return f"{min(values):.2f} / {float(np.median(values)):.2f}" if values else "-"
+
+    groups: dict[tuple[str, str, str], list[dict[str, Any]]] = {}
+    for res in results:
+        for r in res["runs"]:
+            if r["ran"]:
+                groups.setdefault((r["controller"], r["model"], r["condition"]), []).append(r)
+    lines = [
+        "| controller | model | condition | runs | finished on route | blocked | runs w/ contact | completed "
+        "| box face at the end (m, min / median) | closest to the box (m, min) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for (ctrl, model, cond), rs in groups.items():
+        on_route = sum(r["status"] == "finished" and r.get("on_route", False) for r in rs)
+        blocked = sum(r["status"] == "blocked" for r in rs)
+        contact = sum(r["contacts"] > 0 for r in rs)
+        done = sum(r["completed"] for r in rs)
+        at_end = [r["box_face_m"] for r in rs if r.get("box_face_m") is not None]
+        closest = [r["box_closest_m"] for r in rs if r.get("box_closest_m") is not None]
+        lines.append(
+            f"| {ctrl} | {model} | {cond} | {len(rs)} | {on_route} | {blocked} | {contact} | {done} "
+            f"| {spread(at_end)} | {f'{min(closest):.2f}' if closest else '-'} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
 def main(argv: list[str] | None = None) -> int:
     """``python -m vtr.evaluation.condition_tables RESULT.json ...``: the comparison table of suite results."""
     parser = argparse.ArgumentParser(description=main.__doc__)
     parser.add_argument(
         "results", nargs="+", type=Path, help="JSON files written by vtr eval --suite conditions"
     )
+    parser.add_argument("--stops", action="store_true", help="how runs ended (issue 19's stop table)")
     args = parser.parse_args(argv)
     try:
         results = [json.loads(p.read_text(encoding="utf-8")) for p in args.results]
     except (OSError, ValueError) as err:
         print(f"condition_tables: {err}", file=sys.stderr)
         return 2
-    print(comparison(results))
+    print(stops(results) if args.stops else comparison(results))
     return 0
 
 

@@ -6,9 +6,10 @@ Two kinds, each deterministic and named so a run is reproducible from the comman
   the runtime receives (the taught route is untouched): global gain, a colour cast, one side darker.
 - **scene** (``SCENES``): a changed house, written as a modified copy of the house JSON that the repeat's
   simulator loads: one wall per room re-textured, every piece of furniture moved, part of the floor
-  re-coloured; and, relative to the taught path (``PATH_SCENES``), a box placed beside it, or one placed
-  on it half-way along (the way blocked by design: the robot must stop before it). The robot's physics
-  sees moved furniture and the boxes.
+  re-coloured; and, relative to the taught path (``PATH_SCENES``), a box placed beside it
+  (``obstacle_beside_path``, ``box_beside_path``), one placed on it half-way along (the way blocked by
+  design: the robot must stop before it), or one that crosses it ahead of the robot (``moving_obstacle``,
+  evaluation.moving_box). The robot's physics sees moved furniture and the boxes.
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from vtr.evaluation.moving_box import box_crossing_path
+from vtr.evaluation.path_boxes import box_beside_path, box_on_path
 from vtr.runtime.robot import Observation
 from vtr.sim2d.config import SimConfig
 
@@ -89,47 +92,6 @@ class LitRobot:
 
     def step(self, v: float, w: float, duration: float) -> Observation:
         return self._lit(self.robot.step(v, w, duration))
-
-    def stop(self) -> None:
-        self.robot.stop()
-
-
-class ClearingRobot:
-    """Wraps a LocalRobot and takes the path scene's box away (the simulator's house swapped for
-    ``cleared_house``, the robot where it stands) once the robot has stood still for ``after_s`` seconds:
-    the box removed while the robot waits. Standing time is counted from zero-velocity steps, and, as the
-    lockstep simulator's clock does not move between steps, each view polled while standing counts one
-    control period ``dt``."""
-
-    def __init__(self, robot: Any, cleared_house: str, after_s: float, dt: float) -> None:
-        self.robot, self.cleared_house, self.after_s, self.dt = robot, cleared_house, after_s, dt
-        self.cleared_at: float | None = None  # simulated time of the removal
-        self._stood = 0.0
-
-    @property
-    def last(self) -> Observation | None:
-        return self.robot.last
-
-    def _stand(self, seconds: float) -> None:
-        self._stood += seconds
-        if self.cleared_at is None and self._stood >= self.after_s - 1e-9:
-            self.robot.sim.set_house(self.cleared_house)
-            self.cleared_at = float(self.robot.sim.time)
-
-    def reset(self, pose: tuple[float, float, float] | None = None, seed: int | None = None) -> Observation:
-        self._stood = 0.0
-        return self.robot.reset(pose=pose, seed=seed)
-
-    def observe(self) -> Observation:
-        self._stand(self.dt)
-        return self.robot.observe()
-
-    def step(self, v: float, w: float, duration: float) -> Observation:
-        if abs(v) < 1e-6 and abs(w) < 1e-6:
-            self._stand(duration)
-        else:
-            self._stood = 0.0
-        return self.robot.step(v, w, duration)
 
     def stop(self) -> None:
         self.robot.stop()
@@ -227,84 +189,6 @@ def _obstacle_beside_path(house: dict[str, Any], path: np.ndarray | None) -> Non
     raise ValueError("no room for a box beside this path")
 
 
-#: The box put on the taught path (box_on_path, box_removed): side (m); its name in the house's furniture.
-PATH_BOX_SIDE, BOX_NAME = 0.25, "box"
-
-
-def _along(path: np.ndarray, fraction: float) -> tuple[float, float, float]:
-    """The (x, y, yaw) ``fraction`` of the way along the taught path's length (yaw of the gap it lies on)."""
-    xy = path[:, :2]
-    gaps = np.hypot(*np.diff(xy, axis=0).T)
-    arc = np.concatenate([[0.0], np.cumsum(gaps)])
-    s = fraction * arc[-1]
-    k = int(np.clip(np.searchsorted(arc, s, side="right") - 1, 0, len(xy) - 2))
-    t = (s - arc[k]) / gaps[k] if gaps[k] > 0 else 0.0
-    x, y = xy[k] + t * (xy[k + 1] - xy[k])
-    yaw = math.atan2(*(xy[k + 1] - xy[k])[::-1]) if gaps[k] > 0 else float(path[k, 2])
-    return float(x), float(y), yaw
-
-
-def _box_on_path(house: dict[str, Any], path: np.ndarray | None) -> None:
-    """A 25 cm box centred on the taught path half-way along its length, square to it: the way is blocked
-    by design (the robot must stop before it). Start poses of the house it would cover are dropped."""
-    from vtr.sim2d.house import START_CLEARANCE, House
-
-    if path is None or len(path) < 2 or not np.hypot(*np.diff(path[:, :2], axis=0).T).sum() > 0:
-        raise ValueError("the box_on_path scene needs a taught path that moves")
-    cx, cy, yaw = _along(path, 0.5)
-    box = {
-        "name": BOX_NAME,
-        "shape": "box",
-        "center": [cx, cy],
-        "size": [PATH_BOX_SIDE] * 2,
-        "height": 0.4,
-        "texture": "metal_blue",
-        "angle_deg": math.degrees(yaw),
-    }
-    reach = START_CLEARANCE + PATH_BOX_SIDE / math.sqrt(2)  # a start this close may touch the box
-    starts = [p for p in house["start_poses"] if math.hypot(p["x"] - cx, p["y"] - cy) > reach]
-    changed = {**house, "start_poses": starts, "furniture": [*house["furniture"], box]}
-    House(changed, "box_on_path")  # raises where the box does not fit (it always should on a taught path)
-    house.update(changed)
-
-
-def box_of(house: dict[str, Any]) -> dict[str, Any] | None:
-    """The box a path scene added to ``house`` (None without one)."""
-    return next((f for f in house["furniture"] if f.get("name") == BOX_NAME), None)
-
-
-def box_distance(box: dict[str, Any], x: float, y: float) -> float:
-    """Distance (m) from (x, y) to the nearest face of a "box" furniture item (0 inside it)."""
-    a = math.radians(float(box.get("angle_deg", 0.0)))
-    dx, dy = x - box["center"][0], y - box["center"][1]
-    u, v = math.cos(a) * dx + math.sin(a) * dy, -math.sin(a) * dx + math.cos(a) * dy
-    hx, hy = box["size"][0] / 2, box["size"][1] / 2
-    return math.hypot(max(abs(u) - hx, 0.0), max(abs(v) - hy, 0.0))
-
-
-def without_box(house: dict[str, Any]) -> dict[str, Any]:
-    """A copy of ``house`` with the path scene's box taken away (box_removed: the way clears)."""
-    return {**house, "furniture": [f for f in house["furniture"] if f.get("name") != BOX_NAME]}
-
-
-def path_box(house: str) -> dict[str, Any] | None:
-    """The path scene's box in a house JSON file (None for a map name or a house without one)."""
-    path = Path(house)
-    if path.suffix != ".json" or not path.is_file():
-        return None
-    return box_of(json.loads(path.read_text(encoding="utf-8")))
-
-
-def write_cleared_house(house: str) -> Path:
-    """Beside a house JSON file with the path scene's box, the same house without it; returns its path."""
-    from vtr.runtime.atomic import write_text_atomic
-
-    path = Path(house)
-    out = path.with_name(f"{path.stem}_cleared.json")
-    write_text_atomic(out, json.dumps(without_box(json.loads(path.read_text(encoding="utf-8")))))
-    return out
-
-
 SCENES: dict[str, Callable[[dict[str, Any]], None]] = {
     "wall_retextured": _retexture_walls,
     "furniture_moved": _move_furniture,
@@ -313,10 +197,14 @@ SCENES: dict[str, Callable[[dict[str, Any]], None]] = {
 #: Scene changes placed relative to the taught path (they take it as a second argument).
 PATH_SCENES: dict[str, Callable[[dict[str, Any], np.ndarray | None], None]] = {
     "obstacle_beside_path": _obstacle_beside_path,
-    "box_on_path": _box_on_path,
+    "box_on_path": box_on_path,
+    "box_beside_path": box_beside_path,
+    "moving_obstacle": box_crossing_path,
 }
 #: Scenes that block the taught path by design: no PathBlocked refusal (the robot must stop before them).
 BLOCKING_SCENES = ("box_on_path",)
+#: Scenes whose box moves during the run (evaluation.moving_box.CrossingRobot moves it).
+MOVING_SCENES = ("moving_obstacle",)
 
 
 def write_scene_house(

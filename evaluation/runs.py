@@ -39,6 +39,7 @@ class RunLog:
     detail: str = ""  # how the repeat ended, in words (Summary.detail)
     policy_ms: list[float] = field(default_factory=list)
     e_m: float | None = None
+    waited_steps: int = 0  # zero steps held while something was in the way (Summary.waited_steps)
 
 
 class PoseOracle:
@@ -138,6 +139,7 @@ def repeat_closed_loop(
     log.detail = summary.detail
     log.e_m = summary.e_m
     log.sim_time = float(summary.sim_time_s)
+    log.waited_steps = summary.waited_steps
     return log
 
 

@@ -33,6 +33,9 @@ class ControllerConfig:
     feed_forward_turn: float = 0.0
     #: localiser: FINISHED needs the estimate within this many gaps of the last subgoal.
     finish_span: float = 0.5
+    #: localiser: stop as blocked when the camera sees the way ahead blocked (runtime.obstruction; routes
+    #: with taught poses only). Off only for ablations (the condition suite's ``after_no_obstruction``).
+    obstruction: bool = True
 
     #: Image comparison (runtime.matching): patch-normalised by default, raw for the paper.
     match: MatchConfig = field(default_factory=MatchConfig)

@@ -8,9 +8,16 @@ Each image:
    is (``position``, in subgoal units) and how sure (``confidence``, ``match``);
 3. the end: the estimate is at the last subgoal, the view is closest to it, and it matches it as well as
    the teach's neighbouring views match each other (or the policy has stopped driving there): FINISHED;
-4. lost: for ``lost_steps`` images in a row no subgoal near the estimate matches the view (the best
+4. blocked: the camera sees the way ahead blocked (``runtime.obstruction``: the floor just ahead, warped from
+   the taught view to the estimated pose, stops matching in a region that grew while the robot was
+   commanded forward): BLOCKED with the evidence, for as long as the detector says so. It is not an end:
+   the repeat loop holds the robot still and judges again, resumes when the way clears, and ends the run
+   as ``blocked`` after its wait. The detector needs the taught poses (or the route's dead-reckoned travel,
+   ``Route.travel_poses``) to warp the floor by: a route without them has no camera-only stop (the range
+   scan's zones in the repeat loop still apply); ``ControllerConfig.obstruction`` turns it off (ablations);
+5. lost: for ``lost_steps`` images in a row no subgoal near the estimate matches the view (the best
    distance is over the lost bound) and the match is not improving: LOST, with the evidence;
-5. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
+6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
    ahead, rounded up to a subgoal), with the taught command at the estimated position as feed-forward
    (``Decision.prior``, blended by the repeat loop) and no translation where the teach turned in place.
 
@@ -29,8 +36,10 @@ import numpy as np
 from vtr.runtime.controller import Controller
 from vtr.runtime.controller_config import ControllerConfig
 from vtr.runtime.decisions import Action, Decision, Verdict
+from vtr.runtime.floor_view import Camera
 from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
+from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionDetector, ObstructionVerdict
 from vtr.runtime.thresholds import check_subgoals, route_views
 
 if TYPE_CHECKING:
@@ -52,6 +61,7 @@ class Follower:
         travel_poses: np.ndarray | None = None,
         steps_per_subgoal: float = 2.0,
         dt: float = 0.1,
+        camera: Camera | None = None,
     ) -> None:
         check_subgoals(subgoals)
         self.cfg = cfg or ControllerConfig()
@@ -71,6 +81,12 @@ class Follower:
         )
         if self.cfg.localise:
             self.localiser.start_at(None)
+        self.obstruction = (
+            obstruction_detector(subgoals, travel_poses, camera) if self.cfg.obstruction else None
+        )
+        #: The obstruction detector's verdict on the last view (None without a detector).
+        self.obstructed: ObstructionVerdict | None = None
+        self._forward = False  # commanded forward since the last view
         self.index = 0  # the subgoal steered to
         self.status: Action | None = None
         self.estimate: Estimate | None = None
@@ -88,7 +104,14 @@ class Follower:
         every = route.spacing.get("every") if route.spacing.get("rule") == "steps" else None
         steps = float(every) if isinstance(every, int) and every >= 1 else 2.0
         return cls(
-            route.images, cfg, route.commands, route.poses, route.travel_poses(), steps, float(route.dt)
+            route.images,
+            cfg,
+            route.commands,
+            route.poses,
+            route.travel_poses(),
+            steps,
+            float(route.dt),
+            route_camera(route.camera),
         )
 
     def __len__(self) -> int:
@@ -117,11 +140,14 @@ class Follower:
     def commanded(self, v: float, w: float, dt: float) -> None:
         """The repeat loop applied (v, w) for ``dt`` seconds: the estimate moves along the route."""
         self._idle = self._idle + 1 if abs(v) < IDLE_SPEED and abs(w) < IDLE_TURN else 0
+        self._forward = self._forward or v > FORWARD_SPEED
         self.localiser.predict(v, w, dt)
 
     def relocalise(self) -> None:
         """Search the whole route on the next image (after a robot restart)."""
         self.localiser.start_at(None)
+        if self.obstruction is not None:
+            self.obstruction.reset()
 
     def judge(self, image: Frame | np.ndarray, collided: bool = False) -> Verdict:
         """The decision on ``image`` (a frame; an array is checked here, once), with the subgoal changes it
@@ -164,6 +190,9 @@ class Follower:
         if at_end and (final_error <= threshold or settled):
             self._finished = True
             return Decision(Action.FINISHED, len(self), final_error)
+        blocked = self._blocked(image, est)
+        if blocked is not None:
+            return blocked
         lost = self._lost(est)
         if lost is not None:
             return lost
@@ -188,6 +217,24 @@ class Follower:
             prior=prior,
         )
 
+    def _blocked(self, image: np.ndarray, est: Estimate) -> Decision | None:
+        """BLOCKED while the obstruction detector sees the way ahead blocked (None: go on)."""
+        if self.obstruction is None:
+            return None
+        forward, self._forward = self._forward, False
+        verdict = self.obstructed = self.obstruction.update(image, est.position, forward)
+        if not verdict.blocked:
+            return None
+        self._lost_count, self._lost_best = 0, math.inf  # what spoils the match is in the way, not elsewhere
+        return Decision(
+            Action.BLOCKED,
+            self.index,
+            est.error_to(min(self.index, len(self) - 1)),
+            note=f"way ahead blocked near subgoal {int(round(est.position))}: {verdict.fraction:.0%} of the "
+            f"path region unmatched ({verdict.hidden:.0%} up to its far end), growing for "
+            f"{verdict.growing_steps} steps",
+        )
+
     def _lost(self, est: Estimate) -> Decision | None:
         if self.cfg.lost_steps <= 0 or est.best_error <= self.lost_bound:
             self._lost_count, self._lost_best = 0, math.inf
@@ -206,6 +253,33 @@ class Follower:
         )
 
 
+def route_camera(camera: dict[str, object]) -> Camera:
+    """The pinhole camera a route's ``camera`` meta describes (its field of view and height where known, the
+    shipped camera's where not; the image size comes from the views)."""
+    base = Camera()
+
+    def known(key: str, default: float) -> float:
+        value = camera.get(key)
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+        return float(value) if ok and value > 0 else default  # type: ignore[operator, arg-type]
+
+    return Camera(base.height, base.width, known("fov_deg", base.fov_deg), known("height_m", base.height_m))
+
+
+def obstruction_detector(
+    subgoals: np.ndarray, poses: np.ndarray | None, camera: Camera | None = None
+) -> ObstructionDetector | None:
+    """The camera-only obstruction detector of a route's views and taught poses (travel poses), or None
+    where it cannot work: no poses to warp the floor by, or views too small for a tile to see the floor
+    ahead."""
+    if poses is None or not np.isfinite(poses).all() or subgoals.dtype != np.uint8:
+        return None
+    try:
+        return ObstructionDetector(subgoals, poses, camera=camera)
+    except ValueError:  # no tile of these views sees the path region (or they are no multiple of a tile)
+        return None
+
+
 #: Either controller: the route localiser's (default) or the threshold rules' (``switching="rules"``).
 RouteController = Controller | Follower
 
@@ -218,4 +292,4 @@ def controller_for_route(route: Route, cfg: ControllerConfig | None = None) -> R
     )
 
 
-__all__ = ["Follower", "RouteController", "controller_for_route"]
+__all__ = ["Follower", "RouteController", "controller_for_route", "obstruction_detector", "route_camera"]

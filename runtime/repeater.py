@@ -307,11 +307,12 @@ class Repeater:
 
     def _wait(self, obs: Observation, verdict: Verdict, evidence: str) -> StepRecord:
         """Something is in the way: hold still with a zero step (so that a lockstep robot's clock runs and a
-        new frame comes) until the way clears, or end as ``blocked`` after ``wait_s`` (the robot's clock, or
-        the wall clock where that ran longer: a robot whose clock stands still still ends)."""
+        new frame comes) until the way clears, or end as ``blocked`` after ``wait_s`` (the robot's clock once
+        it has moved: a lockstep simulator's runs with the steps, slower than the wall on a loaded machine;
+        the wall clock while it stands still, so that a robot whose clock is stuck still ends)."""
         now = (float(obs.stamp), time.monotonic())
         since = self._blocked_since = self._blocked_since or now
-        waited = max(now[0] - since[0], now[1] - since[1])
+        waited = now[0] - since[0] if now[0] > since[0] else now[1] - since[1]
         if waited >= self.config.wait_s:
             return self._end(RepeatStatus.BLOCKED, f"{evidence}; waited {waited:.1f} s", verdict)
         new_obs = self._fetch(self._missed.watch(lambda: self.robot.step(0.0, 0.0, self.dt)))

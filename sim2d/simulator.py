@@ -17,6 +17,7 @@ from vtr.runtime.scan import Scan
 from vtr.sim2d.camera import Camera
 from vtr.sim2d.config import Pose, SimConfig
 from vtr.sim2d.house import House, load_house
+from vtr.sim2d.moving import moved_camera, moved_house
 from vtr.sim2d.physics import World, advance, build_world, pose_of
 from vtr.sim2d.rangefinder import Rangefinder
 from vtr.sim2d.sensor import Sensor, describe
@@ -139,6 +140,21 @@ class Simulator:
         self.house, self.camera = new, Camera(new, self.cfg.camera)
         world = build_world(new, pose, self.cfg.robot_radius)
         self._state = SimState(world, state.time, False, state.bias)
+        self._rangefinder = None  # the scan sees the new house too
+
+    def move_furniture(self, name: str, center: tuple[float, float]) -> None:
+        """Move the furniture piece ``name`` so that its centre is at ``center``, mid-run (the robot's pose,
+        clock and actuation noise kept; camera, scan and physics see it at once): something that moves
+        through the house (the evaluation's moving obstacle). Raises ValueError, moving nothing, where the
+        piece would overlap the robot."""
+        state = self._require()
+        pose = self.pose
+        new = moved_house(self.house, name, center)
+        if not new.is_free(pose.x, pose.y, self.cfg.robot_radius):
+            raise ValueError(f"{name} at ({center[0]:.3f}, {center[1]:.3f}) would overlap the robot")
+        self.house, self.camera, self._rangefinder = new, moved_camera(self.camera, new), None
+        world = build_world(new, pose, self.cfg.robot_radius)
+        self._state = SimState(world, state.time, state.collided, state.bias)
 
     def step(self, v: float, w: float, duration: float) -> np.ndarray:
         """Drive with (v, w), clamped to the limits, for `duration` s of simulated time; returns the image."""

@@ -9,7 +9,7 @@ Development routes only: generated in the paper-style house with route seeds 100
   (contact comes at 0.17 + 0.125 m); the unmatched share of the path region against the taught views at
   that point (the subgoal before it and the one after), with the box, and without it under changed light.
 - **runs** (``--part runs``): closed-loop repeats by the default controller (the condition suite's
-  ``after``) under the box and under conditions that must not stop the robot (light, a box beside the
+  ``after``, its own obstruction stop off: ``after_no_obstruction``) under the box and under conditions that must not stop the robot (light, a box beside the
   path, changed walls and furniture, noise, start offsets). The detector watches each view against the
   subgoals where the route localiser places the robot, without acting: when it would have fired, and how
   far from the box's nearest face the robot was then; for the other conditions, whether it fired at all.
@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from vtr.runtime.obstruction import ObstructionConfig, ObstructionDetector
+from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionConfig, ObstructionDetector
 
 DEV_SEEDS = tuple(range(100, 106))
 DISTANCES = (1.0, 0.8, 0.6, 0.45, 0.35)
@@ -48,8 +48,6 @@ RUN_CONDITIONS = (
     "furniture_moved",
     "floor_recoloured",
 )
-#: Commands faster than this (m/s) count as driving forward.
-FORWARD_SPEED = 0.02
 
 
 def dev_route(seed: int, image_shape: tuple[int, int] = (128, 128)) -> tuple[Any, Any]:
@@ -72,7 +70,8 @@ def scene_house(scene: str, tmp: Path, poses: np.ndarray) -> tuple[str, dict[str
 def view_shares(route: Any, cfg: ObstructionConfig, tmp: Path) -> dict[str, list[float | None]]:
     """Per DISTANCES: the path region's unmatched share with the box ("box") and without it under each
     of LIGHTS, the robot on the taught path that far from the box's centre."""
-    from vtr.evaluation.conditions import LIGHTING, box_of
+    from vtr.evaluation.conditions import LIGHTING
+    from vtr.evaluation.path_boxes import box_of
     from vtr.sim2d import Simulator
     from vtr.sim2d.config import Pose, SimConfig
 
@@ -111,7 +110,8 @@ def view_shares(route: Any, cfg: ObstructionConfig, tmp: Path) -> dict[str, list
 def watched_run(route: Any, script: Any, cond_name: str, seed: int, cfg: ObstructionConfig) -> dict[str, Any]:
     """One closed-loop repeat (the suite's ``after``) under ``cond_name`` with the detector watching."""
     from vtr.evaluation.condition_run import AFTER, CONDITIONS, cached_policy, start_pose
-    from vtr.evaluation.conditions import LIGHTING, LitRobot, box_distance, box_of
+    from vtr.evaluation.conditions import LIGHTING, LitRobot
+    from vtr.evaluation.path_boxes import box_distance, box_of
     from vtr.models import find_model
     from vtr.runtime.follower import Follower
     from vtr.runtime.light import LightMatchedPolicy
@@ -130,7 +130,7 @@ def watched_run(route: Any, script: Any, cond_name: str, seed: int, cfg: Obstruc
     if cond.light:
         robot = LitRobot(robot, LIGHTING[cond.light])
     box = box_of(data) if cond_name == "box_on_path" else None
-    follower = Follower.for_route(route, replace(AFTER))
+    follower = Follower.for_route(route, replace(AFTER, obstruction=False))  # the study watches, never acts
     detector = ObstructionDetector(route.images, route.travel_poses(), cfg)
     trace: list[tuple[float, float, bool, float | None]] = []  # shares, forward, robot to the box's face
     fired: dict[str, Any] = {}

@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 
 from vtr.evaluation.condition_run import CONDITIONS, judged
-from vtr.evaluation.conditions import (
+from vtr.evaluation.conditions import write_scene_house
+from vtr.evaluation.path_boxes import (
     PATH_BOX_SIDE,
     ClearingRobot,
     box_distance,
     box_of,
     path_box,
     write_cleared_house,
-    write_scene_house,
 )
 
 
@@ -163,3 +163,40 @@ def test_the_suite_runs_the_box_conditions_and_says_where_the_robot_ended(small_
     (row,) = result["table"]
     assert row["box_face_m"] == pytest.approx(run["box_face_m"])
     assert f"(ended {run['box_face_m']:.2f} m from the box)" in (tmp_path / "suite.md").read_text()
+
+
+def test_the_box_beside_the_path_stands_clear_of_the_robot_on_it(tmp_path):
+    from vtr.evaluation.conditions import ROBOT_RADIUS, path_clearance
+    from vtr.evaluation.path_boxes import BESIDE_OFFSET
+
+    path = l_path()
+    data = json.loads(write_scene_house("box_beside_path", tmp_path, path=path).read_text())
+    box = box_of(data)
+    assert box is not None and box["size"] == [PATH_BOX_SIDE] * 2
+    # half-way along (0.8 m along the first leg), square to it, to its right: on the left the second leg
+    # (north along x = 3.2) would pass 0.2 m from the box's centre
+    assert box["center"] == pytest.approx([3.0, 3.0 - BESIDE_OFFSET]) and box["angle_deg"] == pytest.approx(
+        0.0
+    )
+    near = min(box_distance(box, x, y) for x, y, _ in path)
+    assert near == pytest.approx(BESIDE_OFFSET - PATH_BOX_SIDE / 2)
+    gap, _ = path_clearance(data, path)
+    assert gap >= ROBOT_RADIUS + 0.1 - 1e-6
+    assert CONDITIONS["box_beside_path"].expect == "finished"
+
+
+def test_the_stop_table_counts_how_runs_ended():
+    from vtr.evaluation.condition_tables import stops
+
+    base = {"controller": "after", "model": "fp32", "ran": True, "contacts": 0, "on_route": True}
+    runs = [
+        {**base, "condition": "box_on_path", "status": "blocked", "completed": True, "box_face_m": 0.4},
+        {**base, "condition": "box_on_path", "status": "blocked", "completed": True, "box_face_m": 0.5},
+        {**base, "condition": "box_on_path", "status": "collided", "completed": False, "contacts": 1},
+        {**base, "condition": "noise_0.05", "status": "finished", "completed": True},
+        {**base, "condition": "noise_0.05", "status": "finished", "completed": False, "on_route": False},
+        {**base, "condition": "noise_0.05", "ran": False, "status": "path_blocked"},
+    ]
+    table = stops([{"runs": runs}])
+    assert "| after | fp32 | box_on_path | 3 | 0 | 2 | 1 | 2 | 0.40 / 0.45 | - |" in table
+    assert "| after | fp32 | noise_0.05 | 2 | 1 | 0 | 0 | 1 | - | - |" in table

@@ -6,43 +6,12 @@ import math
 
 import numpy as np
 import pytest
+from floor_fakes import CAM, box_at, floor_view, with_blob
+from floor_fakes import straight_route as route
 
-from vtr.runtime.floor_view import Camera, path_weights, taught_offset
+from vtr.runtime.floor_view import path_weights, taught_offset
 from vtr.runtime.matching import MatchConfig, Matcher
 from vtr.runtime.obstruction import ObstructionConfig, ObstructionDetector
-
-CAM = Camera()
-
-
-def floor_view(x: float, y: float = 0.0, yaw: float = 0.0, seed: int = 0) -> np.ndarray:
-    """What CAM sees from (x, y, yaw) over a floor of 20 cm squares of random colours (grey above the
-    horizon; sim2d's mosaic is coarser still): the pinhole model the detector assumes, drawn apart."""
-    colours = np.random.default_rng(seed).integers(30, 220, (64, 64, 3))
-    f = CAM.focal_px
-    rows, cols = np.mgrid[0 : CAM.height, 0 : CAM.width] + 0.5
-    down, right = (rows - CAM.height / 2) / f, (cols - CAM.width / 2) / f
-    ahead = CAM.height_m / np.where(down > 0, down, np.nan)
-    with np.errstate(invalid="ignore"):
-        fx = x + math.cos(yaw) * ahead + math.sin(yaw) * right * ahead
-        fy = y + math.sin(yaw) * ahead - math.cos(yaw) * right * ahead
-        i, j = np.floor(fx / 0.2).astype(int) % 64, np.floor(fy / 0.2).astype(int) % 64
-    out = colours[np.where(down > 0, i, 0), np.where(down > 0, j, 0)]
-    out[down <= 0] = 128
-    return out.astype(np.uint8)
-
-
-def route(n: int = 8, gap: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
-    poses = np.array([[gap * k, 0.0, 0.0] for k in range(n)])
-    return np.stack([floor_view(x) for x, _, _ in poses]), poses
-
-
-def with_blob(image: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
-    """``image`` with a face of blue planks over ``rows`` x ``cols`` (a plain face on a plain floor tile
-    matches it: nothing in a plain patch tells them apart)."""
-    out = image.copy()
-    planks = np.where((np.arange(out.shape[1]) // 4) % 2, 200, 120)[cols]
-    out[rows, cols] = np.stack([planks // 4, planks // 2, planks], axis=-1)[None]
-    return out
 
 
 def test_path_weights_cover_the_floor_ahead_and_nothing_beside():
@@ -86,13 +55,6 @@ def test_tile_features_are_the_matchers_and_the_warp_follows_the_floor():
     assert ObstructionDetector(views, poses, unshifted).share(off, 2.5) > 0.3
     exhaustive = det.scores(floor_view(0.25), 2.5, exhaustive=True)
     assert (exhaustive <= det.scores(floor_view(0.25), 2.5)).all()
-
-
-def box_at(image: np.ndarray, distance: float, side: float = 0.25) -> np.ndarray:
-    """``image`` with a box ``side`` wide and taller than the camera standing ``distance`` m ahead."""
-    f, h = CAM.focal_px, CAM.height_m
-    base, half = 64 + int(f * h / distance), max(1, int(f * side / 2 / distance))
-    return with_blob(image, slice(40, min(base, 128)), slice(64 - half, 64 + half))
 
 
 def test_a_box_coming_closer_while_driving_forward_blocks():
@@ -177,3 +139,21 @@ def test_other_image_sizes_keep_the_path_region_on_the_floor():
     assert det.share(views[1], 1.0) == 0.0 and det.share(views[1], 1.5) == 0.0
     with pytest.raises(ValueError, match="multiple of the tile size"):
         ObstructionDetector(views[:, :100])
+
+
+def test_the_way_clears_once_the_far_floor_is_seen_again_though_the_near_floor_mismatches():
+    """Taken away while the robot stood a little off its pose: the floor near it still mismatches, the far
+    end of the corridor is seen again."""
+    views, poses = route()
+    det = ObstructionDetector(views, poses)
+    for d in np.arange(1.6, 0.4, -0.05):
+        det.update(box_at(views[3], d), 3.0, forward=True)
+    assert det.blocked
+    near_only = with_blob(views[3], slice(112, 128), slice(40, 88))
+    verdict = det.update(near_only, 3.0, forward=False)
+    assert verdict.blocked and verdict.fraction > det.cfg.clear_fraction
+    assert verdict.hidden <= det.cfg.clear_hidden
+    verdict = det.update(near_only, 3.0, forward=False)
+    assert not verdict.blocked and "way clear" in verdict.note
+    with pytest.raises(ValueError, match="clear_hidden"):
+        ObstructionConfig(clear_hidden=0.3)

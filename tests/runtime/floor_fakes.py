@@ -1,0 +1,51 @@
+"""A floor world for the camera-only obstruction tests: what a level pinhole camera 0.3 m above a floor of
+coloured squares sees, with a box drawn in front of it (the model runtime.floor_view assumes, drawn apart)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from vtr.runtime.floor_view import Camera
+
+CAM = Camera()
+
+
+def floor_view(x: float, y: float = 0.0, yaw: float = 0.0, seed: int = 0) -> np.ndarray:
+    """What CAM sees from (x, y, yaw) over a floor of 20 cm squares of random colours (grey above the
+    horizon; sim2d's mosaic is coarser still)."""
+    colours = np.random.default_rng(seed).integers(30, 220, (64, 64, 3))
+    f = CAM.focal_px
+    rows, cols = np.mgrid[0 : CAM.height, 0 : CAM.width] + 0.5
+    down, right = (rows - CAM.height / 2) / f, (cols - CAM.width / 2) / f
+    ahead = CAM.height_m / np.where(down > 0, down, np.nan)
+    with np.errstate(invalid="ignore"):
+        fx = x + math.cos(yaw) * ahead + math.sin(yaw) * right * ahead
+        fy = y + math.sin(yaw) * ahead - math.cos(yaw) * right * ahead
+        i, j = np.floor(fx / 0.2).astype(int) % 64, np.floor(fy / 0.2).astype(int) % 64
+    out = colours[np.where(down > 0, i, 0), np.where(down > 0, j, 0)]
+    out[down <= 0] = 128
+    return out.astype(np.uint8)
+
+
+def straight_route(n: int = 8, gap: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+    """The views and poses of a straight route along x, a subgoal every ``gap`` m."""
+    poses = np.array([[gap * k, 0.0, 0.0] for k in range(n)])
+    return np.stack([floor_view(x) for x, _, _ in poses]), poses
+
+
+def with_blob(image: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
+    """``image`` with a face of blue planks over ``rows`` x ``cols`` (a plain face on a plain floor tile
+    matches it: nothing in a plain patch tells them apart)."""
+    out = image.copy()
+    planks = np.where((np.arange(out.shape[1]) // 4) % 2, 200, 120)[cols]
+    out[rows, cols] = np.stack([planks // 4, planks // 2, planks], axis=-1)[None]
+    return out
+
+
+def box_at(image: np.ndarray, distance: float, side: float = 0.25) -> np.ndarray:
+    """``image`` with a box ``side`` wide and taller than the camera standing ``distance`` m ahead."""
+    f, h = CAM.focal_px, CAM.height_m
+    base, half = 64 + int(f * h / distance), max(1, int(f * side / 2 / distance))
+    return with_blob(image, slice(40, min(base, 128)), slice(64 - half, 64 + half))
