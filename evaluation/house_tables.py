@@ -47,7 +47,9 @@ def markdown(result: dict[str, Any]) -> str:
         + (" (the runtime default)" if cfg["controller"] == "after" else "")
         + f", actuation noise "
         f"{cfg['noise']}, seeds {seeds}. Routes from `sim2d.route_gen` (route seeds 0..{cfg['routes_per_house'] - 1}), "
-        "taught noise-free, repeated once per seed. Completed = the repeat finished and touched nothing; errors "
+        "taught noise-free, repeated once per seed. Completed = the repeat finished on the route (mean "
+        "nearest-point error <= 3 cm, final position within 5 cm: evaluation.metrics.off_route) and touched "
+        "nothing; errors "
         "are the paper's nearest-point error per subgoal, averaged over completed runs.",
         "",
         *(
