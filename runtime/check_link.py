@@ -127,6 +127,31 @@ def image_diff(a: np.ndarray, b: np.ndarray) -> float:
     return image_error(a, b)
 
 
+def unannounced(replies: list[Any], field: str, section: str, absent: str) -> tuple[str, str]:
+    """An optional reply field hello does not announce (docs/PROTOCOL.md, ``section``): WARN where replies carry
+    it anyway (the runtime ignores it), else PASS saying what the robot goes without (``absent``)."""
+    if any(r.header.get(field) is not None for r in replies):
+        return WARN, (
+            f"replies carry a '{field}' but hello does not announce one, so the runtime ignores it: announce it "
+            f"(docs/PROTOCOL.md, '{section}')"
+        )
+    return PASS, absent
+
+
+def announced(replies: list[Any], field: str, decode: Callable[[Any], Any]) -> list[Any]:
+    """An optional reply field hello announces, decoded from every reply; CheckFailed names the reply where it
+    is missing or does not decode."""
+    out = []
+    for reply in replies:
+        if reply.header.get(field) is None:
+            raise CheckFailed(f"hello announces a '{field}' but the {reply.cmd!r} reply carries no '{field}'")
+        try:
+            out.append(decode(reply.header[field]))
+        except protocol.BadFrameError as exc:
+            raise CheckFailed(f"the {reply.cmd!r} reply's {field}: {exc}") from None
+    return out
+
+
 def percentile_ms(times_s: list[float], q: float) -> float:
     return float(np.percentile(np.asarray(times_s) * 1e3, q)) if times_s else float("nan")
 

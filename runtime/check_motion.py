@@ -8,8 +8,7 @@ import math
 import time
 from typing import Any
 
-from vtr.runtime.check_link import PASS, WARN, CheckFailed, Context, image_diff
-from vtr.runtime.protocol import BadFrameError
+from vtr.runtime.check_link import PASS, WARN, CheckFailed, Context, announced, image_diff, unannounced
 from vtr.runtime.reply_codec import twist_from_wire
 
 #: A turn this large must change the view (radians).
@@ -86,20 +85,10 @@ def check_twist(ctx: Context) -> tuple[str, str]:
     finally:
         ctx.link.ask("stop")
     if ctx.hello.twist is None:
-        if any(r.header.get("twist") is not None for r in replies):
-            return WARN, (
-                "replies carry a 'twist' but hello does not announce one, so the runtime ignores it: announce "
-                "it (docs/PROTOCOL.md, 'Executed twist')"
-            )
-        return PASS, "not reported: `vtr teach --follow` goes by the pose"
-    twists = []
-    for reply in replies:
-        if reply.header.get("twist") is None:
-            raise CheckFailed(f"hello announces 'twist' but the {reply.cmd!r} reply carries none")
-        try:
-            twists.append(twist_from_wire(reply.header["twist"]))
-        except BadFrameError as exc:
-            raise CheckFailed(f"the {reply.cmd!r} reply's twist: {exc}") from None
+        return unannounced(
+            replies, "twist", "Executed twist", "not reported: `vtr teach --follow` goes by the pose"
+        )
+    twists = announced(replies, "twist", twist_from_wire)
     v_seen, w_seen = twists[-1]
     if not w_seen > 0.2 * w:
         raise CheckFailed(

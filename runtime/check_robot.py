@@ -33,8 +33,10 @@ from vtr.runtime.check_link import (
     CheckFailed,
     Context,
     Link,
+    announced,
     image_diff,
     percentile_ms,
+    unannounced,
 )
 from vtr.runtime.check_motion import (
     check_limits_enforced,
@@ -180,20 +182,8 @@ def check_scan(ctx: Context) -> tuple[str, str]:
     spec = ctx.hello.scan
     replies = [ctx.ask("observe"), ctx.step(0.0, 0.0)]
     if spec is None:
-        if any(r.header.get("scan") is not None for r in replies):
-            return WARN, (
-                "replies carry a 'scan' but hello announces no scanner, so the runtime ignores it: announce "
-                "it (docs/PROTOCOL.md, 'Range scan')"
-            )
-        return PASS, "no range sensor: camera-only safety"
-    scans = []
-    for reply in replies:
-        if reply.header.get("scan") is None:
-            raise CheckFailed(f"hello announces a scanner but the {reply.cmd!r} reply carries no 'scan'")
-        try:
-            scans.append(scan_from_wire(reply.header["scan"], spec))
-        except protocol.BadFrameError as exc:
-            raise CheckFailed(f"the {reply.cmd!r} reply's scan: {exc}") from None
+        return unannounced(replies, "scan", "Range scan", "no range sensor: camera-only safety")
+    scans = announced(replies, "scan", lambda wire: scan_from_wire(wire, spec))
     span = math.degrees(abs(spec.angle_increment) * (spec.beams - 1))
     text = f"{spec.beams} beams over {span:.0f} deg, range_max {spec.range_max:g} m, mounted {spec.x_m:g} m ahead"
     seen = scans[-1].ranges[np.isfinite(scans[-1].ranges)]
