@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from vtr.evaluation.moving_box import box_crossing_path
-from vtr.evaluation.path_boxes import box_beside_path, box_on_path
+from vtr.evaluation.path_boxes import box_beside_path, box_item, box_on_path
 from vtr.runtime.robot import Observation
 from vtr.sim2d.config import SimConfig
 
@@ -171,15 +171,7 @@ def _obstacle_beside_path(house: dict[str, Any], path: np.ndarray | None) -> Non
                 or before.clearance(cx, cy) < BOX_SIDE
             ):
                 continue  # on the path, or in (or against) furniture already there
-            box = {
-                "name": "box",
-                "shape": "box",
-                "center": [cx, cy],
-                "size": [BOX_SIDE] * 2,
-                "height": 0.4,
-                "texture": "metal_blue",
-                "angle_deg": math.degrees(yaw),
-            }
+            box = box_item(cx, cy, yaw, BOX_SIDE, "box")
             try:
                 House({**house, "furniture": [*house["furniture"], box]}, "obstacle_beside_path")
             except ValueError:

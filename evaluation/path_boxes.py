@@ -47,13 +47,16 @@ def box_on_path(house: dict[str, Any], path: np.ndarray | None) -> None:
     house.update(changed)
 
 
-def box_item(cx: float, cy: float, yaw: float) -> dict[str, Any]:
-    """The path scenes' box (a PATH_BOX_SIDE cube-ish crate, 40 cm tall) at (cx, cy), square to ``yaw``."""
+def box_item(
+    cx: float, cy: float, yaw: float, side: float = PATH_BOX_SIDE, name: str = BOX_NAME
+) -> dict[str, Any]:
+    """A scene's box (by default the path scenes': PATH_BOX_SIDE square, 40 cm tall) at (cx, cy), square to
+    ``yaw``."""
     return {
-        "name": BOX_NAME,
+        "name": name,
         "shape": "box",
         "center": [cx, cy],
-        "size": [PATH_BOX_SIDE] * 2,
+        "size": [side] * 2,
         "height": 0.4,
         "texture": "metal_blue",
         "angle_deg": math.degrees(yaw),
