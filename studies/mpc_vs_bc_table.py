@@ -48,6 +48,7 @@ def summarise(doc: dict[str, Any]) -> dict[str, Any]:
         "err_finished_mm": None if not fin else 1e3 * mean(fin, "position_error_m"),
         "pace": mean(done, "steps_per_taught_step"),
         "by_run": {(r["route"], r["seed"]): bool(r["completed"]) for r in runs},
+        "err_by_run": {(r["route"], r["seed"]): r["position_error_m"] for r in done},
     }
 
 
@@ -107,17 +108,28 @@ def render(root: Path, commands: str) -> str:
             keys = sorted(set(a) & set(b))
             a_only = sum(a[k] and not b[k] for k in keys)
             b_only = sum(b[k] and not a[k] for k in keys)
+            both = [k for k in keys if a[k] and b[k]]
+            ea, eb = stats[label]["err_by_run"], stats[other]["err_by_run"]
+            err = "-"
+            if both:
+                err = (
+                    f"{1e3 * sum(ea[k] for k in both) / len(both):.1f} / "
+                    f"{1e3 * sum(eb[k] for k in both) / len(both):.1f} "
+                    f"(MPC lower in {sum(ea[k] < eb[k] for k in both)} of {len(both)})"
+                )
             pairs.append(
-                f"| {label} vs {other} | {len(keys)} | {a_only} | {b_only} | {sign_test(a_only, b_only):.2f} |"
+                f"| {label} vs {other} | {len(keys)} | {a_only} | {b_only} | {sign_test(a_only, b_only):.2f} | "
+                f"{err} |"
             )
     out = ["```bash", commands, "```", "", *head, *rows, ""]
     if pairs:
         out += [
             "Paired (same route, same noise seed): runs only MPC completed, runs only BC completed, and the "
-            "exact two-sided sign test on those discordant runs.",
+            "exact two-sided sign test on those discordant runs; and the mean error of the runs both completed.",
             "",
-            "| pair | paired runs | only MPC completed | only BC completed | p |",
-            "|---|---|---|---|---|",
+            "| pair | paired runs | only MPC completed | only BC completed | p | mean error where both completed, "
+            "MPC / BC (mm) |",
+            "|---|---|---|---|---|---|",
             *pairs,
             "",
         ]

@@ -61,4 +61,7 @@ def test_the_table_counts_completions_and_pairs_mpc_with_bc(tmp_path: Path) -> N
     (tmp_path / "eval" / "clean_bc_s0_s300.json").write_text(json.dumps(bc))
     text = render(tmp_path, "cmd")
     assert "**2/2**" in text and "**1/2**" in text
-    assert "| clean_mpc_s0_s300 vs clean_bc_s0_s300 | 2 | 1 | 0 | 1.00 |" in text
+    assert (
+        "| clean_mpc_s0_s300 vs clean_bc_s0_s300 | 2 | 1 | 0 | 1.00 | 10.0 / 10.0 (MPC lower in 0 of 1) |"
+        in text
+    )
