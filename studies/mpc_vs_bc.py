@@ -47,6 +47,8 @@ RUNS = {
     "imperfect_mpc_s0": ("imperfect", 0, ""),
     "imperfect_bc_s0": ("imperfect", 0, "--w1 0"),
 }
+#: runs continued to this many steps afterwards (--resume), when the CPU was freer
+LONGER = {"clean_mpc_s0": 600, "clean_bc_s0": 600, "imperfect_mpc_s0": 600, "imperfect_bc_s0": 600}
 LAGS = (1, 2)  # steps between the logged command and the wheels, drawn per episode
 GAIN = (0.7, 0.9)  # executed turn rate / logged turn rate, drawn per episode (the base under-steers)
 NOISE = (0.03, 0.1)  # joystick noise on the logged (v, w), standard deviations
@@ -75,8 +77,20 @@ def commands_text() -> str:
             f"{py} train evaluate --data {D}/offline_eval --viewnet models/viewnet.pt "
             f"--velocitynet {D}/runs/{name}/model.pt --json {D}/offline/{name}_s{STEPS}.json"
         )
-    for name in ("shipped", *RUNS):
-        label = name if name == "shipped" else f"{name}_s{STEPS}"
+    labels = [("shipped", "shipped"), *((n, f"{n}_s{STEPS}") for n in RUNS)]
+    for name, steps in LONGER.items():
+        data, seed, flags = RUNS[name]
+        extra = f" {flags}" if flags else ""
+        lines.append(
+            f"{py} train velocitynet --data {D}/{data} --viewnet models/viewnet.pt --out {D}/runs/{name} "
+            f"--steps {steps} --val-every 100000 --seed {seed} --threads 1 --augment --preprocessing {STD} "
+            f"--allow-no-gain --resume{extra}"
+        )
+        lines.append(
+            f"{py} export --checkpoint {D}/runs/{name}/model.pt --out {D}/onnx/{name}_s{steps}.onnx --force"
+        )
+        labels.append((name, f"{name}_s{steps}"))
+    for name, label in labels:
         model = "models/velocitynet.onnx" if name == "shipped" else f"{D}/onnx/{label}.onnx"
         lines.append(
             f"{py} eval --suite conditions --routes sim2d/routes/heldout10 --controllers after "

@@ -71,7 +71,13 @@ def _offline(root: Path, name: str, label: str, steps: str) -> tuple[str, str]:
 
 def render(root: Path, commands: str) -> str:
     rows, stats = [], {}
-    labels = sorted(p.stem for p in (root / "eval").glob("*.json"))
+    order = {name: i for i, name in enumerate(RUNS)}
+
+    def key(label: str) -> tuple[int, int, str]:
+        name, _, steps = label.rpartition("_s")
+        return (order.get(name, len(order)), int(steps) if steps.isdigit() else 0, label)
+
+    labels = sorted((p.stem for p in (root / "eval").glob("*.json")), key=key)
     for label in labels:
         doc = _load(root / "eval" / f"{label}.json")
         if doc is None:
