@@ -217,10 +217,9 @@ def run_driven(
                 "--follow needs a robot that reports its executed twist (hello 'twist') or its pose; "
                 "this one reports neither (docs/PROTOCOL.md, 'Executed twist')"
             )
-        print(
-            f"vtr teach --{cfg.mode}: {HELP if cfg.mode == 'drive' else FOLLOW_HELP}", file=stdout, flush=True
-        )
-        with raw_terminal(fd):
+        with raw_terminal(fd):  # raw before the keys are shown: a key pressed on seeing them is read at once
+            help_line = HELP if cfg.mode == "drive" else FOLLOW_HELP
+            print(f"vtr teach --{cfg.mode}: {help_line}", file=stdout, end="\r\n", flush=True)
             keys = KeyReader(fd)
             if cfg.mode == "drive":
                 rec = drive(client, cfg.teach, keys, client.limits or Limits(), stdout, first)

@@ -6,6 +6,7 @@ import os
 import select
 import subprocess
 import sys
+import termios
 import time
 from pathlib import Path
 
@@ -18,6 +19,8 @@ class Terminal:
     def __init__(self, *args: str) -> None:
         master, slave = os.openpty()
         self.fd = master
+        #: The terminal's modes before the program starts (read later, they race its switch to raw mode).
+        self.cooked = termios.tcgetattr(master)
         self.screen = b""
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "vtr.cli", *args],

@@ -80,7 +80,7 @@ def test_the_terminal_is_restored_on_every_way_out(simulator, tmp_path):
     with ServerThread(simulator, ServerConfig(bind="tcp://127.0.0.1:*")) as server:
         for key in (b"q", b"\x1b"):
             term = Terminal("teach", "--drive", "--sim", server.endpoint, "--out", str(tmp_path / "r.npz"))
-            cooked = termios.tcgetattr(term.fd)
+            cooked = term.cooked
             term.wait_for(b"q or Enter saves")
             assert termios.tcgetattr(term.fd) != cooked  # raw while driving
             term.press(key)
