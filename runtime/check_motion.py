@@ -9,6 +9,7 @@ import time
 from typing import Any
 
 from vtr.runtime.check_link import PASS, WARN, CheckFailed, Context, announced, image_diff, unannounced
+from vtr.runtime.kinematics import wrap_angle
 from vtr.runtime.reply_codec import twist_from_wire
 
 #: A turn this large must change the view (radians).
@@ -50,7 +51,7 @@ def check_turn(ctx: Context) -> tuple[str, str]:
     if diff <= max(4.0, 3 * ctx.noise_floor + 2):
         problems.append(f"turning {n * w * ctx.dt:.2f} rad in place changed the image by only {diff:.1f}/255")
     if start.pose is not None and turned.pose is not None:
-        dyaw = (turned.pose[2] - start.pose[2] + math.pi) % (2 * math.pi) - math.pi
+        dyaw = wrap_angle(turned.pose[2] - start.pose[2])
         if dyaw <= 0:
             problems.append(
                 f"w > 0 moved pose.yaw by {dyaw:+.3f} rad: w is counter-clockwise positive (REP-103)"

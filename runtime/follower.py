@@ -101,8 +101,7 @@ class Follower:
     @classmethod
     def for_route(cls, route: Route, cfg: ControllerConfig | None = None) -> Follower:
         """The follower of a taught route (its subgoals, commands, poses and spacing)."""
-        every = route.spacing.get("every") if route.spacing.get("rule") == "steps" else None
-        steps = float(every) if isinstance(every, int) and every >= 1 else 2.0
+        steps = float(route.steps_between or 2)
         return cls(
             route.images,
             cfg,

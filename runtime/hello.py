@@ -248,11 +248,7 @@ def _compare(robot: CameraSpec, name: str, other: CameraSpec | None) -> list[str
     """check_camera for one of route and model."""
     if other is None:
         return [f"the {name} records no camera; not compared"]
-    if (other.width, other.height) != (robot.width, robot.height):
-        raise CameraMismatchError(
-            f"the robot's camera gives {robot.width}x{robot.height} images but the {name} was made with "
-            f"{other.width}x{other.height}"
-        )
+    _check_size(robot, name, other.width, other.height)
     notes = []
     for label, a, b, tol, unit in (
         ("field of view", robot.fov_deg, other.fov_deg, FOV_TOLERANCE_DEG, " deg"),
@@ -266,6 +262,14 @@ def _compare(robot: CameraSpec, name: str, other: CameraSpec | None) -> list[str
                 f"(tolerance {tol:g}{unit})"
             )
     return notes
+
+
+def _check_size(robot: CameraSpec, name: str, width: int, height: int) -> None:
+    if (width, height) != (robot.width, robot.height):
+        raise CameraMismatchError(
+            f"the robot's camera gives {robot.width}x{robot.height} images but the {name} was made with "
+            f"{width}x{height}"
+        )
 
 
 def require_known_fov(camera: Any, where: str) -> None:
@@ -293,11 +297,7 @@ def check_camera_range(robot: CameraSpec, model: Any) -> list[str]:
     from vtr.runtime.model_meta import FINE_TUNE_HINT
 
     rng = model.camera_range
-    if (model.image_width, model.image_height) != (robot.width, robot.height):
-        raise CameraMismatchError(
-            f"the robot's camera gives {robot.width}x{robot.height} images but the model was made with "
-            f"{model.image_width}x{model.image_height}"
-        )
+    _check_size(robot, "model", model.image_width, model.image_height)
     notes = []
     for label, value, (lo, hi), tol, unit in (
         ("field of view", robot.fov_deg, rng.fov_deg, FOV_TOLERANCE_DEG, " deg"),

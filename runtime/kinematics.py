@@ -3,6 +3,16 @@
 from __future__ import annotations
 
 import math
+from typing import TypeVar
+
+import numpy as np
+
+AngleT = TypeVar("AngleT", float, np.ndarray)
+
+
+def wrap_angle(angle: AngleT) -> AngleT:
+    """``angle`` (rad; a number or an array) wrapped to [-pi, pi): the turn between two headings."""
+    return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
 def unicycle(x: float, y: float, yaw: float, v: float, w: float, t: float) -> tuple[float, float, float]:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vtr.runtime.frame import Frame
+from vtr.runtime.kinematics import wrap_angle
 from vtr.runtime.matching import Matcher
 
 
@@ -104,7 +105,7 @@ def taught_motion(travel_poses: np.ndarray | None, commands: np.ndarray, n: int,
         p = np.asarray(travel_poses, dtype=np.float64)[:n]
         distance = np.hypot(*np.diff(p[:, :2], axis=0).T)
         sign = np.where(cmds[:, 0] < 0, -1.0, 1.0)
-        turn = np.remainder(np.diff(p[:, 2]) + math.pi, 2 * math.pi) - math.pi
+        turn = wrap_angle(np.diff(p[:, 2]))
         out[:, 0], out[:, 1] = sign * distance, turn
         return out
     out[:] = cmds * steps

@@ -22,6 +22,8 @@ import math
 
 import numpy as np
 
+from vtr.runtime.kinematics import wrap_angle
+
 #: Taught moves below these count as none (m, rad): a turn in place has no distance to wait for.
 MIN_TRAVEL_M, MIN_TURN_RAD = 0.005, math.radians(0.5)
 #: A held command that moved the robot less than this fraction of the gap is idle (the policy is done).
@@ -41,7 +43,7 @@ class ProgressGate:
         self.distance = np.zeros(n)
         self.turn = np.zeros(n)
         self.distance[1:] = np.hypot(*np.diff(p[:, :2], axis=0).T)
-        self.turn[1:] = np.abs(np.remainder(np.diff(p[:, 2]) + math.pi, 2 * math.pi) - math.pi)
+        self.turn[1:] = np.abs(wrap_angle(np.diff(p[:, 2])))
         self.index = 0
         self.progress = 0.0  # commanded travel toward ``index``, in units of the taught travel into it
         self.held = 0  # commands the gate held back at this subgoal

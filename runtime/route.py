@@ -73,6 +73,12 @@ class Route:
     def __len__(self) -> int:
         return int(self.images.shape[0])
 
+    @property
+    def steps_between(self) -> int | None:
+        """Control steps from one subgoal to the next where the teach spaced them by steps, else None."""
+        every = self.spacing.get("every") if self.spacing.get("rule") == "steps" else None
+        return every if isinstance(every, int) and every >= 1 else None
+
     def travel_poses(self) -> np.ndarray | None:
         """Poses to measure the taught travel between subgoals by (the progress gate's input).
 
@@ -83,8 +89,8 @@ class Route:
         neither is known (spacing by distance or by image change without poses)."""
         if np.isfinite(self.poses).all():
             return self.poses
-        every = self.spacing.get("every") if self.spacing.get("rule") == "steps" else None
-        if not isinstance(every, int) or every < 1:
+        every = self.steps_between
+        if every is None:
             return None
         dt = float(self.spacing.get("dt", self.dt)) * every
         out = np.zeros((len(self), 3))

@@ -15,7 +15,12 @@ import sys
 import time
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, wait
-from typing import Any, TextIO, TypeVar
+from typing import TYPE_CHECKING, Any, TextIO, TypeVar
+
+from vtr.runtime.kinematics import wrap_angle
+
+if TYPE_CHECKING:
+    from vtr.runtime.route import Route
 
 T = TypeVar("T")
 
@@ -78,21 +83,19 @@ def _is_terminal(stream: Any) -> bool:
 # ------------------------------------------------------------------------------------ vtr repeat
 
 
-def taught_seconds(route: Any) -> float | None:
+def taught_seconds(route: Route) -> float | None:
     """How long the teach drove, from the route: subgoals a fixed number of control steps apart give
     (L - 1) x every x dt; otherwise each gap's taught command over its taught poses (None where unknown)."""
-    spacing = getattr(route, "spacing", None) or {}
-    dt = float(spacing.get("dt", getattr(route, "dt", 0.0)) or 0.0)
-    every = spacing.get("every") if spacing.get("rule") == "steps" else None
-    if isinstance(every, int) and every >= 1 and dt > 0:
-        return (len(route) - 1) * every * dt
-    poses, commands = getattr(route, "poses", None), getattr(route, "commands", None)
-    if poses is None or commands is None or len(poses) < 2:
+    dt = float(route.spacing.get("dt", route.dt))
+    if route.steps_between is not None and dt > 0:
+        return (len(route) - 1) * route.steps_between * dt
+    poses, commands = route.poses, route.commands
+    if len(poses) < 2:
         return None
     total = 0.0
     for k in range(len(poses) - 1):
         (x0, y0, a0), (x1, y1, a1), (v, w) = poses[k], poses[k + 1], commands[k]
-        turn = abs((a1 - a0 + math.pi) % (2 * math.pi) - math.pi)
+        turn = abs(wrap_angle(a1 - a0))
         legs = [math.hypot(x1 - x0, y1 - y0) / abs(v) if abs(v) > _TINY else 0.0]
         legs.append(turn / abs(w) if abs(w) > _TINY else 0.0)
         total += max(legs)

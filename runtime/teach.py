@@ -32,6 +32,7 @@ from vtr.runtime.address import EXAMPLE, check_endpoint
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT
 from vtr.runtime.hello import accept_hello
+from vtr.runtime.kinematics import wrap_angle
 from vtr.runtime.preprocess import image_error
 from vtr.runtime.protocol import Limits, jsonable
 from vtr.runtime.robot import Observation, ResettableRobot, RobotError
@@ -94,11 +95,7 @@ class TeachConfig:
                 "spacing='distance' needs poses, but the robot reports none; use 'steps' or 'image'"
             )
         dist = math.hypot(obs.pose[0] - last_pose[0], obs.pose[1] - last_pose[1])
-        return dist >= self.min_distance or abs(_wrap(obs.pose[2] - last_pose[2])) >= self.min_angle
-
-
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2 * math.pi) - math.pi
+        return dist >= self.min_distance or abs(wrap_angle(obs.pose[2] - last_pose[2])) >= self.min_angle
 
 
 def _robot_info(robot: Any, dt: float) -> dict[str, Any]:

@@ -24,6 +24,7 @@ import os
 import time
 from typing import Any, TextIO
 
+from vtr.runtime.kinematics import wrap_angle
 from vtr.runtime.protocol import BadFrameError, Limits
 from vtr.runtime.robot import Observation, Robot, RobotError, safe_stop
 from vtr.runtime.safety import limit_twist
@@ -143,7 +144,7 @@ def executed(prev: Observation, obs: Observation, dt: float) -> tuple[float, flo
             "the robot reports neither its executed twist nor its pose: --follow cannot see it move"
         )
     dx, dy = obs.pose[0] - prev.pose[0], obs.pose[1] - prev.pose[1]
-    dyaw = (obs.pose[2] - prev.pose[2] + math.pi) % (2 * math.pi) - math.pi
+    dyaw = wrap_angle(obs.pose[2] - prev.pose[2])
     yaw = prev.pose[2]
     elapsed = obs.stamp - prev.stamp if obs.stamp - prev.stamp > 1e-6 else dt
     v = (dx * math.cos(yaw) + dy * math.sin(yaw)) / elapsed
