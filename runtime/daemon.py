@@ -66,6 +66,9 @@ class RepeatRunConfig:
     #: (a real robot placed by hand, or a bridge that does not implement reset).
     start: str = "route"
     seed: int | None = 1  # actuation-noise seed for the reset (start "route")
+    #: "auto": continuous where the robot's hello says it runs on a wall clock (realtime), else stop-and-go;
+    #: "stop-and-go" / "continuous": ``repeat.controller.continuous`` as it is.
+    motion: str = "stop-and-go"
     #: Recolour the current image to the subgoal's light before the policy (runtime/light.py; the profile's).
     match_light: bool = True
     repeat: RepeatConfig = field(default_factory=RepeatConfig)
@@ -74,6 +77,8 @@ class RepeatRunConfig:
 
     def __post_init__(self) -> None:
         check_endpoint(self.sim)
+        if self.motion not in ("auto", "stop-and-go", "continuous"):
+            raise ValueError(f"motion must be auto, stop-and-go or continuous, got {self.motion!r}")
         if self.start not in ("route", "here"):
             raise ValueError(f"start must be 'route' or 'here', got {self.start!r}")
         if self.threads < 1:
@@ -108,12 +113,13 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
             print(f"vtr repeat: warning: {warning}", file=sys.stderr)
         for note in check_robot_fits(hello, route.camera, policy.meta):
             print(f"vtr repeat: note: {note}", file=sys.stderr)
+        repeat = motion_for_robot(cfg.repeat, cfg.motion, hello.mode)
         if cfg.start == "route":
             pose = route.poses[0]
             if not np.all(np.isfinite(pose)):
                 raise ValueError("the route's first pose is unknown; use --start here")
             client.reset(pose=(float(pose[0]), float(pose[1]), float(pose[2])), seed=cfg.seed)
-        repeater = Repeater(client, policy, route, config=cfg.repeat, stop_event=stop_event)
+        repeater = Repeater(client, policy, route, config=repeat, stop_event=stop_event)
         # opened only now, with the model, route and robot checked: a refused start leaves no empty file
         with RunOutputs(route.images, cfg.log, cfg.mcap, cfg.foxglove) as outputs:  # log, MCAP bag, live view
             line = status_line(repeater) if cfg.status_line else None
@@ -125,6 +131,15 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
                     line.close()  # what is printed next starts on a line of its own
             outputs.finish(summary.to_dict())
         return summary
+
+
+def motion_for_robot(repeat: RepeatConfig, motion: str, robot_mode: str | None) -> RepeatConfig:
+    """``motion`` "auto": continuous on a robot whose hello says it runs on a wall clock (stopping after each
+    step would only make it stand while the next image is judged), stop-and-go on a lockstep or silent one
+    (whose clock waits for us anyway: the paper's motion); any other motion leaves ``repeat`` as it is."""
+    if motion != "auto":
+        return repeat
+    return replace(repeat, controller=replace(repeat.controller, continuous=robot_mode == "realtime"))
 
 
 def status_line(repeater: Repeater) -> RepeatStatusLine:
@@ -158,11 +173,9 @@ def config_from_settings(values: Resolved | Mapping[str, Any]) -> RepeatRunConfi
     """The run's configuration from `vtr repeat`'s settings (names as in ``runtime.settings``)."""
     profile = PROFILES[values["repeat.profile"]]
     controller = profile.controller()
-    motion = values["repeat.motion"]
+    motion = values["repeat.motion"] or profile.motion
     controller = replace(
-        controller,
-        localise=values["repeat.start"] == "anywhere",
-        continuous=controller.continuous if motion is None else motion == "continuous",
+        controller, localise=values["repeat.start"] == "anywhere", continuous=motion == "continuous"
     )
     safety = replace(
         SafetyConfig(),
@@ -180,6 +193,7 @@ def config_from_settings(values: Resolved | Mapping[str, Any]) -> RepeatRunConfi
         threads=values["repeat.threads"],
         timeout_s=values["repeat.timeout"],
         start="route" if values["repeat.start"] == "route" else "here",
+        motion=motion,
         match_light=profile.match_light,
         repeat=RepeatConfig(
             controller=controller, safety=safety, wait_s=values["repeat.wait"], speed=values["repeat.speed"]

@@ -31,6 +31,10 @@ class Profile(NamedTuple):
     controller: Callable[[], ControllerConfig]
     match_light: bool  # recolour the current image to the subgoal's light before the policy (runtime.light)
     help: str
+    #: The motion when none is set: "auto" follows the robot's clock (continuous where hello says realtime:
+    #: on a wall clock a stop after each step only makes the robot wait for the next image; stop-and-go on a
+    #: lockstep robot, whose clock waits anyway), else a fixed motion.
+    motion: str = "auto"
 
 
 #: Named controllers (`--profile`): a whole configuration each, never a coupling between flags.
@@ -44,12 +48,9 @@ PROFILES: dict[str, Profile] = {
         ControllerConfig.paper,
         False,
         "the paper's Algorithm 1 exactly: raw image error, fixed threshold 17, the camera image as it is",
+        "stop-and-go",
     ),
 }
-
-
-def _motion(continuous: bool) -> str:
-    return "continuous" if continuous else "stop-and-go"
 
 
 def _default(cls: type, name: str) -> Any:
@@ -57,10 +58,7 @@ def _default(cls: type, name: str) -> Any:
 
 
 def _motion_default() -> str:
-    each = {n: _motion(p.controller().continuous) for n, p in PROFILES.items()}
-    if len(set(each.values())) == 1:
-        return f"the profile's ({next(iter(each.values()))})"
-    return "the profile's (" + ", ".join(f"{n}: {m}" for n, m in each.items()) + ")"
+    return "the profile's (" + ", ".join(f"{n}: {p.motion}" for n, p in PROFILES.items()) + ")"
 
 
 SAFETY = SafetyConfig()
@@ -138,11 +136,11 @@ SETTINGS: tuple[Setting, ...] = (
         "motion",
         str,
         "stop-and-go: a zero command after each control step (the paper's); "
-        "continuous: keep moving between them",
+        "continuous: keep moving between them; auto: continuous on a realtime robot, else stop-and-go",
         None,
-        choices=("stop-and-go", "continuous"),
+        choices=("auto", "stop-and-go", "continuous"),
         default_text=_motion_default(),
-        goes="RepeatRunConfig.repeat.controller.continuous",
+        goes="RepeatRunConfig.motion",
     ),
     Setting(
         "repeat",

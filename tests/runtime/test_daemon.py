@@ -382,6 +382,7 @@ def test_profiles_and_settings_reach_the_run_config():
     anywhere = _settings("--start", "anywhere", "--motion", "continuous", "--profile", "paper")
     assert anywhere.start == "here" and anywhere.repeat.controller.localise  # no reset, the route searched
     assert anywhere.repeat.controller.continuous and anywhere.repeat.controller.switching == "rules"
+    assert (default.motion, paper.motion, anywhere.motion) == ("auto", "stop-and-go", "continuous")
     assert (
         _settings("--start", "here").start == "here"
         and not _settings("--start", "here").repeat.controller.localise
@@ -399,3 +400,14 @@ def test_profiles_and_settings_reach_the_run_config():
         0.5,
         0.2,
     )
+
+
+def test_auto_motion_is_continuous_only_on_a_robot_with_a_wall_clock():
+    from vtr.runtime.daemon import motion_for_robot
+
+    repeat = _settings().repeat
+    assert motion_for_robot(repeat, "auto", "realtime").controller.continuous
+    assert not motion_for_robot(repeat, "auto", "lockstep").controller.continuous
+    assert not motion_for_robot(repeat, "auto", None).controller.continuous  # a robot that does not say
+    fixed = _settings("--motion", "stop-and-go").repeat
+    assert motion_for_robot(fixed, "stop-and-go", "realtime") is fixed  # asked for: kept on any robot

@@ -1,0 +1,44 @@
+"""`vtr bench pace` (benchmarks/realtime_pace.py): a route taught on a lockstep simulator, repeated on a realtime
+one by `vtr repeat`'s code, its wall time set against the taught time."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import pytest
+
+from vtr.benchmarks import realtime_pace
+
+
+def _script(folder: Path) -> Path:
+    folder.mkdir()
+    path = folder / "straight.json"
+    start = {"x": 7.975, "y": 5.525, "yaw": 1.85459}  # a free stretch of the paper-style house
+    path.write_text(
+        json.dumps({"name": "straight", "start": start, "segments": [{"v": 0.2, "w": 0.0, "duration": 1.5}]})
+    )
+    return path
+
+
+def test_a_realtime_repeat_is_timed_against_the_teach(tmp_path: Path) -> None:
+    script = _script(tmp_path / "routes")
+    rows = realtime_pace.pace([script], [0], [None, "continuous"], realtime_pace.DEFAULT_MODEL, 0.0, tmp_path)
+    assert [r["motion"] for r in rows] == ["default", "continuous"]
+    for row in rows:
+        assert row["status"] == "finished", row
+        assert row["taught_s"] == pytest.approx(1.5, abs=0.11)  # the 1.5 s segment, to a subgoal step
+        assert row["time_ratio"] == pytest.approx(row["wall_s"] / row["taught_s"], rel=0.01)
+        assert 0.5 < row["time_ratio"] < 5 and row["mean_error_mm"] < 30
+    table = realtime_pace.table(rows)
+    assert "| default | 1 | 1 |" in table and "| continuous | 1 | 1 |" in table
+
+
+def test_a_folder_without_routes_is_one_line_and_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    parser = argparse.ArgumentParser()
+    realtime_pace.add_arguments(parser)
+    assert realtime_pace.run_cli(parser.parse_args(["--routes", str(tmp_path)])) == 2
+    assert capsys.readouterr().err.strip().count("\n") == 0
