@@ -40,6 +40,7 @@ from vtr.runtime.address import check_endpoint
 from vtr.runtime.frame import Frame
 from vtr.runtime.hello import Hello, parse_hello
 from vtr.runtime.protocol import BadFrameError, Limits, Reply
+from vtr.runtime.resample import CameraMapping
 from vtr.runtime.robot import Interrupted, LinkLost, MissedReply, Observation, RobotError, RobotRestarted
 
 #: Commands that are safe to send again after a missed reply (they move nothing).
@@ -92,6 +93,8 @@ class SimClient:
         self.last_bad_frame: str | None = None
         #: What the robot announced (set by :meth:`handshake`); its limits check every step before sending.
         self.hello_info: Hello | None = None
+        #: How the robot's frames become the model's input (:meth:`map_frames`); None: used as they come.
+        self.mapping: CameraMapping | None = None
         #: The last exchange's round trip (send to reply received) and validation time, in milliseconds.
         self.last_timing_ms: dict[str, float] = {}
         self._last_stamp: float | None = None
@@ -308,13 +311,19 @@ class SimClient:
                 )
         self._last_stamp, self._last_stamp_wall = reply.stamp, now
 
-    @staticmethod
-    def _observation(reply: Reply) -> Observation:
+    def map_frames(self, mapping: CameraMapping) -> None:
+        """From now on expect images of the mapping's source size (the camera hello announced) and hand them
+        on mapped to the model's input (runtime.resample): once, here, where frames enter."""
+        self.mapping, self.expect_shape = mapping, mapping.source
+
+    def _observation(self, reply: Reply) -> Observation:
         """The decoded reply as an observation; its frame is the decoder's image (checked there: the trust
-        boundary), made a :class:`Frame` here and never checked again."""
+        boundary), mapped to the model's input when :meth:`map_frames` set a mapping, made a :class:`Frame`
+        here and never checked again."""
         assert reply.image is not None and reply.stamp is not None
+        mapping = self.mapping
         return Observation.of_frame(
-            Frame.decoded(reply.image),
+            Frame.decoded(reply.image) if mapping is None else mapping.frame(reply.image),
             reply.stamp,
             pose=reply.pose,
             collided=reply.collided,
