@@ -95,7 +95,8 @@ class SimClient:
         self.hello_info: Hello | None = None
         #: How the robot's frames become the model's input (:meth:`map_frames`); None: used as they come.
         self.mapping: CameraMapping | None = None
-        #: The last exchange's round trip (send to reply received) and validation time, in milliseconds.
+        #: The last exchange's round trip (send to reply received), validation and (with a mapping that is not
+        #: the identity) resampling time, in milliseconds.
         self.last_timing_ms: dict[str, float] = {}
         self._last_stamp: float | None = None
         self._last_stamp_wall = 0.0
@@ -321,9 +322,14 @@ class SimClient:
         boundary), mapped to the model's input when :meth:`map_frames` set a mapping, made a :class:`Frame`
         here and never checked again."""
         assert reply.image is not None and reply.stamp is not None
-        mapping = self.mapping
+        if self.mapping is None or self.mapping.identity:
+            frame = Frame.decoded(reply.image)
+        else:
+            t0 = time.perf_counter()
+            frame = self.mapping.frame(reply.image)
+            self.last_timing_ms["resample"] = (time.perf_counter() - t0) * 1e3
         return Observation.of_frame(
-            Frame.decoded(reply.image) if mapping is None else mapping.frame(reply.image),
+            frame,
             reply.stamp,
             pose=reply.pose,
             collided=reply.collided,

@@ -85,7 +85,9 @@ class CameraMapping:
                 (ix - c0).T.copy(),
                 wx.T[:, None, :, None].copy(),
             )
-            kind = ("taps", *per_tap, c0, c1)
+            shapes = [(out_h, c1 - c0, 3)] * 2 + [(out_h, out_w, 3)] * 2
+            buffers = tuple(np.empty(shape, np.float32) for shape in shapes)  # one mapping serves one client
+            kind = ("taps", *per_tap, c0, c1, buffers)
         object.__setattr__(self, "_plan", kind)
 
     @property
@@ -134,16 +136,16 @@ class CameraMapping:
             for dx in range(1, k):
                 total += rows[:, :, dx]
             return ((2 * total + n) // (2 * n)).astype(np.uint8)  # the mean, rounded half up: exact
-        _, iy, wy, ix, wx, c0, c1 = self._plan
+        _, iy, wy, ix, wx, c0, c1, (acc, part, out, cols) = self._plan
         rows = image[:, c0:c1]
-        acc = rows[iy[0]] * wy[0]  # (out_h, columns, 3) float32: a weighted gathered row per tap
+        # into buffers made once: a fresh float array per tap would cost more in page faults than the sums
+        np.multiply(rows[iy[0]], wy[0], out=acc)  # (out_h, columns, 3): a weighted gathered row per tap
         for t in range(1, len(iy)):
-            acc += rows[iy[t]] * wy[t]
-        out = acc[:, ix[0]] * wx[0]  # (out_h, out_w, 3)
+            acc += np.multiply(rows[iy[t]], wy[t], out=part)
+        np.multiply(np.take(acc, ix[0], axis=1, out=cols), wx[0], out=out)  # (out_h, out_w, 3)
         for t in range(1, len(ix)):
-            out += acc[:, ix[t]] * wx[t]
-        out += 0.5
-        return np.clip(np.floor(out, out=out), 0, 255).astype(np.uint8)
+            out += np.multiply(np.take(acc, ix[t], axis=1, out=cols), wx[t], out=cols)
+        return np.clip(np.floor(out + 0.5), 0, 255).astype(np.uint8)
 
     def frame(self, image: np.ndarray) -> Frame:
         """The decoder's image (read-only, its size checked there) as the model-size Frame; built here, so
