@@ -8,6 +8,9 @@ the defaults filled in, a warning naming what the robot should add. :func:`check
 camera with the camera a route was taught with and the camera a model was trained on, and raises
 :class:`CameraMismatchError` with a one-line message naming the first difference; :func:`check_robot_fits`
 adds the limits and the control step (:class:`RobotMismatchError`, of which a camera mismatch is one kind).
+A camera need not be the model's size: :func:`fit_robot` plans how its frames become the model's input
+(runtime.resample: centre crop, narrowed to the widest field of view the model saw, resampled) and compares the
+camera the model then sees.
 """
 
 from __future__ import annotations

@@ -96,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--model", default=str(ROOT / "models" / "velocitynet.onnx"))
     parser.add_argument("--sizes", nargs="+", default=list(SIZES))
     parser.add_argument("--house", default="house")
-    parser.add_argument("--route-seeds", nargs="+", type=int, default=[100, 101, 102])
+    parser.add_argument("--route-seeds", nargs="*", type=int, default=[100, 101, 102])
     parser.add_argument("--routes", nargs="*", default=[], help="ROUTE.json files besides the generated ones")
     parser.add_argument(
         "--seeds", nargs="+", type=int, default=[1], help="the repeat's actuation-noise seeds"
