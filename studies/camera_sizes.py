@@ -4,9 +4,11 @@ frame next to inference, from the same runs.
 
 Each size is a simulated camera served over ZeroMQ (`vtr sim serve --size WxH --fov F` in-process: a
 ``ServerThread``), taught with `vtr teach --model` and repeated with `vtr repeat`, both through the CLI's own
-functions; the field of view is chosen so that the centre crop of the model's aspect sees what the shipped
-model was trained on (a 4:3 camera of 106.26 deg: its square centre sees 90 deg), so sizes differ only in
-pixels. Routes: the generator's, in the paper-style house (dev seeds 100-199 only).
+functions (the teach's client waits as long as the repeat's, 5 s: the server renders in this process, and a
+large frame on a loaded machine may take longer than a robot's reply); the field of view is chosen so that
+the centre crop of the model's aspect sees what the shipped model was trained on (a 4:3 camera of 106.26 deg:
+its square centre sees 90 deg), so sizes differ only in pixels. Routes: the generator's, in the paper-style
+house (dev seeds 100-199 only).
 
     python -m studies.camera_sizes --route-seeds 100 101 102 --seeds 1 2 --json out/camera_sizes.json
 """
@@ -39,11 +41,12 @@ def run_one(
 ) -> dict[str, Any]:
     """Teach ``script`` and repeat it once on a ``size`` camera; the summary with the path error added."""
     from evaluation.metrics import mean_cross_track_error
+    from vtr.runtime.client import SimClient
     from vtr.runtime.daemon import RepeatRunConfig
     from vtr.runtime.daemon import run as repeat
     from vtr.runtime.route import Route
-    from vtr.runtime.teach import TeachRunConfig
-    from vtr.runtime.teach import run as teach
+    from vtr.runtime.route_script import load_route_script
+    from vtr.runtime.teach import TeachConfig, model_meta, teach
     from vtr.sim2d import SimConfig, Simulator
     from vtr.sim2d.config import camera_config
     from vtr.sim2d.server import ServerConfig, ServerThread
@@ -52,8 +55,11 @@ def run_one(
     sim = Simulator(SimConfig(camera=camera_config(w, h, (fov_for(w, h), 0.3)), noise=noise, house=house))
     route_path, log = work / f"{size}_{script.stem}.npz", work / f"{size}_{script.stem}_{seed}.jsonl"
     with ServerThread(sim, ServerConfig(bind="tcp://127.0.0.1:*", scan=False)) as server:
-        if not route_path.exists():
-            teach(TeachRunConfig(sim=server.endpoint, route=str(script), out=str(route_path), model=model))
+        if not route_path.exists():  # the teach's own client, with the repeat's patience (below)
+            with SimClient(server.endpoint, timeout_s=5.0) as client:
+                teach(client, load_route_script(str(script)), TeachConfig(), model_meta(model)).save(
+                    route_path
+                )
         # the server renders in this process: a large frame under load may take longer than a robot's reply
         cfg = RepeatRunConfig(server.endpoint, model, str(route_path), str(log), timeout_s=5.0, seed=seed)
         summary = repeat(cfg).to_dict()
