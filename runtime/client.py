@@ -317,17 +317,22 @@ class SimClient:
         on mapped to the model's input (runtime.resample): once, here, where frames enter."""
         self.mapping, self.expect_shape = mapping, mapping.source
 
-    def _observation(self, reply: Reply) -> Observation:
-        """The decoded reply as an observation; its frame is the decoder's image (checked there: the trust
-        boundary), mapped to the model's input when :meth:`map_frames` set a mapping, made a :class:`Frame`
-        here and never checked again."""
-        assert reply.image is not None and reply.stamp is not None
+    def _mapped_observation(self, reply: Reply) -> Observation:
+        """:meth:`_observation` with this client's mapping, its time in ``last_timing_ms["resample"]``."""
         if self.mapping is None or self.mapping.identity:
-            frame = Frame.decoded(reply.image)
-        else:
-            t0 = time.perf_counter()
-            frame = self.mapping.frame(reply.image)
-            self.last_timing_ms["resample"] = (time.perf_counter() - t0) * 1e3
+            return self._observation(reply)
+        t0 = time.perf_counter()
+        obs = self._observation(reply, self.mapping)
+        self.last_timing_ms["resample"] = (time.perf_counter() - t0) * 1e3
+        return obs
+
+    @staticmethod
+    def _observation(reply: Reply, mapping: CameraMapping | None = None) -> Observation:
+        """The decoded reply as an observation; its frame is the decoder's image (checked there: the trust
+        boundary), mapped to the model's input by ``mapping`` (:meth:`map_frames`), made a :class:`Frame` here
+        and never checked again."""
+        assert reply.image is not None and reply.stamp is not None
+        frame = Frame.decoded(reply.image) if mapping is None else mapping.frame(reply.image)
         return Observation.of_frame(
             frame,
             reply.stamp,
@@ -352,13 +357,15 @@ class SimClient:
         return self.hello_info
 
     def reset(self, pose: tuple[float, float, float] | None = None, seed: int | None = None) -> Observation:
-        return self._observation(self._exchange("reset", pose=pose, seed=seed))
+        return self._mapped_observation(self._exchange("reset", pose=pose, seed=seed))
 
     def observe(self) -> Observation:
-        return self._observation(self._exchange("observe"))
+        return self._mapped_observation(self._exchange("observe"))
 
     def step(self, v: float, w: float, duration: float) -> Observation:
-        return self._observation(self._exchange("step", v=float(v), w=float(w), duration=float(duration)))
+        return self._mapped_observation(
+            self._exchange("step", v=float(v), w=float(w), duration=float(duration))
+        )
 
     def stop(self) -> None:
         self._exchange("stop")
