@@ -46,16 +46,17 @@ from vtr.runtime.check_motion import (
     check_watchdog,
     check_zero_step,
 )
-from vtr.runtime.contracts import CAMERA, CONTROL_DT
-from vtr.runtime.hello import hello_warnings, read_hello
+from vtr.runtime.contracts import CONTROL_DT, CameraSpec
+from vtr.runtime.hello import CameraMismatchError, fit_model, hello_warnings, read_hello
+from vtr.runtime.model_meta import ModelMeta
 from vtr.runtime.scan import scan_from_wire
 from vtr.runtime.setting_spec import REQUIRED
 from vtr.runtime.settings import BY_NAME, default
 from vtr.runtime.settings_cli import add_arguments as add_settings
 from vtr.runtime.settings_cli import from_text, resolve
 
-#: Image size (height, width) the shipped model takes.
-MODEL_IMAGE_SIZE = (CAMERA.height, CAMERA.width)
+#: The shipped model's input and camera (its metadata's defaults), which the image check maps the robot's to.
+SHIPPED = ModelMeta()
 
 
 @dataclass
@@ -162,17 +163,24 @@ def check_observe(ctx: Context) -> tuple[str, str]:
 
 
 def check_image(ctx: Context) -> tuple[str, str]:
+    """The image shows something, and how the runtime maps it to the shipped model's input (runtime.resample:
+    the centre crop, the size, the field of view the model then sees), or why that model cannot take it."""
     image = ctx.image
     if image is None:
         raise CheckFailed("no image seen yet")
     if float(image.std()) == 0.0:
         return WARN, "the image is one flat colour: is the camera covered or not streaming?"
-    if image.shape[:2] != MODEL_IMAGE_SIZE:
-        return WARN, (
-            f"{image.shape[1]}x{image.shape[0]}: the shipped model takes 128x128; resize in the bridge "
-            "or train a model for this size"
-        )
-    return PASS, f"{image.shape[1]}x{image.shape[0]} rgb8, mean {image.mean():.0f}, std {image.std():.0f}"
+    height, width = image.shape[:2]
+    text = f"{width}x{height} rgb8, mean {image.mean():.0f}, std {image.std():.0f}"
+    announced = ctx.hello is not None and "camera" not in ctx.hello_problems
+    camera = ctx.hello.camera if announced else CameraSpec(width, height, None, None)  # type: ignore[union-attr]
+    try:
+        mapping, _ = fit_model(camera, SHIPPED)
+    except (CameraMismatchError, ValueError) as exc:
+        return WARN, f"{text}; the shipped model cannot take this camera: {exc}"
+    if mapping.identity:
+        return PASS, f"{text}, the shipped model's input as it is"
+    return PASS, f"{text}; for the shipped model: {mapping.narrowing() or mapping.describe()}"
 
 
 def check_scan(ctx: Context) -> tuple[str, str]:

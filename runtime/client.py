@@ -40,6 +40,7 @@ from vtr.runtime.address import check_endpoint
 from vtr.runtime.frame import Frame
 from vtr.runtime.hello import Hello, parse_hello
 from vtr.runtime.protocol import BadFrameError, Limits, Reply
+from vtr.runtime.resample import CameraMapping
 from vtr.runtime.robot import Interrupted, LinkLost, MissedReply, Observation, RobotError, RobotRestarted
 
 #: Commands that are safe to send again after a missed reply (they move nothing).
@@ -92,7 +93,10 @@ class SimClient:
         self.last_bad_frame: str | None = None
         #: What the robot announced (set by :meth:`handshake`); its limits check every step before sending.
         self.hello_info: Hello | None = None
-        #: The last exchange's round trip (send to reply received) and validation time, in milliseconds.
+        #: How the robot's frames become the model's input (:meth:`map_frames`); None: used as they come.
+        self.mapping: CameraMapping | None = None
+        #: The last exchange's round trip (send to reply received), validation and (with a mapping that is not
+        #: the identity) resampling time, in milliseconds.
         self.last_timing_ms: dict[str, float] = {}
         self._last_stamp: float | None = None
         self._last_stamp_wall = 0.0
@@ -308,13 +312,29 @@ class SimClient:
                 )
         self._last_stamp, self._last_stamp_wall = reply.stamp, now
 
+    def map_frames(self, mapping: CameraMapping) -> None:
+        """From now on expect images of the mapping's source size (the camera hello announced) and hand them
+        on mapped to the model's input (runtime.resample): once, here, where frames enter."""
+        self.mapping, self.expect_shape = mapping, mapping.source
+
+    def _mapped_observation(self, reply: Reply) -> Observation:
+        """:meth:`_observation` with this client's mapping, its time in ``last_timing_ms["resample"]``."""
+        if self.mapping is None or self.mapping.identity:
+            return self._observation(reply)
+        t0 = time.perf_counter()
+        obs = self._observation(reply, self.mapping)
+        self.last_timing_ms["resample"] = (time.perf_counter() - t0) * 1e3
+        return obs
+
     @staticmethod
-    def _observation(reply: Reply) -> Observation:
+    def _observation(reply: Reply, mapping: CameraMapping | None = None) -> Observation:
         """The decoded reply as an observation; its frame is the decoder's image (checked there: the trust
-        boundary), made a :class:`Frame` here and never checked again."""
+        boundary), mapped to the model's input by ``mapping`` (:meth:`map_frames`), made a :class:`Frame` here
+        and never checked again."""
         assert reply.image is not None and reply.stamp is not None
+        frame = Frame.decoded(reply.image) if mapping is None else mapping.frame(reply.image)
         return Observation.of_frame(
-            Frame.decoded(reply.image),
+            frame,
             reply.stamp,
             pose=reply.pose,
             collided=reply.collided,
@@ -337,13 +357,15 @@ class SimClient:
         return self.hello_info
 
     def reset(self, pose: tuple[float, float, float] | None = None, seed: int | None = None) -> Observation:
-        return self._observation(self._exchange("reset", pose=pose, seed=seed))
+        return self._mapped_observation(self._exchange("reset", pose=pose, seed=seed))
 
     def observe(self) -> Observation:
-        return self._observation(self._exchange("observe"))
+        return self._mapped_observation(self._exchange("observe"))
 
     def step(self, v: float, w: float, duration: float) -> Observation:
-        return self._observation(self._exchange("step", v=float(v), w=float(w), duration=float(duration)))
+        return self._mapped_observation(
+            self._exchange("step", v=float(v), w=float(w), duration=float(duration))
+        )
 
     def stop(self) -> None:
         self._exchange("stop")

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from vtr.runtime.address import check_endpoint
-from vtr.runtime.hello import accept_hello, check_robot_fits, require_known_fov
+from vtr.runtime.hello import accept_hello, fit_robot, mapping_notes, require_known_fov
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus, StepRecord, Summary
 from vtr.runtime.robot import RobotError
 from vtr.runtime.run_log import LogWriteError
@@ -111,7 +111,9 @@ def run(cfg: RepeatRunConfig, stop_event: threading.Event | None = None) -> Summ
         hello, warnings = accept_hello(client.handshake(), route.dt)
         for warning in warnings:
             print(f"vtr repeat: warning: {warning}", file=sys.stderr)
-        for note in check_robot_fits(hello, route.camera, policy.meta):
+        mapping, notes = fit_robot(hello, route.camera, policy.meta)
+        client.map_frames(mapping)  # the camera's frames become the model's input where they enter
+        for note in mapping_notes(mapping) + notes:
             print(f"vtr repeat: note: {note}", file=sys.stderr)
         repeat = motion_for_robot(cfg.repeat, cfg.motion, hello.mode)
         if cfg.start == "route":

@@ -8,6 +8,9 @@ the defaults filled in, a warning naming what the robot should add. :func:`check
 camera with the camera a route was taught with and the camera a model was trained on, and raises
 :class:`CameraMismatchError` with a one-line message naming the first difference; :func:`check_robot_fits`
 adds the limits and the control step (:class:`RobotMismatchError`, of which a camera mismatch is one kind).
+A camera need not be the model's size: :func:`fit_robot` plans how its frames become the model's input
+(runtime.resample: centre crop, narrowed to the widest field of view the model saw, resampled) and compares the
+camera the model then sees.
 """
 
 from __future__ import annotations
@@ -17,13 +20,17 @@ from dataclasses import dataclass, field, replace
 from typing import Any, TypeVar
 
 from vtr.runtime.contracts import CAMERA, CameraSpec
+from vtr.runtime.model_meta import FINE_TUNE_HINT
 from vtr.runtime.protocol import MAX_IMAGE_SIDE, VERSION, BadFrameError, Limits, Reply, integer, number
+from vtr.runtime.resample import CameraMapping, plan
 from vtr.runtime.scan import ScanSpec, spec_from_dict
 
 #: Cameras whose horizontal fields of view differ by more than this (degrees) see different images.
 FOV_TOLERANCE_DEG = 2.0
 #: Cameras mounted at heights differing by more than this (metres) see different images.
 HEIGHT_TOLERANCE_M = 0.02
+#: What to do when the robot's camera does not fit the route's or the model's (a refusal's last words).
+_FIX = {"route": "teach the route again with this camera", "model": FINE_TUNE_HINT}
 #: Clock modes a robot may announce.
 MODES = ("lockstep", "realtime")
 #: Fields hello gained within version 1 after its first text, each optional, and what leaving it out means
@@ -237,14 +244,15 @@ def accept_hello(hello: Hello, dt: float) -> tuple[Hello, list[str]]:
 
 
 def check_camera(
-    robot: CameraSpec, route: CameraSpec | None = None, model: CameraSpec | None = None
+    robot: CameraSpec, route: CameraSpec | None = None, model: CameraSpec | None = None, via: str = ""
 ) -> list[str]:
     """Raise CameraMismatchError when robot, route and model cameras differ; returns notes on what could not
-    be compared (a field one side does not record)."""
-    return _compare(robot, "route", route) + _compare(robot, "model", model)
+    be compared (a field one side does not record). ``robot`` is the camera the model sees (after the mapping
+    ``via`` describes, runtime.resample)."""
+    return _compare(robot, "route", route, via) + _compare(robot, "model", model, via)
 
 
-def _compare(robot: CameraSpec, name: str, other: CameraSpec | None) -> list[str]:
+def _compare(robot: CameraSpec, name: str, other: CameraSpec | None, via: str = "") -> list[str]:
     """check_camera for one of route and model."""
     if other is None:
         return [f"the {name} records no camera; not compared"]
@@ -258,8 +266,8 @@ def _compare(robot: CameraSpec, name: str, other: CameraSpec | None) -> list[str
             notes.append(f"{label} of the robot or the {name} unknown; not compared")
         elif abs(a - b) > tol:
             raise CameraMismatchError(
-                f"the robot's {label} is {a:g}{unit} but the {name} was made with {b:g}{unit} "
-                f"(tolerance {tol:g}{unit})"
+                f"the robot's {label} is {a:.4g}{unit}{via} but the {name} was made with {b:.4g}{unit} "
+                f"(tolerance {tol:g}{unit}); {_FIX[name]}"
             )
     return notes
 
@@ -290,12 +298,10 @@ def route_camera(camera: Any) -> CameraSpec | None:
     return camera_from_dict(camera, CameraMismatchError, "route camera.")
 
 
-def check_camera_range(robot: CameraSpec, model: Any) -> list[str]:
+def check_camera_range(robot: CameraSpec, model: Any, via: str = "") -> list[str]:
     """A model trained across cameras (``model.camera_range``, runtime.model_meta) takes a robot whose field
     of view and height lie inside that range (widened by the tolerances above); outside it, or with an image
     size it was not made for, CameraMismatchError in one line naming the range and the fine-tune command."""
-    from vtr.runtime.model_meta import FINE_TUNE_HINT
-
     rng = model.camera_range
     _check_size(robot, "model", model.image_width, model.image_height)
     notes = []
@@ -307,23 +313,48 @@ def check_camera_range(robot: CameraSpec, model: Any) -> list[str]:
             notes.append(f"{label} of the robot unknown; not compared with the model's range ({rng})")
         elif not lo - tol <= value <= hi + tol:
             raise CameraMismatchError(
-                f"the robot's {label} is {value:g}{unit}, outside the range the model was trained on ({rng}); "
+                f"the robot's {label} is {value:.4g}{unit}{via}, outside the range the model was trained on ({rng}); "
                 f"{FINE_TUNE_HINT}"
             )
     return notes
 
 
-def check_robot_fits(hello: Hello, route_cam: dict[str, Any] | None, model: Any) -> list[str]:
-    """Refuse (RobotMismatchError, one line) a robot whose camera differs from the route's or the model's
-    (``model``: a ModelMeta; then a CameraMismatchError; a model trained across cameras takes any camera
-    inside its range, check_camera_range), whose limits are below the model's, or whose steps cannot last
-    the model's dt. Returns notes on what could not be compared."""
+def widest_fov(model: Any) -> float | None:
+    """The widest horizontal field of view (deg) the model was trained on: its range's, else its camera's."""
+    rng = getattr(model, "camera_range", None)
+    return rng.fov_deg[1] if rng is not None else model.camera_fov_deg
+
+
+def fit_camera(robot: CameraSpec, model: Any) -> CameraMapping:
+    """How the robot's frames become the model's input (runtime.resample): the centre crop of the model's
+    aspect, narrowed to the model's widest field of view when the camera is wider (beyond the tolerance), then
+    resampled to the model's size. `vtr teach` and `vtr repeat` both map by it."""
+    return plan(robot, (model.image_height, model.image_width), widest_fov(model), FOV_TOLERANCE_DEG)
+
+
+def fit_model(robot: CameraSpec, model: Any) -> tuple[CameraMapping, list[str]]:
+    """The mapping of the robot's camera to the model's input (:func:`fit_camera`) and the check that the
+    camera the model then sees is one it was trained on (its range, check_camera_range, or its one camera
+    within the tolerances); CameraMismatchError in one line naming the numbers and the fine-tune command."""
+    mapping = fit_camera(robot, model)
+    seen, via = mapping.camera(robot.height_m), _via(mapping)
     if getattr(model, "camera_range", None) is not None:
-        notes = _compare(hello.camera, "route", route_camera(route_cam)) + check_camera_range(
-            hello.camera, model
-        )
-    else:
-        notes = check_camera(hello.camera, route_camera(route_cam), model.camera)
+        return mapping, check_camera_range(seen, model, via)
+    return mapping, _compare(seen, "model", model.camera, via)
+
+
+def _via(mapping: CameraMapping) -> str:
+    return "" if mapping.identity else f" (its {mapping.describe(seen=False)})"
+
+
+def fit_robot(hello: Hello, route_cam: dict[str, Any] | None, model: Any) -> tuple[CameraMapping, list[str]]:
+    """Refuse (RobotMismatchError, one line) a robot whose camera, as the model sees it through
+    :func:`fit_camera`, differs from the route's or is not the model's (:func:`fit_model`; ``model``: a
+    ModelMeta), whose limits are below the model's, or whose steps cannot last the model's dt. Returns the
+    mapping and notes on what could not be compared."""
+    mapping, notes = fit_model(hello.camera, model)
+    seen = mapping.camera(hello.camera.height_m)
+    notes = _compare(seen, "route", route_camera(route_cam), _via(mapping)) + notes
     for name, unit in (("v_max", "m/s"), ("w_max", "rad/s")):
         mine, robots = getattr(model, name), getattr(hello.limits, name)
         if mine > robots + 1e-9:
@@ -336,4 +367,17 @@ def check_robot_fits(hello: Hello, route_cam: dict[str, Any] | None, model: Any)
             f"the model's control step is {model.dt:g} s but the robot runs steps of "
             f"{dt:g}..{hello.limits.max_duration:g} s"
         )
-    return notes
+    return mapping, notes
+
+
+def mapping_notes(mapping: CameraMapping) -> list[str]:
+    """The start-up line of a camera that is not the model's input: how its frames are mapped, and that the
+    crop narrows a camera wider than the model saw."""
+    if mapping.identity:
+        return []
+    return [mapping.narrowing() or f"the camera's frames are resampled for the model: {mapping.describe()}"]
+
+
+def check_robot_fits(hello: Hello, route_cam: dict[str, Any] | None, model: Any) -> list[str]:
+    """:func:`fit_robot`'s notes (the mapping left out)."""
+    return fit_robot(hello, route_cam, model)[1]

@@ -130,7 +130,8 @@ class OnnxPolicy:
         if shape != self.image_shape:
             raise ModelMismatchError(
                 f"route images are {shape[0]}x{shape[1]} but the model takes "
-                f"{self.image_shape[0]}x{self.image_shape[1]}; teach the route with the model's camera resolution"
+                f"{self.image_shape[0]}x{self.image_shape[1]}; teach it with `vtr teach --model MODEL`, which maps the "
+                "camera's frames to the model's input"
             )
 
     # ------------------------------------------------------------------ stages

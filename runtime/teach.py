@@ -31,7 +31,7 @@ import numpy as np
 from vtr.runtime.address import EXAMPLE, check_endpoint
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT
-from vtr.runtime.hello import accept_hello
+from vtr.runtime.hello import accept_hello, fit_model, mapping_notes
 from vtr.runtime.kinematics import wrap_angle
 from vtr.runtime.preprocess import image_error
 from vtr.runtime.protocol import Limits, jsonable
@@ -98,11 +98,14 @@ class TeachConfig:
         return dist >= self.min_distance or abs(wrap_angle(obs.pose[2] - last_pose[2])) >= self.min_angle
 
 
-def _robot_info(robot: Any, dt: float) -> dict[str, Any]:
+def _robot_info(robot: Any, dt: float, model: Any = None) -> dict[str, Any]:
     """Camera/map description from the robot, when it offers one (SimClient's hello, LocalRobot.sim.info).
 
     A protocol robot's hello is checked as `vtr repeat` checks it (``runtime.hello.accept_hello``): a broken
-    hello is refused, an older one accepted with a warning naming what it should add."""
+    hello is refused, an older one accepted with a warning naming what it should add. With ``model`` (a
+    ModelMeta) its frames are mapped to the model's input as `vtr repeat` maps them (runtime.hello.fit_model:
+    a camera the model was not trained on is refused), and the route records the camera the model sees, with
+    the robot's own under ``native``."""
     if hasattr(robot, "handshake"):
         hello, warnings = accept_hello(robot.handshake(), dt)
         for warning in warnings:
@@ -110,6 +113,16 @@ def _robot_info(robot: Any, dt: float) -> dict[str, Any]:
         info = dict(hello.info)
         # the hello schema (docs/PROTOCOL.md) puts camera and map at the top level; info is free-form
         info["camera"] = {k: v for k, v in dataclasses.asdict(hello.camera).items() if v is not None}
+        if model is not None:
+            mapping, notes = fit_model(hello.camera, model)
+            robot.map_frames(mapping)
+            for note in mapping_notes(mapping) + notes:
+                print(f"vtr teach: note: {note}", file=sys.stderr)
+            if not mapping.identity:
+                seen = mapping.camera(hello.camera.height_m)
+                native = info["camera"]
+                info["camera"] = {k: v for k, v in dataclasses.asdict(seen).items() if v is not None}
+                info["camera"].update(native=native, crop=[round(c, 3) for c in mapping.crop])
         if hello.map is not None:
             info["map"] = hello.map
         return info
@@ -132,10 +145,13 @@ def _robot_info(robot: Any, dt: float) -> dict[str, Any]:
     return {}
 
 
-def teach(robot: ResettableRobot, script: RouteScript, cfg: TeachConfig | None = None) -> Route:
-    """Drive ``script`` on ``robot`` and return the recorded Route (not yet saved)."""
+def teach(
+    robot: ResettableRobot, script: RouteScript, cfg: TeachConfig | None = None, model: Any = None
+) -> Route:
+    """Drive ``script`` on ``robot`` and return the recorded Route (not yet saved); ``model`` (a ModelMeta):
+    the frames are mapped to its input (``_robot_info``)."""
     cfg = cfg or TeachConfig()
-    info = _robot_info(robot, cfg.dt)
+    info = _robot_info(robot, cfg.dt, model)
     recorder = TeachRecorder(cfg, robot.reset(pose=script.start, seed=cfg.seed))
     for segment in script.segments:
         for _ in range(max(1, round(segment.duration / cfg.dt))):
@@ -154,6 +170,12 @@ class TeachRunConfig:
     sim: str = opt(help=f"simulator endpoint, e.g. {EXAMPLE}")
     route: str = opt(help="ROUTE.json: start pose and (v, w, duration) segments")
     out: str = opt(help="where to write the route (.npz)")
+    model: str | None = opt(
+        None,
+        "the VelocityNet ONNX the route is for: the camera's frames are mapped to its input as `vtr repeat` "
+        "maps them (docs/PROTOCOL.md, 'hello') (default: none, frames kept as the camera gives them)",
+        metavar="PATH",
+    )
     teach: TeachConfig = field(default_factory=TeachConfig)  # spacing and control step
     #: Seconds to wait for hello and reset (a step waits its duration + 0.3 s, then a stop); the settings
     #: (runtime/settings.py) give these two and the robot's address, from a flag or the config file.
@@ -177,6 +199,15 @@ class TeachRunConfig:
 MODES = ("script", "drive", "follow")
 
 
+def model_meta(path: str | None) -> Any:
+    """The ModelMeta of the model a route is taught for (None: no model given)."""
+    if path is None:
+        return None
+    from vtr.runtime.policy import OnnxPolicy
+
+    return OnnxPolicy(path).meta
+
+
 def run(cfg: TeachRunConfig) -> Route | None:
     """Teach and save; None when a drive was aborted (nothing saved)."""
     from vtr.runtime.client import SimClient
@@ -186,8 +217,9 @@ def run(cfg: TeachRunConfig) -> Route | None:
         return run_driven(cfg)
     script = load_route_script(cfg.route)
     # a silent robot gets its stop 0.3 s after a step's duration, whatever --timeout allows hello/reset
+    model = model_meta(cfg.model)
     with SimClient(cfg.sim, retries=cfg.retries, setup_timeout_s=cfg.timeout_s) as client:
-        route = teach(client, script, cfg.teach)
+        route = teach(client, script, cfg.teach, model)
     route.save(cfg.out)
     return route
 
@@ -205,8 +237,9 @@ def run_driven(
         fd = -1
     if fd < 0 or not os.isatty(fd):
         raise ValueError(f"--{cfg.mode} reads keys from a terminal, and stdin is not one")
+    model = model_meta(cfg.model)
     with SimClient(cfg.sim, retries=cfg.retries, setup_timeout_s=cfg.timeout_s) as client:
-        info = _robot_info(client, cfg.teach.dt)
+        info = _robot_info(client, cfg.teach.dt, model)
         hello = client.hello_info
         first = client.observe()
         if cfg.mode == "follow" and (hello is None or hello.twist is None) and first.pose is None:

@@ -8,10 +8,14 @@ decodes it, so a small file declaring a huge picture (a decompression bomb) is n
 
 from __future__ import annotations
 
+import functools
 import io
 from typing import Any
 
 import numpy as np
+
+from vtr.runtime.contracts import CameraSpec
+from vtr.runtime.resample import CameraMapping, plan
 
 #: Largest width or height of a camera image read from a bag, pixels (a 4096x4096 rgb8 image is 48 MiB).
 MAX_IMAGE_SIDE = 4096
@@ -115,16 +119,13 @@ def decode_image(msg: Any, msgtype: str) -> np.ndarray:
 
 
 def square_resize(image: np.ndarray, size: int) -> np.ndarray:
-    """Centre-crop to a square, then resize to size x size (area averaging when OpenCV is there)."""
+    """Centre-crop to a square, then resize to size x size exactly as the runtime maps a robot's frames
+    (runtime/resample.py: area averaging, bilinear upwards), so a route taught from a bag is what a repeat
+    on that camera sees."""
     h, w = image.shape[:2]
-    side = min(h, w)
-    image = image[(h - side) // 2 : (h - side) // 2 + side, (w - side) // 2 : (w - side) // 2 + side]
-    if side == size:
-        return np.ascontiguousarray(image)
-    try:
-        import cv2
+    return np.ascontiguousarray(_square_mapping(w, h, size)(image))
 
-        return cv2.resize(image, (size, size), interpolation=cv2.INTER_AREA)
-    except ImportError:
-        idx = ((np.arange(size) + 0.5) * side / size).astype(int)  # nearest neighbour, numpy only
-        return np.ascontiguousarray(image[idx][:, idx])
+
+@functools.lru_cache(maxsize=8)
+def _square_mapping(width: int, height: int, size: int) -> CameraMapping:
+    return plan(CameraSpec(width, height, None, None), (size, size))

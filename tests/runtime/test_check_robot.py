@@ -143,3 +143,37 @@ def test_a_bridge_written_for_the_first_protocol_text_passes_with_warnings(simul
     assert (
         "add them" in fields and "'camera.camera_height', a deprecated name: say 'camera.height_m'" in fields
     )
+
+
+@pytest.mark.parametrize(
+    ("size", "fov", "status", "says"),
+    [
+        (
+            (160, 120),
+            106.26,
+            PASS,
+            "for the shipped model: camera 160x120 of 106.3 deg: the centre 120x120 -> ",
+        ),
+        (
+            (640, 480),
+            140.0,
+            PASS,
+            "cropped further (camera 640x480 of 140 deg: the centre 232.9x232.9 -> 128x128, fov 90 deg",
+        ),
+        (
+            (160, 120),
+            90.0,
+            WARN,
+            "the shipped model cannot take this camera: the robot's field of view is 73.74",
+        ),
+    ],
+)
+def test_the_image_check_reports_how_the_camera_maps_to_the_shipped_model(size, fov, status, says) -> None:
+    from vtr.sim2d.config import camera_config
+
+    sim = Simulator(SimConfig(camera=camera_config(*size, (fov, 0.3))))
+    sim.reset()
+    with ServerThread(sim, ServerConfig(bind="tcp://127.0.0.1:*", scan=False)) as server:
+        found = {r.name: r for r in run_checks(server.endpoint, timeout_s=2.0)}
+    image = found["image"]
+    assert image.status == status and says in image.detail, image.detail

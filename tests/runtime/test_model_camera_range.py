@@ -7,7 +7,7 @@ import pytest
 
 from vtr.export.provenance import camera_of
 from vtr.runtime.contracts import CameraSpec
-from vtr.runtime.hello import CameraMismatchError, Hello, check_camera_range, check_robot_fits
+from vtr.runtime.hello import CameraMismatchError, Hello, check_camera_range, check_robot_fits, fit_robot
 from vtr.runtime.model_meta import CameraRange, ModelMeta
 from vtr.runtime.protocol import Limits
 
@@ -64,8 +64,11 @@ def test_a_model_of_one_camera_keeps_the_two_degree_rule():
     meta = ModelMeta()  # 90 deg, 0.3 m, no range
     assert meta.camera_range is None
     check_robot_fits(_hello(91.5, 0.31), None, meta)
-    with pytest.raises(CameraMismatchError, match="tolerance 2 deg"):
-        check_robot_fits(_hello(93.0, 0.3), None, meta)
+    with pytest.raises(CameraMismatchError, match="tolerance 2 deg") as err:
+        check_robot_fits(_hello(87.0, 0.3), None, meta)
+    assert "vtr train velocitynet" in str(err.value)  # the fine-tune command
+    mapping, _ = fit_robot(_hello(93.0, 0.3), None, meta)  # wider: cropped to what the model saw
+    assert mapping.narrowed and mapping.seen_fov_deg == pytest.approx(90.0)
 
 
 def test_unknown_robot_camera_and_wrong_size():
