@@ -19,7 +19,11 @@ Each image:
    distance is over the lost bound) and the match is not improving: LOST, with the evidence;
 6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
    ahead, rounded up to a subgoal), with the taught command at the estimated position as feed-forward
-   (``Decision.prior``, blended by the repeat loop) and no translation where the teach turned in place.
+   (``Decision.prior``, blended by the repeat loop) and no translation where the teach turned in place;
+   where the teach drove forward, a turn back toward the taught path (``Decision.turn``, added by the
+   repeat loop) from the side offset the floor shows (``runtime.side_offset``: ``side_gain`` rad/s per
+   metre beside the path per m/s of the taught speed, at most ``SIDE_TURN_MAX``). VelocityNet lines the
+   view up with the subgoal's, which closes a side offset only over a few wall distances of travel.
 
 The subgoal steered to changes because the estimate moved (ADVANCE events when it moved past subgoals, a
 JUMP back when the views placed the robot behind); never by a timeout, a plateau or a jump on a stall.
@@ -40,6 +44,7 @@ from vtr.runtime.floor_view import Camera
 from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
 from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionDetector, ObstructionVerdict
+from vtr.runtime.side_offset import SideEstimate, SideOffset
 from vtr.runtime.thresholds import check_subgoals, route_views
 
 if TYPE_CHECKING:
@@ -47,6 +52,8 @@ if TYPE_CHECKING:
 
 #: Commands under these (m/s, rad/s) count as the policy standing still at the end of the route.
 IDLE_SPEED, IDLE_TURN = 0.01, 0.02
+#: The most the side correction turns (rad/s): VelocityNet keeps the rest of the turn range.
+SIDE_TURN_MAX = 0.5
 
 
 class Follower:
@@ -84,6 +91,9 @@ class Follower:
         self.obstruction = (
             obstruction_detector(subgoals, travel_poses, camera) if self.cfg.obstruction else None
         )
+        self.side = side_offset(subgoals, travel_poses, camera) if self.cfg.side_gain > 0 else None
+        #: Where the floor put the robot beside the taught path on the last command (None: it did not tell).
+        self.beside: SideEstimate | None = None
         #: The obstruction detector's verdict on the last view (None without a detector).
         self.obstructed: ObstructionVerdict | None = None
         self._forward = False  # commanded forward since the last view
@@ -214,7 +224,22 @@ class Follower:
             note=f"at {est.position:.2f} (confidence {est.confidence:.2f})",
             v_limit=0.0 if hold else math.inf,
             prior=prior,
+            turn=0.0 if hold or last == 0 else self._side_turn(image, est.position, gap),
         )
+
+    def _side_turn(self, image: Frame, position: float, gap: int) -> float:
+        """The turn (rad/s) toward the taught path that the floor's side offset asks for: ``side_gain`` per
+        metre beside it per m/s of the taught speed there (none where the teach did not drive forward, or the
+        floor does not tell; ``runtime.side_offset``)."""
+        speed = float(self.commands[gap, 0])
+        self.beside = None
+        if self.side is None or speed <= FORWARD_SPEED:
+            return 0.0
+        self.beside = self.side.estimate(image, position)
+        if self.beside is None:
+            return 0.0
+        turn = -self.cfg.side_gain * speed * self.beside.dy
+        return max(-SIDE_TURN_MAX, min(SIDE_TURN_MAX, turn))
 
     def _blocked(self, image: np.ndarray, est: Estimate) -> Decision | None:
         """BLOCKED while the obstruction detector sees the way ahead blocked (None: go on)."""
@@ -276,6 +301,16 @@ def obstruction_detector(
     try:
         return ObstructionDetector(subgoals, poses, camera=camera)
     except ValueError:  # no tile of these views sees the path region (or they are no multiple of a tile)
+        return None
+
+
+def side_offset(subgoals: np.ndarray, poses: np.ndarray | None, camera: Camera | None) -> SideOffset | None:
+    """The floor registration of a route's views at its taught (travel) poses, or None where it cannot work."""
+    if poses is None or not np.isfinite(poses).all() or subgoals.dtype != np.uint8:
+        return None
+    try:
+        return SideOffset(subgoals, poses, camera or Camera())
+    except ValueError:  # views too small to see enough floor rows
         return None
 
 

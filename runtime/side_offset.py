@@ -1,0 +1,134 @@
+"""How far beside the taught path the robot is: the floor seen now against the floor the teach saw.
+
+A pinhole camera above a flat floor sees each image row below the horizon at a known distance ``X`` ahead
+(``runtime.floor_view``). A robot ``dy`` to the left of the taught pose and turned ``psi`` to the left sees
+every floor row shifted sideways by ``f (psi + dy / X)`` pixels: the far rows tell the heading, the near rows
+the side offset. Each floor row of the current view is compared with the same row of the taught view (warped
+by the floor plane to the taught pose at the localiser's estimate, between two subgoals) under whole-pixel
+shifts, the best shift refined to a fraction, and a line through shift against ``1 / X`` gives ``(dy, psi)``.
+
+Why the follower needs it: VelocityNet turns until the view lines up with the subgoal's, and the walls it
+lines up have no known distance, so a view ``dy`` to the side looks like one turned by ``dy / D`` for walls
+``D`` away. The policy alone therefore closes a side offset only over a few times ``D`` of travel (dev routes,
+a start 10 cm to the side: still 5 cm off after 1.5 m). The floor's rows, whose distances are known, tell the
+two apart. Rows are normalised per channel (a change of light drops out) and a row whose best shift is not
+clearly better than the others (a plain or re-coloured floor, furniture standing on the row) is left out; with
+too few rows left there is no estimate, and the follower steers by VelocityNet alone.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from vtr.runtime.floor_view import Camera, FloorTiles, taught_offset
+from vtr.runtime.matching import MatchConfig, Matcher
+
+
+@dataclass(frozen=True)
+class SideConfig:
+    """The floor rows used and how sure a row's shift must be (defaults chosen on dev routes 100-105)."""
+
+    #: Floor rows from this near to this far ahead (m): nearer rows are cut by the image's bottom edge.
+    near_m: float = 0.35
+    far_m: float = 2.5
+    #: Largest shift tried, in pooled pixels each way (10 cm at 0.35 m ahead is 9 of them).
+    max_shift: int = 12
+    #: A row counts when its best score (mean absolute difference of normalised values: 0 the same row,
+    #: about 1.1 unrelated ones) is under ``match`` and its median over the shifts ``distinct`` above it.
+    match: float = 0.6
+    distinct: float = 0.1
+    #: ... and an estimate needs this many such rows.
+    min_rows: int = 6
+    #: Rows whose shift is this far (pooled pixels) off the fitted line are dropped and the line fitted again.
+    outlier_px: float = 1.5
+
+
+@dataclass(frozen=True)
+class SideEstimate:
+    """The robot's offset from the taught pose at the estimate: ``dy`` metres to the left, ``psi`` radians
+    turned to the left; ``rows``: the floor rows that agreed."""
+
+    dy: float
+    psi: float
+    rows: int
+
+
+class SideOffset:
+    """Register views against the taught views' floor (see the module docstring)."""
+
+    def __init__(
+        self, subgoals: np.ndarray, poses: np.ndarray, camera: Camera, cfg: SideConfig | None = None
+    ) -> None:
+        self.cfg = cfg = cfg or SideConfig()
+        self.matcher = Matcher(MatchConfig())
+        h, w = subgoals.shape[1:3]
+        self.camera = camera = Camera(h, w, camera.fov_deg, camera.height_m)
+        ds = self.matcher.cfg.downsample
+        tiles = np.arange((h // ds // self.matcher.cfg.patch) * (w // ds // self.matcher.cfg.patch))
+        self.floor = FloorTiles(camera, tiles[len(tiles) // 2 :], self.matcher)  # the band from the horizon
+        top = self.floor.top
+        down, _ = camera.rays(np.arange(top, h // ds) * ds + ds / 2, np.zeros(1))
+        ahead = np.where(down > 0, camera.height_m / np.where(down > 0, down, 1.0), np.inf)
+        self.rows = np.flatnonzero((ahead >= cfg.near_m) & (ahead <= cfg.far_m))
+        if len(self.rows) < cfg.min_rows:
+            raise ValueError(f"a {h}x{w} camera sees too few floor rows {cfg.near_m}-{cfg.far_m} m ahead")
+        self.focal = camera.focal_px / ds  # in pooled pixels
+        self._design = np.stack([np.ones(len(self.rows)), 1.0 / ahead[self.rows]], axis=1)
+        self.subgoals, self.poses = subgoals, np.asarray(poses, dtype=np.float64)
+        self._bands: dict[int, np.ndarray] = {}
+
+    def _band(self, k: int) -> np.ndarray:
+        if k not in self._bands:
+            self._bands[k] = self.floor.pool(self.subgoals[k])
+        return self._bands[k]
+
+    def _rows(self, band: np.ndarray) -> np.ndarray:
+        """The kept floor rows of a pooled band, each row and channel at zero mean and unit spread."""
+        b = band[:, self.rows]
+        b = b - b.mean(axis=2, keepdims=True)
+        return b / (
+            b.std(axis=2, keepdims=True) + self.matcher.cfg.std_floor * self.matcher.cfg.downsample**2
+        )
+
+    def estimate(self, view: np.ndarray, position: float) -> SideEstimate | None:
+        """The offset of ``view`` (a frame or an image) from the taught pose at route ``position`` (subgoal
+        units), or None where the floor does not tell (see the module docstring)."""
+        k, offset = taught_offset(self.poses, position)
+        taught = self._band(k)
+        if any(offset):  # the taught pose at the position, from subgoal k's view
+            taught = self.floor.warp(taught, offset).reshape(taught.shape)
+        cur, ref = self._rows(self.floor.pool(view)), self._rows(taught)
+        cols, s_max = cur.shape[2], self.cfg.max_shift
+        table = np.empty((2 * s_max + 1, len(self.rows)))
+        for i, s in enumerate(
+            range(-s_max, s_max + 1)
+        ):  # the current row's column c against the taught c - s
+            a, b = (cur[:, :, s:], ref[:, :, : cols - s]) if s >= 0 else (cur[:, :, :s], ref[:, :, -s:])
+            table[i] = np.abs(a - b).mean(axis=(0, 2))
+        best = table.argmin(axis=0)
+        at = np.clip(best, 1, 2 * s_max - 1)
+        r = np.arange(len(self.rows))
+        lo, mid, hi = table[at - 1, r], table[at, r], table[at + 1, r]
+        curve = lo - 2 * mid + hi
+        frac = np.where(curve > 1e-9, 0.5 * (lo - hi) / np.where(curve > 1e-9, curve, 1.0), 0.0)
+        shift = at - s_max + np.clip(frac, -0.5, 0.5)
+        quality = np.median(table, axis=0) - table.min(axis=0)
+        ok = (best > 0) & (best < 2 * s_max) & (quality > self.cfg.distinct) & (mid < self.cfg.match)
+        for _ in range(2):  # fit, drop the rows off the line (not floor: furniture, a wall), fit again
+            if np.count_nonzero(ok) < self.cfg.min_rows:
+                return None
+            wts = quality * ok
+            line = np.linalg.lstsq(self._design * wts[:, None], shift * wts, rcond=None)[0]
+            ok &= np.abs(self._design @ line - shift) <= self.cfg.outlier_px
+        if np.count_nonzero(ok) < self.cfg.min_rows:
+            return None
+        psi, dy = line[0] / self.focal, line[1] / self.focal
+        if not (math.isfinite(dy) and math.isfinite(psi)):
+            return None
+        return SideEstimate(float(dy), float(psi), int(np.count_nonzero(ok)))
+
+
+__all__ = ["SideConfig", "SideEstimate", "SideOffset"]
