@@ -22,6 +22,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 
 from vtr.runtime.floor_view import Camera, FloorTiles, taught_offset
 from vtr.runtime.matching import MatchConfig, Matcher
@@ -101,13 +102,13 @@ class SideOffset:
         if any(offset):  # the taught pose at the position, from subgoal k's view
             taught = self.floor.warp(taught, offset).reshape(taught.shape)
         cur, ref = self._rows(self.floor.pool(view)), self._rows(taught)
-        cols, s_max = cur.shape[2], self.cfg.max_shift
-        table = np.empty((2 * s_max + 1, len(self.rows)))
-        for i, s in enumerate(
-            range(-s_max, s_max + 1)
-        ):  # the current row's column c against the taught c - s
-            a, b = (cur[:, :, s:], ref[:, :, : cols - s]) if s >= 0 else (cur[:, :, :s], ref[:, :, -s:])
-            table[i] = np.abs(a - b).mean(axis=(0, 2))
+        s_max = self.cfg.max_shift
+        # the current rows' middle columns against every window of the taught rows: window i is a shift of
+        # s_max - i (the current column c against the taught c - s)
+        middle = cur[:, :, s_max : cur.shape[2] - s_max]
+        windows = sliding_window_view(ref, middle.shape[2], axis=2)  # (3, rows, 2 s_max + 1, columns)
+        diff = np.abs(windows - middle[:, :, None, :])
+        table = diff.sum(axis=(0, 3))[:, ::-1].T / (3 * middle.shape[2])  # (shifts, rows), s from -s_max
         best = table.argmin(axis=0)
         at = np.clip(best, 1, 2 * s_max - 1)
         r = np.arange(len(self.rows))
@@ -121,7 +122,7 @@ class SideOffset:
             if np.count_nonzero(ok) < self.cfg.min_rows:
                 return None
             wts = quality * ok
-            line = np.linalg.lstsq(self._design * wts[:, None], shift * wts, rcond=None)[0]
+            line = _weighted_line(self._design, shift, wts)
             ok &= np.abs(self._design @ line - shift) <= self.cfg.outlier_px
         if np.count_nonzero(ok) < self.cfg.min_rows:
             return None
@@ -129,6 +130,16 @@ class SideOffset:
         if not (math.isfinite(dy) and math.isfinite(psi)):
             return None
         return SideEstimate(float(dy), float(psi), int(np.count_nonzero(ok)))
+
+
+def _weighted_line(design: np.ndarray, y: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """(intercept, slope) of the weighted least-squares line through ``y`` against ``design``'s columns."""
+    a = design * weights[:, None]
+    lhs, rhs = a.T @ design, a.T @ y
+    det = lhs[0, 0] * lhs[1, 1] - lhs[0, 1] * lhs[1, 0]
+    if abs(det) < 1e-12:
+        return np.array([math.nan, math.nan])
+    return np.array([lhs[1, 1] * rhs[0] - lhs[0, 1] * rhs[1], lhs[0, 0] * rhs[1] - lhs[1, 0] * rhs[0]]) / det
 
 
 __all__ = ["SideConfig", "SideEstimate", "SideOffset"]
