@@ -97,6 +97,7 @@ class Follower:
         #: The obstruction detector's verdict on the last view (None without a detector).
         self.obstructed: ObstructionVerdict | None = None
         self._forward = False  # commanded forward since the last view
+        self._speed = 0.0  # the last forward speed commanded (m/s)
         self.index = 0  # the subgoal steered to
         self.status: Action | None = None
         self.estimate: Estimate | None = None
@@ -150,6 +151,7 @@ class Follower:
         """The repeat loop applied (v, w) for ``dt`` seconds: the estimate moves along the route."""
         self._idle = self._idle + 1 if abs(v) < IDLE_SPEED and abs(w) < IDLE_TURN else 0
         self._forward = self._forward or v > FORWARD_SPEED
+        self._speed = v
         self.localiser.predict(v, w, dt)
 
     def relocalise(self) -> None:
@@ -229,9 +231,10 @@ class Follower:
 
     def _side_turn(self, image: Frame, position: float, gap: int) -> float:
         """The turn (rad/s) toward the taught path that the floor's side offset asks for: ``side_gain`` per
-        metre beside it per m/s of the taught speed there (none where the teach did not drive forward, or the
-        floor does not tell; ``runtime.side_offset``)."""
-        speed = float(self.commands[gap, 0])
+        metre beside it per m/s of forward speed (the taught speed there, or the last command's if slower:
+        turning closes no side offset on the spot), none where the teach or the robot did not drive
+        forward, or the floor does not tell (``runtime.side_offset``)."""
+        speed = min(float(self.commands[gap, 0]), self._speed)  # the pace the robot is driving at
         self.beside = None
         if self.side is None or speed <= FORWARD_SPEED:
             return 0.0

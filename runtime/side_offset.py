@@ -32,17 +32,18 @@ from vtr.runtime.matching import MatchConfig, Matcher
 class SideConfig:
     """The floor rows used and how sure a row's shift must be (defaults chosen on dev routes 100-105)."""
 
-    #: Floor rows from this near to this far ahead (m): nearer rows are cut by the image's bottom edge.
+    #: Floor rows from this near to this far ahead (m): nearer rows are cut by the image's bottom edge, and
+    #: further ones are often a wall or furniture (whose rows all shift alike, as a turn would).
     near_m: float = 0.35
-    far_m: float = 2.5
+    far_m: float = 1.2
     #: Largest shift tried, in pooled pixels each way (10 cm at 0.35 m ahead is 9 of them).
     max_shift: int = 12
     #: A row counts when its best score (mean absolute difference of normalised values: 0 the same row,
     #: about 1.1 unrelated ones) is under ``match`` and its median over the shifts ``distinct`` above it.
     match: float = 0.6
     distinct: float = 0.1
-    #: ... and an estimate needs this many such rows.
-    min_rows: int = 6
+    #: ... and an estimate needs this share of the rows to agree on one line.
+    min_share: float = 0.7
     #: Rows whose shift is this far (pooled pixels) off the fitted line are dropped and the line fitted again.
     outlier_px: float = 1.5
 
@@ -74,7 +75,8 @@ class SideOffset:
         down, _ = camera.rays(np.arange(top, h // ds) * ds + ds / 2, np.zeros(1))
         ahead = np.where(down > 0, camera.height_m / np.where(down > 0, down, 1.0), np.inf)
         self.rows = np.flatnonzero((ahead >= cfg.near_m) & (ahead <= cfg.far_m))
-        if len(self.rows) < cfg.min_rows:
+        self.min_rows = max(3, int(math.ceil(cfg.min_share * len(self.rows))))
+        if len(self.rows) < 4:
             raise ValueError(f"a {h}x{w} camera sees too few floor rows {cfg.near_m}-{cfg.far_m} m ahead")
         self.focal = camera.focal_px / ds  # in pooled pixels
         self._design = np.stack([np.ones(len(self.rows)), 1.0 / ahead[self.rows]], axis=1)
@@ -119,12 +121,12 @@ class SideOffset:
         quality = np.median(table, axis=0) - table.min(axis=0)
         ok = (best > 0) & (best < 2 * s_max) & (quality > self.cfg.distinct) & (mid < self.cfg.match)
         for _ in range(2):  # fit, drop the rows off the line (not floor: furniture, a wall), fit again
-            if np.count_nonzero(ok) < self.cfg.min_rows:
+            if np.count_nonzero(ok) < self.min_rows:
                 return None
             wts = quality * ok
             line = _weighted_line(self._design, shift, wts)
             ok &= np.abs(self._design @ line - shift) <= self.cfg.outlier_px
-        if np.count_nonzero(ok) < self.cfg.min_rows:
+        if np.count_nonzero(ok) < self.min_rows:
             return None
         psi, dy = line[0] / self.focal, line[1] / self.focal
         if not (math.isfinite(dy) and math.isfinite(psi)):
