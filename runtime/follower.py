@@ -19,7 +19,9 @@ Each image:
    distance is over the lost bound) and the match is not improving: LOST, with the evidence;
 6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
    ahead, rounded up to a subgoal), with the taught command at the estimated position as feed-forward
-   (``Decision.prior``, blended by the repeat loop) and no translation where the teach turned in place;
+   (``Decision.prior``, blended by the repeat loop; it fades out over the last control step of taught
+   motion the belief expects before the end, ``RouteLocaliser.left_to_end``, so that it never drives the
+   robot past the end) and no translation where the teach turned in place;
    where the teach drove forward, a turn back toward the taught path (``Decision.turn``, added by the
    repeat loop) from the side offset the floor shows (``runtime.side_offset``: ``side_gain`` rad/s per
    metre beside the path per m/s of the taught speed, at most ``SIDE_TURN_MAX``). VelocityNet lines the
@@ -82,6 +84,7 @@ class Follower:
         self.cfg, self.matcher, self._feats, self.gaps = views.cfg, views.matcher, views.feats, views.gaps
         self.fallback, self.thresholds, self.median_gap = views.fallback, views.thresholds, views.median_gap
         self.lost_bound = views.lost_bound
+        self._steps = float(steps_per_subgoal)
         motion = taught_motion(travel_poses, self.commands, n, dt * steps_per_subgoal)
         self.localiser = RouteLocaliser(
             self._feats, self.matcher, motion, self.median_gap, self.cfg.localiser
@@ -215,9 +218,12 @@ class Follower:
         # then waited for the other (a plain room; a held-out route's start); a heading off by the last bit of
         # the turn is the policy's to correct on the drive that follows.
         turn = 1.0 if hold else self.cfg.feed_forward_turn
+        # the taught motion left to the end, in control steps: the last of it is VelocityNet's alone (the taught
+        # command into the last subgoal, replayed at the end, drove the robot past it)
+        left = self.localiser.left_to_end(self._steps)
         prior = None
         if (self.cfg.feed_forward > 0 or turn > 0) and last > 0:
-            prior = (self.cfg.feed_forward, turn, *map(float, self.commands[gap]))
+            prior = (left * self.cfg.feed_forward, left * turn, *map(float, self.commands[gap]))
         return Decision(
             Action.COMMAND,
             target,
