@@ -79,6 +79,11 @@ class SideOffset:
         if len(self.rows) < 4:
             raise ValueError(f"a {h}x{w} camera sees too few floor rows {cfg.near_m}-{cfg.far_m} m ahead")
         self.focal = camera.focal_px / ds  # in pooled pixels
+        # the floor point each kept pooled pixel sees: ahead (m, per row) and -side * ahead to the left
+        self._ahead = ahead[self.rows].astype(np.float32)
+        self._side = camera.rays(np.zeros(1), np.arange(w // ds) * ds + ds / 2)[1].astype(np.float32)
+        self._row_scale = np.float32(camera.focal_px * camera.height_m / ds)
+        self._row_zero = np.float32(h / 2 / ds - top)
         self._design = np.stack([np.ones(len(self.rows)), 1.0 / ahead[self.rows]], axis=1)
         self.subgoals, self.poses = subgoals, np.asarray(poses, dtype=np.float64)
         self._bands: dict[int, np.ndarray] = {}
@@ -88,22 +93,36 @@ class SideOffset:
             self._bands[k] = self.floor.pool(self.subgoals[k])
         return self._bands[k]
 
-    def _rows(self, band: np.ndarray) -> np.ndarray:
-        """The kept floor rows of a pooled band, each row and channel at zero mean and unit spread."""
-        b = band[:, self.rows]
-        b = b - b.mean(axis=2, keepdims=True)
-        return b / (
-            b.std(axis=2, keepdims=True) + self.matcher.cfg.std_floor * self.matcher.cfg.downsample**2
-        )
+    def _normalised(self, rows: np.ndarray) -> np.ndarray:
+        """(3, rows, cols) floor rows, each row and channel at zero mean and unit spread (floored)."""
+        cols = rows.shape[2]
+        b = rows - np.add.reduce(rows, axis=2, keepdims=True) / cols
+        spread = np.sqrt(np.add.reduce(b * b, axis=2, keepdims=True) / cols)
+        spread += self.matcher.cfg.std_floor * self.matcher.cfg.downsample**2
+        return b / spread
+
+    def _taught_rows(self, band: np.ndarray, offset: tuple[float, float, float]) -> np.ndarray:
+        """The kept rows of a taught pooled band as the floor looks ``offset`` (ahead, left, turned left) from
+        where it was taught (``FloorTiles.warp``'s plane, nearest pooled pixel, only the rows used here)."""
+        dx, dy, turn = offset
+        if not (dx or dy or turn):
+            return band[:, self.rows]
+        c, s = np.float32(math.cos(turn)), np.float32(math.sin(turn))
+        ahead = self._ahead[:, None] * (c + s * self._side[None, :]) + np.float32(dx)
+        inverse = 1.0 / np.maximum(ahead, np.float32(1e-3))
+        left = (self._ahead[:, None] * (s - c * self._side[None, :]) + np.float32(dy)) * inverse
+        rows, cols = band.shape[1:]
+        row = np.clip(inverse * self._row_scale + self._row_zero, 0, rows - 1).astype(np.intp)
+        col = np.clip(left * -self.focal + cols / 2, 0, cols - 1).astype(np.intp)
+        return band.reshape(3, -1)[:, row * cols + col]
 
     def estimate(self, view: np.ndarray, position: float) -> SideEstimate | None:
         """The offset of ``view`` (a frame or an image) from the taught pose at route ``position`` (subgoal
         units), or None where the floor does not tell (see the module docstring)."""
         k, offset = taught_offset(self.poses, position)
-        taught = self._band(k)
-        if any(offset):  # the taught pose at the position, from subgoal k's view
-            taught = self.floor.warp(taught, offset).reshape(taught.shape)
-        cur, ref = self._rows(self.floor.pool(view)), self._rows(taught)
+        taught = self._band(k)  # seen from the taught pose at the position (between subgoals k and k + 1)
+        cur = self._normalised(self.floor.pool(view)[:, self.rows])
+        ref = self._normalised(self._taught_rows(taught, offset))
         s_max = self.cfg.max_shift
         # the current rows' middle columns against every window of the taught rows: window i is a shift of
         # s_max - i (the current column c against the taught c - s)
