@@ -31,8 +31,10 @@ class ControllerConfig:
     #: localiser: the same for the turn rate. 0: VelocityNet steers alone, so its heading and side corrections
     #: keep their full gain (dev routes, start 10 cm / 10 deg off: cross-track 41 -> 26 mm against 0.5).
     feed_forward_turn: float = 0.0
-    #: localiser: turn toward the taught path by this many rad/s per metre beside it per m/s of the taught
-    #: speed, the side offset read from the floor (runtime.side_offset); 0: VelocityNet alone.
+    #: localiser: turn toward the taught path by this many rad/s per metre beside it per m/s of forward
+    #: speed, the side offset read from the floor (runtime.side_offset); 0: VelocityNet alone (ablation
+    #: ``after_no_side``). Dev routes 101-105, start 10 cm / 10 deg off: 6/10 -> 10/10 on the route, cross-track
+    #: 25 -> 18 mm; 20 (80) closed the offset slower (overshot) on a traced dev run.
     side_gain: float = 40.0
     #: localiser: FINISHED needs the estimate within this many gaps of the last subgoal.
     finish_span: float = 0.5
