@@ -36,8 +36,9 @@ class SideConfig:
     #: further ones are often a wall or furniture (whose rows all shift alike, as a turn would).
     near_m: float = 0.35
     far_m: float = 1.2
-    #: Largest shift tried, in pooled pixels each way (10 cm at 0.35 m ahead is 9 of them).
-    max_shift: int = 12
+    #: Largest shift tried each way, as a share of the image's width (12 pooled pixels of 64: a side offset of
+    #: 10 cm is 9 of them on the nearest row).
+    max_shift: float = 0.19
     #: A row counts when its best score (mean absolute difference of normalised values: 0 the same row,
     #: about 1.1 unrelated ones) is under ``match`` and its median over the shifts ``distinct`` above it.
     match: float = 0.6
@@ -79,6 +80,9 @@ class SideOffset:
         if len(self.rows) < 4:
             raise ValueError(f"a {h}x{w} camera sees too few floor rows {cfg.near_m}-{cfg.far_m} m ahead")
         self.focal = camera.focal_px / ds  # in pooled pixels
+        self.shifts = max(2, round(cfg.max_shift * (w // ds)))
+        if w // ds - 2 * self.shifts < 4:
+            raise ValueError(f"a {h}x{w} camera is too narrow to shift its floor rows {self.shifts} pixels")
         # the floor point each kept pooled pixel sees: ahead (m, per row) and -side * ahead to the left
         self._ahead = ahead[self.rows].astype(np.float32)
         self._side = camera.rays(np.zeros(1), np.arange(w // ds) * ds + ds / 2)[1].astype(np.float32)
@@ -123,7 +127,7 @@ class SideOffset:
         taught = self._band(k)  # seen from the taught pose at the position (between subgoals k and k + 1)
         cur = self._normalised(self.floor.pool(view)[:, self.rows])
         ref = self._normalised(self._taught_rows(taught, offset))
-        s_max = self.cfg.max_shift
+        s_max = self.shifts
         # the current rows' middle columns against every window of the taught rows: window i is a shift of
         # s_max - i (the current column c against the taught c - s)
         middle = cur[:, :, s_max : cur.shape[2] - s_max]

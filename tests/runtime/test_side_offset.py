@@ -4,6 +4,7 @@ back toward the path by it (issue 19: a start 10 cm / 10 deg off finished off th
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -11,6 +12,7 @@ from floor_fakes import CAM, floor_view, straight_route
 
 from vtr.runtime.contracts import Observation
 from vtr.runtime.controller import ControllerConfig
+from vtr.runtime.follower import side_offset as side_offset_of
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
 from vtr.runtime.route import Route
 from vtr.runtime.side_offset import SideOffset
@@ -96,3 +98,13 @@ def test_a_start_beside_the_path_is_closed_on_the_way():
 def test_without_the_side_correction_the_offset_stays_and_the_view_is_lost():
     status, robot = drive(0.10, side_gain=0.0)
     assert robot.y > 0.09 and status is not RepeatStatus.FINISHED
+
+
+def test_small_views_search_fewer_shifts_and_tiny_ones_have_no_side_offset():
+    views, poses = straight_route(8, 0.1)
+    small = SideOffset(views[:, ::4, ::4].copy(), poses, CAM)  # 32 x 32: 16 pooled columns
+    assert small.shifts == 3
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        small.estimate(floor_view(0.3, 0.03)[::4, ::4].copy(), 3.0)
+    assert side_offset_of(views[:, ::8, ::8].copy(), poses, CAM) is None  # 16 x 16
