@@ -100,6 +100,8 @@ CONTROLLERS: dict[str, Method] = {
     "after_no_obstruction": Method(replace(AFTER, obstruction=False), match_light=True),
     # the release before the route localiser: threshold switching, plateau, stall guard, progress gate
     "rules": Method(replace(AFTER, switching="rules"), match_light=True),
+    # no turn toward the path from the floor's side offset (runtime.side_offset): VelocityNet alone beside it
+    "after_no_side": Method(replace(AFTER, side_gain=0.0), match_light=True),
     "after_ff_0": Method(replace(AFTER, feed_forward=0.0), match_light=True),
     "after_ff_0.8": Method(replace(AFTER, feed_forward=0.8), match_light=True),
     "after_lead_1": Method(replace(AFTER, lead=1.0), match_light=True),

@@ -31,6 +31,11 @@ class ControllerConfig:
     #: localiser: the same for the turn rate. 0: VelocityNet steers alone, so its heading and side corrections
     #: keep their full gain (dev routes, start 10 cm / 10 deg off: cross-track 41 -> 26 mm against 0.5).
     feed_forward_turn: float = 0.0
+    #: localiser: turn toward the taught path by this many rad/s per metre beside it per m/s of forward
+    #: speed, the side offset read from the floor (runtime.side_offset); 0: VelocityNet alone (ablation
+    #: ``after_no_side``). Dev routes 101-105, start 10 cm / 10 deg off: 6/10 -> 10/10 on the route, cross-track
+    #: 25 -> 18 mm; 20 (80) closed the offset slower (overshot) on a traced dev run.
+    side_gain: float = 40.0
     #: localiser: FINISHED needs the estimate within this many gaps of the last subgoal.
     finish_span: float = 0.5
     #: localiser: stop as blocked when the camera sees the way ahead blocked (runtime.obstruction; routes
@@ -169,6 +174,7 @@ class ControllerConfig:
             ("feed_forward", 1.0),
             ("feed_forward_turn", 1.0),
             ("finish_span", 2.0),
+            ("side_gain", 100.0),
         ):
             if not 0 <= getattr(self, name) <= hi:
                 raise ValueError(f"{name} must be in [0, {hi}], got {getattr(self, name)!r}")

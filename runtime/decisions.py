@@ -35,6 +35,8 @@ class Decision:
     v_limit: float = math.inf
     #: COMMAND only: (weight of v, weight of w, v, w): blend the taught command with the policy's.
     prior: tuple[float, float, float, float] | None = None
+    #: COMMAND only: rad/s added to the turn after the blend (the follower's correction toward the taught path).
+    turn: float = 0.0
 
 
 #: Decisions the controller takes without moving the robot: it acts on them itself and judges again.

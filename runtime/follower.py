@@ -19,7 +19,13 @@ Each image:
    distance is over the lost bound) and the match is not improving: LOST, with the evidence;
 6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
    ahead, rounded up to a subgoal), with the taught command at the estimated position as feed-forward
-   (``Decision.prior``, blended by the repeat loop) and no translation where the teach turned in place.
+   (``Decision.prior``, blended by the repeat loop; it fades out over the last control step of taught
+   motion the belief expects before the end, ``RouteLocaliser.left_to_end``, so that it never drives the
+   robot past the end) and no translation where the teach turned in place;
+   where the teach drove forward, a turn back toward the taught path (``Decision.turn``, added by the
+   repeat loop) from the side offset the floor shows (``runtime.side_offset``: ``side_gain`` rad/s per
+   metre beside the path per m/s of the taught speed, at most ``SIDE_TURN_MAX``). VelocityNet lines the
+   view up with the subgoal's, which closes a side offset only over a few wall distances of travel.
 
 The subgoal steered to changes because the estimate moved (ADVANCE events when it moved past subgoals, a
 JUMP back when the views placed the robot behind); never by a timeout, a plateau or a jump on a stall.
@@ -40,6 +46,7 @@ from vtr.runtime.floor_view import Camera
 from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
 from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionDetector, ObstructionVerdict
+from vtr.runtime.side_offset import SideEstimate, SideOffset
 from vtr.runtime.thresholds import check_subgoals, route_views
 
 if TYPE_CHECKING:
@@ -47,6 +54,8 @@ if TYPE_CHECKING:
 
 #: Commands under these (m/s, rad/s) count as the policy standing still at the end of the route.
 IDLE_SPEED, IDLE_TURN = 0.01, 0.02
+#: The most the side correction turns (rad/s): VelocityNet keeps the rest of the turn range.
+SIDE_TURN_MAX = 0.5
 
 
 class Follower:
@@ -75,6 +84,7 @@ class Follower:
         self.cfg, self.matcher, self._feats, self.gaps = views.cfg, views.matcher, views.feats, views.gaps
         self.fallback, self.thresholds, self.median_gap = views.fallback, views.thresholds, views.median_gap
         self.lost_bound = views.lost_bound
+        self._steps = float(steps_per_subgoal)
         motion = taught_motion(travel_poses, self.commands, n, dt * steps_per_subgoal)
         self.localiser = RouteLocaliser(
             self._feats, self.matcher, motion, self.median_gap, self.cfg.localiser
@@ -84,9 +94,13 @@ class Follower:
         self.obstruction = (
             obstruction_detector(subgoals, travel_poses, camera) if self.cfg.obstruction else None
         )
+        self.side = side_offset(subgoals, travel_poses, camera) if self.cfg.side_gain > 0 else None
+        #: Where the floor put the robot beside the taught path on the last command (None: it did not tell).
+        self.beside: SideEstimate | None = None
         #: The obstruction detector's verdict on the last view (None without a detector).
         self.obstructed: ObstructionVerdict | None = None
         self._forward = False  # commanded forward since the last view
+        self._speed = 0.0  # the last forward speed commanded (m/s)
         self.index = 0  # the subgoal steered to
         self.status: Action | None = None
         self.estimate: Estimate | None = None
@@ -140,6 +154,7 @@ class Follower:
         """The repeat loop applied (v, w) for ``dt`` seconds: the estimate moves along the route."""
         self._idle = self._idle + 1 if abs(v) < IDLE_SPEED and abs(w) < IDLE_TURN else 0
         self._forward = self._forward or v > FORWARD_SPEED
+        self._speed = v
         self.localiser.predict(v, w, dt)
 
     def relocalise(self) -> None:
@@ -203,9 +218,12 @@ class Follower:
         # then waited for the other (a plain room; a held-out route's start); a heading off by the last bit of
         # the turn is the policy's to correct on the drive that follows.
         turn = 1.0 if hold else self.cfg.feed_forward_turn
+        # the taught motion left to the end, in control steps: the last of it is VelocityNet's alone (the taught
+        # command into the last subgoal, replayed at the end, drove the robot past it)
+        left = self.localiser.left_to_end(self._steps)
         prior = None
         if (self.cfg.feed_forward > 0 or turn > 0) and last > 0:
-            prior = (self.cfg.feed_forward, turn, *map(float, self.commands[gap]))
+            prior = (left * self.cfg.feed_forward, left * turn, *map(float, self.commands[gap]))
         return Decision(
             Action.COMMAND,
             target,
@@ -214,7 +232,23 @@ class Follower:
             note=f"at {est.position:.2f} (confidence {est.confidence:.2f})",
             v_limit=0.0 if hold else math.inf,
             prior=prior,
+            turn=0.0 if hold or last == 0 else self._side_turn(image, est.position, gap),
         )
+
+    def _side_turn(self, image: Frame, position: float, gap: int) -> float:
+        """The turn (rad/s) toward the taught path that the floor's side offset asks for: ``side_gain`` per
+        metre beside it per m/s of forward speed (the taught speed there, or the last command's if slower:
+        turning closes no side offset on the spot), none where the teach or the robot did not drive
+        forward, or the floor does not tell (``runtime.side_offset``)."""
+        speed = min(float(self.commands[gap, 0]), self._speed)  # the pace the robot is driving at
+        self.beside = None
+        if self.side is None or speed <= FORWARD_SPEED:
+            return 0.0
+        self.beside = self.side.estimate(image, position)
+        if self.beside is None:
+            return 0.0
+        turn = -self.cfg.side_gain * speed * self.beside.dy
+        return max(-SIDE_TURN_MAX, min(SIDE_TURN_MAX, turn))
 
     def _blocked(self, image: np.ndarray, est: Estimate) -> Decision | None:
         """BLOCKED while the obstruction detector sees the way ahead blocked (None: go on)."""
@@ -276,6 +310,16 @@ def obstruction_detector(
     try:
         return ObstructionDetector(subgoals, poses, camera=camera)
     except ValueError:  # no tile of these views sees the path region (or they are no multiple of a tile)
+        return None
+
+
+def side_offset(subgoals: np.ndarray, poses: np.ndarray | None, camera: Camera | None) -> SideOffset | None:
+    """The floor registration of a route's views at its taught (travel) poses, or None where it cannot work."""
+    if poses is None or not np.isfinite(poses).all() or subgoals.dtype != np.uint8:
+        return None
+    try:
+        return SideOffset(subgoals, poses, camera or Camera())
+    except ValueError:  # views too small to see enough floor rows
         return None
 
 

@@ -221,6 +221,12 @@ class RouteLocaliser:
         m = self.cfg.mixing
         self.belief = (1 - m) * self.belief + m / len(self.belief)
 
+    def left_to_end(self, steps: float) -> float:
+        """The belief's expectation of the taught motion left before the end, in control steps (``steps`` per
+        gap), each position's counted up to one: 1 well before the end, 0 with all the belief at the end. (The
+        belief piles up at the end when the robot drives past it, where the estimate's mean stays short.)"""
+        return float(self.belief @ np.minimum(1.0, (self.cells[-1] - self.cells) * steps))
+
     def _mean(self) -> float:
         return float(self.belief @ self.cells)
 

@@ -270,9 +270,8 @@ class Repeater:
         v, w = float(velocities[0, 0]), float(velocities[1, 0])
         if self._bias is not None:
             v, w = v - float(self._bias[target, 0]), w - float(self._bias[target, 1])
-        if decision.prior is not None:  # the taught command into the subgoal, blended in
-            a, b, pv, pw = decision.prior
-            v, w = (1 - a) * v + a * pv, (1 - b) * w + b * pw
+        a, b, pv, pw = decision.prior or (0.0, 0.0, 0.0, 0.0)  # the taught command blended in, and the
+        v, w = (1 - a) * v + a * pv, (1 - b) * w + b * pw + decision.turn  # follower's side correction
         v, w = v * self.config.speed, w * self.config.speed  # the same arc, slower
         v_max = min(decision.v_limit, self._v_max)  # v_limit 0: no translation in a taught turn in place
         v, w = max(-v_max, min(v_max, v)), max(-self._w_max, min(self._w_max, w))

@@ -111,7 +111,11 @@ def test_no_translation_where_the_teach_turned_in_place():
     assert decision.action is Action.COMMAND and decision.v_limit == 0.0
     # the taught turn is replayed whole until the views place the robot past it (a policy easing off next to
     # the end of the turn had left the estimate and the robot waiting for each other)
-    assert decision.prior is not None and decision.prior[1] == 1.0 and decision.prior[3] == 0.5
+    assert (
+        decision.prior is not None
+        and decision.prior[1] == pytest.approx(1.0, abs=1e-3)
+        and decision.prior[3] == 0.5
+    )
 
 
 class WithScan(Corridor):
@@ -142,3 +146,35 @@ def test_the_robot_resumes_when_the_box_is_removed_while_it_waits():
     rep, _ = _run(robot, wait_s=10.0)
     assert rep.status is RepeatStatus.FINISHED and rep.waited_steps > 0
     assert robot.x == pytest.approx(0.4, abs=0.02)
+
+
+class NoisyCorridor(Corridor):
+    """The corridor seen through a noisy camera: no view matches a subgoal well enough to finish on."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.rng = np.random.default_rng(0)
+
+    def observe(self) -> Observation:
+        image = render(self.x).astype(int) + self.rng.integers(-25, 26, (16, 16, 3))
+        return Observation(np.clip(image, 0, 255).astype(np.uint8), self.t, pose=(self.x, 0.0, 0.0))
+
+
+class StandStill:
+    """A policy that never drives: the robot moves by the taught command's feed-forward alone."""
+
+    image_shape = (16, 16)
+
+    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+        return np.zeros((2, 2), dtype=np.float32)
+
+
+def test_the_taught_command_is_not_replayed_past_the_end():
+    """The taught command into the last subgoal fades out as the estimate reaches it (issue 19: replayed
+    at the end, it drove robots past the end of held-out routes, `lost` near the last subgoal)."""
+    robot = NoisyCorridor()
+    config = RepeatConfig(controller=ControllerConfig(zero_bias=0.0, lost_steps=0), max_steps=80)
+    Repeater(robot, StandStill(), corridor_route(0.4, 0.05), config=config).run()
+    # replayed, it drove on to the step limit, 0.6 m past the end with the estimate pinned there; faded, the
+    # robot stops within the few centimetres the noisy views keep the estimate behind the truth
+    assert 0.35 < robot.x < 0.5

@@ -1,0 +1,170 @@
+"""How far beside the taught path the robot is: the floor seen now against the floor the teach saw.
+
+A pinhole camera above a flat floor sees each image row below the horizon at a known distance ``X`` ahead
+(``runtime.floor_view``). A robot ``dy`` to the left of the taught pose and turned ``psi`` to the left sees
+every floor row shifted sideways by ``f (psi + dy / X)`` pixels: the far rows tell the heading, the near rows
+the side offset. Each floor row of the current view is compared with the same row of the taught view (warped
+by the floor plane to the taught pose at the localiser's estimate, between two subgoals) under whole-pixel
+shifts, the best shift refined to a fraction, and a line through shift against ``1 / X`` gives ``(dy, psi)``.
+
+Why the follower needs it: VelocityNet turns until the view lines up with the subgoal's, and the walls it
+lines up have no known distance, so a view ``dy`` to the side looks like one turned by ``dy / D`` for walls
+``D`` away. The policy alone therefore closes a side offset only over a few times ``D`` of travel (dev routes,
+a start 10 cm to the side: still 5 cm off after 1.5 m). The floor's rows, whose distances are known, tell the
+two apart. Rows are normalised per channel (a change of light drops out) and a row whose best shift is not
+clearly better than the others (a plain or re-coloured floor, furniture standing on the row) is left out; with
+too few rows left there is no estimate, and the follower steers by VelocityNet alone.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from vtr.runtime.floor_view import Camera, FloorTiles, taught_offset
+from vtr.runtime.matching import MatchConfig, Matcher
+
+
+@dataclass(frozen=True)
+class SideConfig:
+    """The floor rows used and how sure a row's shift must be (defaults chosen on dev routes 100-105)."""
+
+    #: Floor rows from this near to this far ahead (m): nearer rows are cut by the image's bottom edge, and
+    #: further ones are often a wall or furniture (whose rows all shift alike, as a turn would).
+    near_m: float = 0.35
+    far_m: float = 1.2
+    #: Largest shift tried each way, as a share of the image's width (12 pooled pixels of 64: a side offset of
+    #: 10 cm is 9 of them on the nearest row).
+    max_shift: float = 0.19
+    #: A row counts when its best score (mean absolute difference of normalised values: 0 the same row,
+    #: about 1.1 unrelated ones) is under ``match`` and its median over the shifts ``distinct`` above it.
+    match: float = 0.6
+    distinct: float = 0.1
+    #: ... and an estimate needs this share of the rows to agree on one line.
+    min_share: float = 0.7
+    #: Rows whose shift is this far (pooled pixels) off the fitted line are dropped and the line fitted again.
+    outlier_px: float = 1.5
+
+
+@dataclass(frozen=True)
+class SideEstimate:
+    """The robot's offset from the taught pose at the estimate: ``dy`` metres to the left, ``psi`` radians
+    turned to the left; ``rows``: the floor rows that agreed."""
+
+    dy: float
+    psi: float
+    rows: int
+
+
+class SideOffset:
+    """Register views against the taught views' floor (see the module docstring)."""
+
+    def __init__(
+        self, subgoals: np.ndarray, poses: np.ndarray, camera: Camera, cfg: SideConfig | None = None
+    ) -> None:
+        self.cfg = cfg = cfg or SideConfig()
+        self.matcher = Matcher(MatchConfig())
+        h, w = subgoals.shape[1:3]
+        self.camera = camera = Camera(h, w, camera.fov_deg, camera.height_m)
+        ds = self.matcher.cfg.downsample
+        tiles = np.arange((h // ds // self.matcher.cfg.patch) * (w // ds // self.matcher.cfg.patch))
+        self.floor = FloorTiles(camera, tiles[len(tiles) // 2 :], self.matcher)  # the band from the horizon
+        top = self.floor.top
+        down, _ = camera.rays(np.arange(top, h // ds) * ds + ds / 2, np.zeros(1))
+        ahead = np.where(down > 0, camera.height_m / np.where(down > 0, down, 1.0), np.inf)
+        self.rows = np.flatnonzero((ahead >= cfg.near_m) & (ahead <= cfg.far_m))
+        self.min_rows = max(3, int(math.ceil(cfg.min_share * len(self.rows))))
+        if len(self.rows) < 4:
+            raise ValueError(f"a {h}x{w} camera sees too few floor rows {cfg.near_m}-{cfg.far_m} m ahead")
+        self.focal = camera.focal_px / ds  # in pooled pixels
+        self.shifts = max(2, round(cfg.max_shift * (w // ds)))
+        if w // ds - 2 * self.shifts < 4:
+            raise ValueError(f"a {h}x{w} camera is too narrow to shift its floor rows {self.shifts} pixels")
+        # the floor point each kept pooled pixel sees: ahead (m, per row) and -side * ahead to the left
+        self._ahead = ahead[self.rows].astype(np.float32)
+        self._side = camera.rays(np.zeros(1), np.arange(w // ds) * ds + ds / 2)[1].astype(np.float32)
+        self._row_scale = np.float32(camera.focal_px * camera.height_m / ds)
+        self._row_zero = np.float32(h / 2 / ds - top)
+        self._design = np.stack([np.ones(len(self.rows)), 1.0 / ahead[self.rows]], axis=1)
+        self.subgoals, self.poses = subgoals, np.asarray(poses, dtype=np.float64)
+        self._bands: dict[int, np.ndarray] = {}
+
+    def _band(self, k: int) -> np.ndarray:
+        if k not in self._bands:
+            self._bands[k] = self.floor.pool(self.subgoals[k])
+        return self._bands[k]
+
+    def _normalised(self, rows: np.ndarray) -> np.ndarray:
+        """(3, rows, cols) floor rows, each row and channel at zero mean and unit spread (floored)."""
+        cols = rows.shape[2]
+        b = rows - np.add.reduce(rows, axis=2, keepdims=True) / cols
+        spread = np.sqrt(np.add.reduce(b * b, axis=2, keepdims=True) / cols)
+        spread += self.matcher.cfg.std_floor * self.matcher.cfg.downsample**2
+        return b / spread
+
+    def _taught_rows(self, band: np.ndarray, offset: tuple[float, float, float]) -> np.ndarray:
+        """The kept rows of a taught pooled band as the floor looks ``offset`` (ahead, left, turned left) from
+        where it was taught (``FloorTiles.warp``'s plane, nearest pooled pixel, only the rows used here)."""
+        dx, dy, turn = offset
+        if not (dx or dy or turn):
+            return band[:, self.rows]
+        c, s = np.float32(math.cos(turn)), np.float32(math.sin(turn))
+        ahead = self._ahead[:, None] * (c + s * self._side[None, :]) + np.float32(dx)
+        inverse = 1.0 / np.maximum(ahead, np.float32(1e-3))
+        left = (self._ahead[:, None] * (s - c * self._side[None, :]) + np.float32(dy)) * inverse
+        rows, cols = band.shape[1:]
+        row = np.clip(inverse * self._row_scale + self._row_zero, 0, rows - 1).astype(np.intp)
+        col = np.clip(left * -self.focal + cols / 2, 0, cols - 1).astype(np.intp)
+        return band.reshape(3, -1)[:, row * cols + col]
+
+    def estimate(self, view: np.ndarray, position: float) -> SideEstimate | None:
+        """The offset of ``view`` (a frame or an image) from the taught pose at route ``position`` (subgoal
+        units), or None where the floor does not tell (see the module docstring)."""
+        k, offset = taught_offset(self.poses, position)
+        taught = self._band(k)  # seen from the taught pose at the position (between subgoals k and k + 1)
+        cur = self._normalised(self.floor.pool(view)[:, self.rows])
+        ref = self._normalised(self._taught_rows(taught, offset))
+        s_max = self.shifts
+        # the current rows' middle columns against every window of the taught rows: window i is a shift of
+        # s_max - i (the current column c against the taught c - s)
+        middle = cur[:, :, s_max : cur.shape[2] - s_max]
+        windows = sliding_window_view(ref, middle.shape[2], axis=2)  # (3, rows, 2 s_max + 1, columns)
+        diff = np.abs(windows - middle[:, :, None, :])
+        table = diff.sum(axis=(0, 3))[:, ::-1].T / (3 * middle.shape[2])  # (shifts, rows), s from -s_max
+        best = table.argmin(axis=0)
+        at = np.clip(best, 1, 2 * s_max - 1)
+        r = np.arange(len(self.rows))
+        lo, mid, hi = table[at - 1, r], table[at, r], table[at + 1, r]
+        curve = lo - 2 * mid + hi
+        frac = np.where(curve > 1e-9, 0.5 * (lo - hi) / np.where(curve > 1e-9, curve, 1.0), 0.0)
+        shift = at - s_max + np.clip(frac, -0.5, 0.5)
+        quality = np.median(table, axis=0) - table.min(axis=0)
+        ok = (best > 0) & (best < 2 * s_max) & (quality > self.cfg.distinct) & (mid < self.cfg.match)
+        for _ in range(2):  # fit, drop the rows off the line (not floor: furniture, a wall), fit again
+            if np.count_nonzero(ok) < self.min_rows:
+                return None
+            wts = quality * ok
+            line = _weighted_line(self._design, shift, wts)
+            ok &= np.abs(self._design @ line - shift) <= self.cfg.outlier_px
+        if np.count_nonzero(ok) < self.min_rows:
+            return None
+        psi, dy = line[0] / self.focal, line[1] / self.focal
+        if not (math.isfinite(dy) and math.isfinite(psi)):
+            return None
+        return SideEstimate(float(dy), float(psi), int(np.count_nonzero(ok)))
+
+
+def _weighted_line(design: np.ndarray, y: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """(intercept, slope) of the weighted least-squares line through ``y`` against ``design``'s columns."""
+    a = design * weights[:, None]
+    lhs, rhs = a.T @ design, a.T @ y
+    det = lhs[0, 0] * lhs[1, 1] - lhs[0, 1] * lhs[1, 0]
+    if abs(det) < 1e-12:
+        return np.array([math.nan, math.nan])
+    return np.array([lhs[1, 1] * rhs[0] - lhs[0, 1] * rhs[1], lhs[0, 0] * rhs[1] - lhs[1, 0] * rhs[0]]) / det
+
+
+__all__ = ["SideConfig", "SideEstimate", "SideOffset"]

@@ -1,0 +1,110 @@
+"""The floor tells how far beside the taught path the robot is (runtime.side_offset), and the follower turns
+back toward the path by it (issue 19: a start 10 cm / 10 deg off finished off the route)."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+import pytest
+from floor_fakes import CAM, floor_view, straight_route
+
+from vtr.runtime.contracts import Observation
+from vtr.runtime.controller import ControllerConfig
+from vtr.runtime.follower import side_offset as side_offset_of
+from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
+from vtr.runtime.route import Route
+from vtr.runtime.side_offset import SideOffset
+
+
+def side_offset() -> SideOffset:
+    views, poses = straight_route(8, 0.1)
+    return SideOffset(views, poses, CAM)
+
+
+@pytest.mark.parametrize(
+    ("dy", "yaw_deg"), [(0.10, 0.0), (-0.10, 0.0), (0.05, 5.0), (0.10, -10.0), (0.0, 4.0)]
+)
+def test_the_floor_tells_a_side_offset_from_a_turn(dy, yaw_deg):
+    est = side_offset().estimate(floor_view(0.3, dy, math.radians(yaw_deg)), 3.0)
+    assert est is not None
+    assert est.dy == pytest.approx(dy, abs=0.015)
+    assert math.degrees(est.psi) == pytest.approx(yaw_deg, abs=1.5)
+
+
+def test_between_subgoals_the_taught_pose_there_is_the_reference():
+    est = side_offset().estimate(floor_view(0.35, 0.04), 3.5)
+    assert est is not None and est.dy == pytest.approx(0.04, abs=0.015)
+
+
+def test_a_floor_unlike_the_taught_one_tells_nothing():
+    assert side_offset().estimate(floor_view(0.3, 0.05, seed=7), 3.0) is None
+
+
+class SideRobot:
+    """A unicycle over the floor of floor_fakes, started ``dy`` m to the left of the route along x."""
+
+    def __init__(self, dy: float) -> None:
+        self.x, self.y, self.yaw, self.t = 0.0, dy, 0.0, 0.0
+
+    def observe(self) -> Observation:
+        return Observation(floor_view(self.x, self.y, self.yaw), self.t, pose=(self.x, self.y, self.yaw))
+
+    def step(self, v: float, w: float, duration: float) -> Observation:
+        self.yaw += w * duration
+        self.x += v * duration * math.cos(self.yaw)
+        self.y += v * duration * math.sin(self.yaw)
+        self.t += duration
+        return self.observe()
+
+    def stop(self) -> None:
+        pass
+
+
+class HeadingOnly:
+    """A policy that drives on and lines the heading up with the route, blind to a side offset (as a view
+    lined up with distant walls is: VelocityNet closes a side offset only over metres)."""
+
+    image_shape = (128, 128)
+
+    def __init__(self, robot: SideRobot) -> None:
+        self.robot = robot
+
+    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+        w = -3.0 * self.robot.yaw
+        return np.array([[0.25, 0.25], [w, w]], dtype=np.float32)
+
+
+def drive(dy: float, **cfg) -> tuple[RepeatStatus | None, SideRobot]:
+    n = 16
+    views, poses = straight_route(n, 0.1)
+    commands = np.zeros((n, 2))
+    commands[:-1, 0] = 0.25
+    route = Route(images=views, poses=poses, commands=commands, name="floor", dt=0.1)
+    robot = SideRobot(dy)
+    config = RepeatConfig(controller=ControllerConfig(zero_bias=0.0, obstruction=False, **cfg), max_steps=200)
+    rep = Repeater(robot, HeadingOnly(robot), route, config=config)
+    rep.run()
+    return rep.status, robot
+
+
+def test_a_start_beside_the_path_is_closed_on_the_way():
+    for dy in (0.10, -0.10):
+        status, robot = drive(dy)
+        assert status is RepeatStatus.FINISHED and abs(robot.y) < 0.02, (status, robot.y)
+
+
+def test_without_the_side_correction_the_offset_stays_and_the_view_is_lost():
+    status, robot = drive(0.10, side_gain=0.0)
+    assert robot.y > 0.09 and status is not RepeatStatus.FINISHED
+
+
+def test_small_views_search_fewer_shifts_and_tiny_ones_have_no_side_offset():
+    views, poses = straight_route(8, 0.1)
+    small = SideOffset(views[:, ::4, ::4].copy(), poses, CAM)  # 32 x 32: 16 pooled columns
+    assert small.shifts == 3
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        small.estimate(floor_view(0.3, 0.03)[::4, ::4].copy(), 3.0)
+    assert side_offset_of(views[:, ::8, ::8].copy(), poses, CAM) is None  # 16 x 16
