@@ -107,7 +107,6 @@ class Matcher:
 
     def __init__(self, cfg: MatchConfig | None = None) -> None:
         self.cfg = cfg or MatchConfig()
-        self._buf = np.empty((0, 0, 0), np.float32)  # see _diff
 
     def features(self, images: Frame | np.ndarray) -> np.ndarray:
         """A :class:`~vtr.runtime.frame.Frame` or (H, W, 3) uint8 image, or a (B, H, W, 3) uint8 stack ->
@@ -191,7 +190,10 @@ class Matcher:
             return self._raw_distances(feature, others)
         if feature.shape != others.shape[1:]:
             raise ValueError(f"feature shape {feature.shape} differs from {others.shape[1:]}")
-        diff = self._diff(feature, others)
+        # a fresh array on purpose: one kept for it (440 KB for 9 subgoals) made the light-matched step ~70 us
+        # slower on the 2-core machine (512 KB L2), where a fresh one reuses memory just freed, still in cache
+        # (studies.step_profile_lockstep; benchmarks/results/latency_step_s3.md)
+        diff = others - feature
         np.abs(diff, out=diff)
         # reduce / count: what ndarray.mean computes, without its Python-level bookkeeping
         per_tile = np.add.reduce(diff, axis=-1) / diff.shape[-1]  # (K, tiles)
@@ -223,21 +225,9 @@ class Matcher:
         others = others[None] if others.ndim == feature.ndim else others
         if feature.shape != others.shape[1:]:
             raise ValueError(f"feature shape {feature.shape} differs from {others.shape[1:]}")
-        diff = self._diff(feature, others)
+        diff = others - feature
         np.abs(diff, out=diff)
         return np.add.reduce(diff, axis=-1) / diff.shape[-1]
-
-    def _diff(self, feature: np.ndarray, others: np.ndarray) -> np.ndarray:
-        """``others - feature`` for a distance pass, into an array reused from call to call when both are
-        float32 (a window of 9 subgoals is 440 KB): the first ``len(others)`` rows of the largest one so far.
-        One matcher per thread (a controller's, a detector's), as every caller has."""
-        if others.dtype != np.float32 or feature.dtype != np.float32:
-            return others - feature
-        buf, shape = self._buf, others.shape
-        if buf.shape[1:] != shape[1:] or len(buf) < shape[0]:
-            rows = max(shape[0], len(buf)) if buf.shape[1:] == shape[1:] else shape[0]
-            buf = self._buf = np.empty((rows, *shape[1:]), np.float32)
-        return np.subtract(others, feature, out=buf[: shape[0]])
 
     def image_distance(self, a: np.ndarray, b: np.ndarray) -> float:
         """Convenience: distance between two uint8 images (features computed on the fly)."""

@@ -111,7 +111,7 @@ def test_the_detector_pools_a_frame_as_it_pools_the_same_image():
     assert np.array_equal(features, f.matcher.features(image[None])[0])
 
 
-def test_distances_reuse_their_buffer_and_give_what_a_fresh_subtraction_gives():
+def test_distances_over_a_window_are_the_trimmed_means_of_the_per_tile_differences():
     m = Matcher()
     views, _ = straight_route(9, 0.1)
     feats = m.features(views)
