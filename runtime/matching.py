@@ -187,7 +187,7 @@ class Matcher:
     def distances(self, feature: np.ndarray, others: np.ndarray) -> np.ndarray:
         """(K,) distances from one feature to each of K features (a stack from :meth:`features`)."""
         if self.cfg.method == "raw":
-            return self._raw_distances(feature, others)
+            return np.array([image_error(feature, o) for o in others], dtype=np.float64)
         if feature.shape != others.shape[1:]:
             raise ValueError(f"feature shape {feature.shape} differs from {others.shape[1:]}")
         # a fresh array on purpose: one kept for it (440 KB for 9 subgoals) made the light-matched step ~70 us
@@ -201,20 +201,6 @@ class Matcher:
         if keep < per_tile.shape[1]:
             per_tile = np.partition(per_tile, keep - 1, axis=1)[:, :keep]
         return (np.add.reduce(per_tile, axis=1) / keep).astype(np.float64)
-
-    def _raw_distances(self, image: np.ndarray, others: np.ndarray) -> np.ndarray:
-        """``image_error`` of ``image`` to each of ``others`` in one pass over the stack: |a - b| in uint8 as
-        image_error takes it, summed per image in uint32 (exact), over the pixel count (the same bits)."""
-        if image.shape != others.shape[1:]:
-            raise ValueError(f"image shapes differ: {image.shape} vs {others.shape[1:]}")
-        if image.dtype != np.uint8 or others.dtype != np.uint8:
-            raise ValueError(f"expected uint8 images, got {image.dtype} and {others.dtype}")
-        if not len(others):
-            return np.zeros(0)
-        diff = np.maximum(others, image)
-        diff -= np.minimum(others, image)
-        sums = np.add.reduce(diff.reshape(len(others), -1), axis=1, dtype=np.uint32)
-        return sums.astype(np.float64) / image.size
 
     def tile_distances(self, feature: np.ndarray, others: np.ndarray) -> np.ndarray:
         """(K, tiles) per-tile scores of one patch feature against each of K (``others``: (K, tiles, D) or
