@@ -190,9 +190,9 @@ class Matcher:
             return np.array([image_error(feature, o) for o in others], dtype=np.float64)
         if feature.shape != others.shape[1:]:
             raise ValueError(f"feature shape {feature.shape} differs from {others.shape[1:]}")
-        # a fresh array on purpose: one kept for it (440 KB for 9 subgoals) made the light-matched step ~70 us
-        # slower on the 2-core machine (512 KB of L2 a core), where a fresh one reuses memory just freed, still in cache
-        # (studies.step_profile_lockstep; benchmarks/results/latency_step_s3.md)
+        # a fresh array on purpose: one kept for it (440 KB for 9 subgoals) made the light-matched step
+        # ~70 us slower on the 2-core machine (512 KB of L2 a core), where a fresh one reuses memory just
+        # freed, still in cache (studies.step_profile_lockstep; benchmarks/results/latency_step_s3.md)
         diff = others - feature
         np.abs(diff, out=diff)
         # reduce / count: what ndarray.mean computes, without its Python-level bookkeeping
