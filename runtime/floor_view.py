@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from vtr.runtime.contracts import CAMERA
-from vtr.runtime.matching import Matcher
+from vtr.runtime.frame import Frame
+from vtr.runtime.matching import Matcher, pooled_sums
 from vtr.runtime.preprocess import planar_levels
 
 #: The robot's pose relative to a taught view's: metres ahead, metres left, radians turned left.
@@ -118,8 +119,11 @@ class FloorTiles:
 
     def pool(self, image: np.ndarray) -> np.ndarray:
         """(3, band rows, cols) float32 sums of ``downsample`` x ``downsample`` blocks of ``image``'s band,
-        from its planar levels (one conversion per frame, shared with the matcher and the policy)."""
+        from its planar levels (one conversion per frame, shared with the matcher and the policy); a frame's
+        are its pooled sums, made once per frame and shared with the localiser's matcher (the same bits)."""
         ds, (rows, cols) = self.matcher.cfg.downsample, self.shape
+        if isinstance(image, Frame):
+            return pooled_sums(image, ds)[:, self.top :]
         levels = planar_levels(image)[:, self.top * ds :].reshape(3, rows, ds, cols, ds)
         x = levels[:, :, 0].copy()
         for k in range(1, ds):

@@ -38,6 +38,40 @@ def _ones(n: int, dtype: type) -> np.ndarray:
     return np.ones(n, dtype=dtype)
 
 
+def pool(levels: np.ndarray, f: int) -> np.ndarray:
+    """(C, H / f, W / f) sums of ``f`` x ``f`` blocks of planar levels (C, H, W), in a new array (``levels``
+    itself when f = 1). Planar, so every add runs over contiguous rows or pairs; sums of integers, which float32
+    holds exactly whatever the order of the adds (float64 past f = 256), so any pooling of the same levels
+    gives the same bits."""
+    c, h, w = levels.shape
+    if h % f or w % f:
+        raise BadFrameError(f"image {h}x{w} is not a multiple of the pooling factor {f}")
+    if f == 1:
+        return levels
+    if 255 * f * f >= 2**24:
+        levels = levels.astype(np.float64)
+    rows = levels.reshape(c, h // f, f, w)
+    x = rows[:, :, 0] + rows[:, :, 1]
+    for dy in range(2, f):
+        x += rows[:, :, dy]
+    cols = x.reshape(c, h // f, w // f, f)
+    y = cols[..., 0] + cols[..., 1]
+    for dx in range(2, f):
+        y += cols[..., dx]
+    return y
+
+
+def pooled_sums(frame: Frame, f: int) -> np.ndarray:
+    """A frame's (3, H / f, W / f) ``f`` x ``f`` block sums of its planar levels, made once per frame and kept
+    on it (read-only): the localiser's matcher and the obstruction detector's floor tiles share them."""
+    return frame.derived(("pooled_sums", f), lambda fr: _read_only(pool(fr.levels, f)))
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array.flags.writeable = False
+    return array
+
+
 @dataclass(frozen=True)
 class MatchConfig:
     """How two images are compared (see the module docstring)."""
@@ -78,42 +112,43 @@ class Matcher:
         """A :class:`~vtr.runtime.frame.Frame` or (H, W, 3) uint8 image, or a (B, H, W, 3) uint8 stack ->
         features of the same leading shape.
 
-        raw: the uint8 images themselves; patch: float32 (B, tiles, patch * patch * 3), normalised. A frame
-        is pooled from its planar levels (made once per frame, shared with the policy); a stack image by
-        image the same way, so that a subgoal's features are bit for bit those of the same view seen live.
+        raw: the uint8 images themselves; patch: float32 (B, tiles, patch * patch * 3), normalised. A frame's
+        features are made once per frame and matcher settings and kept on it (read-only: whoever asks again
+        in the same step, the localiser or a study, gets the same array), from its pooled sums
+        (:func:`pooled_sums`, shared with the obstruction detector); a stack is pooled image by image the
+        same way, so that a subgoal's features are bit for bit those of the same view seen live.
         """
         if isinstance(images, Frame) or images.ndim == 3:
             frame = as_frame(images)
-            return frame.image if self.cfg.method == "raw" else self._normalised(self._tiles(frame.levels))[0]
+            return frame.image if self.cfg.method == "raw" else frame.derived(self._key, self._frame_features)
         if images.dtype != np.uint8 or images.ndim != 4 or images.shape[-1] != 3:
             raise BadFrameError(
                 f"expected uint8 (H, W, 3) or (B, H, W, 3) images, got {images.shape} {images.dtype}"
             )
         if self.cfg.method == "raw":
             return images
-        return np.concatenate([self._normalised(self._tiles(planar(image))) for image in images])
+        f = self.cfg.downsample
+        return np.concatenate([self._normalised(self._tiles(pool(planar(image), f))) for image in images])
 
-    def _tiles(self, levels: np.ndarray) -> np.ndarray:
-        """(1, tiles, C, p * p) pooled sums of one image's planar levels (C, H, W); planar, every pooling
-        add runs over contiguous rows or pairs. Pooled by sums (f * f times the mean, so the floor is scaled
-        to match): integers float32 holds exactly whatever the order of the adds (float64 past f = 256)."""
-        f, p = self.cfg.downsample, self.cfg.patch
-        c, h, w = levels.shape
-        if h % (f * p) or w % (f * p):
-            raise BadFrameError(f"image {h}x{w} is not a multiple of downsample * patch = {f * p}")
-        if 255 * f * f >= 2**24:
-            levels = levels.astype(np.float64)
-        rows = levels.reshape(c, h // f, f, w)
-        x = rows[:, :, 0] + rows[:, :, 1] if f > 1 else levels
-        for dy in range(2, f):
-            x += rows[:, :, dy]
-        cols = x.reshape(c, h // f, w // f, f)
-        y = cols[..., 0] + cols[..., 1] if f > 1 else x
-        for dx in range(2, f):
-            y += cols[..., dx]
-        hp, wp = h // (f * p), w // (f * p)
+    @property
+    def _key(self) -> tuple[str, MatchConfig]:
+        return ("patch_features", self.cfg)
+
+    def _frame_features(self, frame: Frame) -> np.ndarray:
+        features = self._normalised(self._tiles(pooled_sums(frame, self.cfg.downsample)))[0]
+        features.flags.writeable = False
+        return features
+
+    def _tiles(self, pooled: np.ndarray) -> np.ndarray:
+        """(1, tiles, C, p * p) tiles of one image's pooled sums (C, H / f, W / f), in a new array."""
+        p = self.cfg.patch
+        c, h, w = pooled.shape
+        if h % p or w % p:
+            f = self.cfg.downsample
+            raise BadFrameError(f"image {h * f}x{w * f} is not a multiple of downsample * patch = {f * p}")
+        hp, wp = h // p, w // p
         # (C, hp, p, wp, p) -> (1, tiles, C, p * p): a copy (a view of read-only levels when f = 1 and one tile)
-        tiles = y.reshape(c, hp, p, wp, p).transpose(1, 3, 0, 2, 4).reshape(1, hp * wp, c, p * p)
+        tiles = pooled.reshape(c, hp, p, wp, p).transpose(1, 3, 0, 2, 4).reshape(1, hp * wp, c, p * p)
         return (tiles if tiles.flags.writeable else tiles.copy()).astype(np.float32, copy=False)
 
     def _normalised(self, tiles: np.ndarray) -> np.ndarray:
@@ -155,6 +190,9 @@ class Matcher:
             return np.array([image_error(feature, o) for o in others], dtype=np.float64)
         if feature.shape != others.shape[1:]:
             raise ValueError(f"feature shape {feature.shape} differs from {others.shape[1:]}")
+        # a fresh array on purpose: one kept for it (440 KB for 9 subgoals) made the light-matched step
+        # ~70 us slower on the 2-core machine (512 KB of L2 a core), where a fresh one reuses memory just
+        # freed, still in cache (studies.step_profile_lockstep; benchmarks/results/latency_step_s3.md)
         diff = others - feature
         np.abs(diff, out=diff)
         # reduce / count: what ndarray.mean computes, without its Python-level bookkeeping

@@ -30,9 +30,16 @@ STAGES: tuple[tuple[str, str, str], ...] = (
     ("judge", "controller", "judge"),
     ("judge.features", "matcher", "features"),
     ("judge.features.planar_levels", "frame", "planar"),  # once per frame (Frame.levels), wherever first
+    ("judge.features.pool", "matching", "pool"),  # once per frame (pooled_sums), wherever first
     ("judge.features.tiles", "matcher", "_tiles"),
     ("judge.features.normalise", "matcher", "_normalised"),
     ("judge.distance", "matcher", "distance"),
+    ("judge.localise", "localiser", "update"),
+    ("judge.localise.distances", "matcher", "distances"),
+    ("judge.obstruction", "obstruction", "update"),
+    ("judge.obstruction.pool", "floor", "pool"),
+    ("judge.obstruction.features", "floor", "features"),
+    ("commanded", "localiser", "predict"),  # the localiser's motion update, after the step's command
     ("predict", "policy", "predict"),
     ("predict.light_match", "light", "matched_planar"),
     ("predict.light_match.ramp", "light", "_ramp"),
@@ -43,7 +50,7 @@ STAGES: tuple[tuple[str, str, str], ...] = (
     ("predict.inference", "onnx", "infer"),  # the same in checkouts before IOBinding (predict called infer)
     ("predict.postprocess", "onnx", "postprocess"),
 )
-TOP_LEVEL = ("link.step", "link.stop", "judge", "predict")
+TOP_LEVEL = ("link.step", "link.stop", "judge", "predict", "commanded")
 
 
 def _owners(rep: Any) -> dict[str, Any]:
@@ -55,6 +62,9 @@ def _owners(rep: Any) -> dict[str, Any]:
         "protocol": protocol,
         "controller": rep.controller,
         "matcher": rep.controller.matcher,
+        "localiser": getattr(rep.controller, "localiser", None),
+        "obstruction": getattr(rep.controller, "obstruction", None),
+        "floor": getattr(getattr(rep.controller, "obstruction", None), "floor", None),
         "matching": matching,
         "frame": frame,
         "preprocess": preprocess,
@@ -86,7 +96,7 @@ def profile_stages(rep: Any, steps: int, warmup: int) -> dict[str, dict[str, flo
     restore = []
     for label, owner, attr in STAGES:
         target = owners[owner]
-        call = getattr(target, attr, None)
+        call = getattr(target, attr, None) if target is not None else None
         if call is None:  # e.g. no light matching in this variant
             continue
         restore.append((target, attr, target.__dict__.get(attr) if hasattr(target, "__dict__") else None))

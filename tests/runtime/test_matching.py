@@ -71,3 +71,17 @@ def test_features_batch_matches_single_and_validates():
 def test_match_config_validation(kwargs, fragment):
     with pytest.raises(ValueError, match=fragment):
         MatchConfig(**kwargs)
+
+
+def test_raw_distances_over_a_stack_are_each_images_image_error_to_the_bit():
+    rng = np.random.default_rng(3)
+    m = Matcher(MatchConfig.paper())
+    image = rng.integers(0, 256, (16, 24, 3), dtype=np.uint8)
+    others = rng.integers(0, 256, (6, 16, 24, 3), dtype=np.uint8)
+    others[2] = image  # a distance of 0
+    got = m.distances(image, others)
+    assert got.dtype == np.float64 and got[2] == 0.0
+    assert np.array_equal(got, [image_error(image, o) for o in others])
+    assert m.distances(image, others[:0]).shape == (0,)
+    with pytest.raises(ValueError, match="image shapes differ"):
+        m.distances(image, others[:, :8])
