@@ -121,6 +121,35 @@ def scan_points(scan: Scan) -> np.ndarray:
     return pts
 
 
+#: Arcs flatter than this radius (m) are driven as straight lines.
+STRAIGHT_RADIUS = 1e3
+
+
+def swept_gaps(x: np.ndarray, y: np.ndarray, v: float, w: float, reach: float) -> np.ndarray:
+    """(n,) how far (m, along its path) a disc of radius ``reach`` driven forward from the origin on the arc
+    of (v > 0, w) travels before it touches each point (x ahead, y left); inf for points it never meets
+    within half a turn, 0 for those it touches already."""
+    radius = v / w if w else math.inf
+    if abs(radius) > STRAIGHT_RADIUS:  # a straight corridor as wide as the disc
+        y2 = y * y
+        with np.errstate(invalid="ignore"):
+            gaps = x - np.sqrt(reach * reach - y2)
+        return np.where((y2 <= reach * reach) & (x > 0), np.maximum(gaps, 0.0), np.inf)
+    # the centre moves on a circle about (0, radius): a point at rho from that centre is touched once the
+    # angle between it and the robot (about the centre) is at most a, with cos a = q
+    r = abs(radius)
+    rho = np.hypot(x, y - radius)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = (rho * rho + r * r - reach * reach) / (2 * rho * r)
+    psi = np.arctan2(y - radius, x)
+    ahead = np.mod(psi + math.pi / 2 if radius > 0 else math.pi / 2 - psi, 2 * math.pi)  # angle to travel
+    a = np.arccos(np.clip(q, -1.0, 1.0))
+    gaps = r * np.maximum(ahead - a, 0.0)
+    gaps[(ahead > 2 * math.pi - a) | (q <= -1)] = 0.0  # within the disc already
+    gaps[(q > 1) | (ahead - a > math.pi) | ~np.isfinite(q)] = np.inf
+    return gaps
+
+
 def limit_twist(v: float, w: float, scan: Scan | None, cfg: SafetyConfig = SafetyConfig()) -> SafetyDecision:
     """The twist the robot may drive now, given the latest scan (None: unchanged, zone NO_SCAN)."""
     reversing = v < 0
@@ -128,21 +157,18 @@ def limit_twist(v: float, w: float, scan: Scan | None, cfg: SafetyConfig = Safet
         return SafetyDecision(v, w, NO_SCAN, (v, w), reversing=reversing)
     x, y = scan_points(scan)
     if reversing:
-        x = -x  # along the driving direction
-    grown2 = (cfg.radius + cfg.margin) ** 2
+        x, w = -x, -w  # along the driving direction (mirrored, the turn's sense flips)
+    reach = cfg.radius + cfg.margin
     k = cfg.min_points
-    y2 = y * y
-    footprint = int(np.count_nonzero(x * x + y2 < grown2)) >= k
-    # The corridor: points the grown disc meets when it moves along x (those with x <= 0 it moves away
-    # from); the gap is how far it moves before it touches one.
-    ahead = y2 <= grown2
-    ahead &= x > 0
+    footprint = int(np.count_nonzero(x * x + y * y < reach * reach)) >= k
+    # The zone: the points the grown disc meets as it drives on along the commanded arc (straight ahead when
+    # the robot stands or turns in place); the gap is how far it drives before it touches one.
+    gaps = swept_gaps(x, y, abs(v), w if v else 0.0, reach)
+    ahead = np.isfinite(gaps)
     distance = bearing = None
     zone, v_out = CLEAR, v
     if ahead.any():
-        xa, ya = x[ahead], y[ahead]
-        gaps = xa - np.sqrt(grown2 - y2[ahead])
-        np.maximum(gaps, 0.0, out=gaps)
+        gaps, xa, ya = gaps[ahead], x[ahead], y[ahead]
         nearest = int(np.argmin(gaps))
         distance = float(gaps[nearest])
         bearing = math.atan2(float(ya[nearest]), -float(xa[nearest]) if reversing else float(xa[nearest]))

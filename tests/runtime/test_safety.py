@@ -47,10 +47,28 @@ def test_nothing_seen_is_clear():
     [(0.01, STOP, 0.0), (0.2, STOP, 0.0), (0.4, SLOW, 0.15), (1.0, CLEAR, 0.3)],
 )
 def test_a_point_ahead_stops_slows_or_not_by_its_distance(gap, zone, v):
-    d = limit_twist(0.3, 0.1, scan_of([ahead(gap)]))
+    d = limit_twist(0.3, 0.02, scan_of([ahead(gap)]))
     assert d.zone == zone and d.v == pytest.approx(v)
-    assert d.w == 0.1  # the turn is kept
+    assert d.w == 0.02  # the turn is kept
     assert d.distance == pytest.approx(gap, abs=0.01) and d.bearing == pytest.approx(0.0, abs=0.01)
+
+
+def test_the_zone_follows_the_commanded_arc():
+    """The disc swept along the arc of (v, w): what the robot turns toward stops it, what it turns away
+    from does not, and the gap is the travel along the arc."""
+    left = (0.35, 0.35)  # 0.49 m away, 45 degrees to the left: beside the straight corridor
+    assert limit_twist(0.3, 0.0, scan_of([left])).zone == CLEAR
+    # on a 0.35 m radius arc to the left the centre passes that point: touched after a short stretch
+    turning = limit_twist(0.3, 0.3 / 0.35, scan_of([left]))
+    along = 0.35 * (math.pi / 2 - 2 * math.asin(GROWN / 0.7))  # a quarter turn, less the chord it touches at
+    assert turning.zone == SLOW and turning.distance == pytest.approx(along, abs=0.005)
+    assert limit_twist(0.3, -0.3 / 0.35, scan_of([left])).zone == CLEAR  # turning away to the right
+    # a straight-ahead point the arc curves away from: clear, though the straight corridor held it
+    assert limit_twist(0.3, 1.0, scan_of([ahead(0.3)])).distance is None
+    assert limit_twist(0.3, 0.0, scan_of([ahead(0.3)])).zone == SLOW
+    # reversing on an arc: mirrored
+    back = limit_twist(-0.3, 0.3 / 0.35, scan_of([(-0.35, -0.35)]))  # backwards, the ICR on the right
+    assert back.zone == SLOW and back.reversing and back.distance == pytest.approx(along, abs=0.005)
 
 
 def test_the_evidence_names_the_distance():
