@@ -60,6 +60,10 @@ from vtr.runtime.matching import MatchConfig, Matcher
 FORWARD_SPEED, TURN_SPEED = 0.02, 0.05
 
 
+#: A path ahead that strays less than this (m) from the camera's axis is the straight corridor.
+STRAIGHT_M = 0.005
+
+
 def moving(v: float, w: float) -> bool:
     """Whether the command (v, w) moves the robot: driving forward, or turning (in place or on an arc)."""
     return v > FORWARD_SPEED or abs(w) > TURN_SPEED
@@ -238,9 +242,11 @@ class ObstructionDetector:
         straight = path_weights(camera, tile, cfg.half_width_m, cfg.near_m, cfg.far_m)[tiles]
         if not straight.any():
             raise ValueError(f"no tile of a {h}x{w} image sees the path region")
+        self._straight_raw = straight.astype(np.float32)
         self._straight = (straight / straight.sum()).astype(np.float32)
+
         self._least = cfg.min_region * float(straight.sum())
-        self._points = tile_floor_points(camera, tile, tiles).reshape(-1, 2)
+        self._points = tile_floor_points(camera, tile, tiles, 3).reshape(-1, 2)
         self.floor = FloorTiles(camera, tiles, self.matcher, cfg.shift_rows, cfg.shift_cols)
         per_row = w // tile
         row, col = tiles // per_row, tiles % per_row
@@ -250,6 +256,12 @@ class ObstructionDetector:
         self.poses = None if poses is None else np.asarray(poses, dtype=np.float64)
         if self.poses is not None and not np.isfinite(self.poses).all():
             self.poses = None
+        # (L, tiles) the path region seen from each subgoal, unnormalised
+        self._regions = (
+            None
+            if self.poses is None
+            else np.stack([self._floor_ahead(float(k)) for k in range(len(self.poses))])
+        )
         #: The path region's weight per tile (``floor.tiles``) in the last view judged.
         self.weights = self._straight
         self._feats = np.stack([self.floor.features(self.floor.pool(image)) for image in subgoals])
@@ -264,19 +276,30 @@ class ObstructionDetector:
     def blocked(self) -> bool:
         return self.growth.blocked
 
+    def _floor_ahead(self, position: float) -> np.ndarray:
+        """(tiles,) the share of each tile that sees the taught path ahead of ``position`` (unnormalised)."""
+        cfg = self.cfg
+        assert self.poses is not None
+        path = path_ahead(self.poses, position, cfg.far_m + cfg.half_width_m)
+        straight = np.abs(path[:, 1]).max() < STRAIGHT_M
+        if straight and path[-1, 0] >= cfg.far_m + cfg.half_width_m - STRAIGHT_M:
+            return self._straight_raw  # straight on for the whole region (most views): the corridor ahead
+        inside = near_path(self._points, path, cfg.half_width_m, cfg.near_m, cfg.far_m)
+        return inside.reshape(len(self.floor.tiles), -1).mean(axis=1).astype(np.float32)
+
     def region(self, position: float) -> np.ndarray:
         """(tiles,) the share of each tile that sees the floor the robot is about to drive over: the taught
         path from ``position`` on, ``half_width_m`` to each side, ``near_m`` to ``far_m`` along it, as it
         lies from the taught pose there (the straight corridor ahead without taught poses); normalised,
-        all zero where less than ``min_region`` of a straight path's floor is in view."""
-        cfg = self.cfg
-        if self.poses is None:
+        all zero where less than ``min_region`` of a straight path's floor is in view. Between subgoals,
+        the blend of the regions seen from the two (each computed once, when the route is loaded)."""
+        if self._regions is None:
             return self._straight
-        path = path_ahead(self.poses, position, cfg.far_m + cfg.half_width_m)
-        inside = near_path(self._points, path, cfg.half_width_m, cfg.near_m, cfg.far_m)
-        weights = inside.reshape(len(self.floor.tiles), -1).mean(axis=1)
+        k = max(0, min(int(math.floor(position)), len(self.poses) - 1))
+        t = min(max(position - k, 0.0), 1.0) if k + 1 < len(self.poses) else 0.0
+        weights = self._regions[k] if t == 0.0 else (1 - t) * self._regions[k] + t * self._regions[k + 1]
         total = float(weights.sum())
-        return (weights / total if total >= self._least else 0 * weights).astype(np.float32)
+        return weights / total if total >= self._least else np.zeros_like(weights)
 
     def scores(self, view: Frame | np.ndarray, position: float, exhaustive: bool = False) -> np.ndarray:
         """Each path-region tile's distance to the taught views where the robot is (0 for the tiles of
