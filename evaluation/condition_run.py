@@ -57,6 +57,8 @@ CONDITIONS: dict[str, Condition] = {
     **{name: Condition(sensor=name) for name in SENSORS},
     # a box on the taught path half-way along: stop before it (status blocked, no contact) ...
     "box_on_path": Condition(scene="box_on_path", expect="blocked"),
+    # ... and one just past a taught turn in place: first seen as the turn ends
+    "box_after_turn": Condition(scene="box_after_turn", expect="blocked"),
     # ... and, taken away after the robot has waited 2 s in front of it, resume and finish
     "box_removed": Condition(scene="box_on_path", clear_after_s=2.0),
 }
