@@ -186,16 +186,41 @@ def limit_twist(v: float, w: float, scan: Scan | None, cfg: SafetyConfig = Safet
 CLEARANCE_SLACK = 0.05
 
 
-def taught_zones(cfg: SafetyConfig, clearance: np.ndarray | None, target: int) -> SafetyConfig:
+def travel_ahead(poses: np.ndarray | None) -> np.ndarray | None:
+    """(L,) the taught travel (m) from each subgoal to where the route next stops translating: a turn in
+    place (a gap without translation where the heading changes) or the route's end; None without poses. The
+    robot driving toward a turn in place goes no further in that direction, so nothing beyond is in its way."""
+    if poses is None or len(poses) < 2 or not np.isfinite(poses).all():
+        return None
+    gaps = np.hypot(*np.diff(poses[:, :2], axis=0).T)
+    turned = np.abs(np.remainder(np.diff(poses[:, 2]) + math.pi, 2 * math.pi) - math.pi)
+    stops = (gaps < 1e-3) & (turned > 1e-3)
+    out = np.zeros(len(poses))
+    for i in range(
+        len(poses) - 2, -1, -1
+    ):  # from the end: 0 at a turn's start, else the next one's + the gap
+        out[i] = 0.0 if stops[i] else out[i + 1] + gaps[i]
+    return out
+
+
+def taught_zones(
+    cfg: SafetyConfig, clearance: np.ndarray | None, target: int, travel: np.ndarray | None = None
+) -> SafetyConfig:
     """The zones toward subgoal ``target`` of a route taught with ``clearance`` (``Route.clearance``): never
     longer than the free distance the teach drove up to there, less CLEARANCE_SLACK, so that a route taught
-    close to a counter or a wall can be repeated while anything new in the way still stops the robot."""
-    if clearance is None:
+    close to a counter or a wall can be repeated while anything new in the way still stops the robot; nor
+    than the taught ``travel`` left before the route turns in place or ends (:func:`travel_ahead`), so that
+    what stands beside the leg after a turn, straight ahead of the robot driving to the turn, does not stop
+    it (the zones look again along the new heading once it has turned)."""
+    free = math.inf
+    if clearance is not None:
+        near = clearance[max(0, target - 1) : target + 1]
+        near = near[np.isfinite(near)]
+        if near.size:
+            free = max(0.0, float(near.min()) - CLEARANCE_SLACK)
+    if travel is not None and len(travel):
+        free = min(free, float(travel[max(0, min(target - 1, len(travel) - 1))]))
+    if free >= cfg.slowdown_distance:
         return cfg
-    near = clearance[max(0, target - 1) : target + 1]
-    near = near[np.isfinite(near)]
-    if near.size == 0 or float(near.min()) - CLEARANCE_SLACK >= cfg.slowdown_distance:
-        return cfg
-    free = max(0.0, float(near.min()) - CLEARANCE_SLACK)
     stop = min(cfg.stop_distance, free)
     return replace(cfg, stop_distance=stop, slowdown_distance=max(stop, min(cfg.slowdown_distance, free)))

@@ -172,3 +172,32 @@ def test_taught_zones_never_reach_past_what_the_teach_drove_up_to():
     assert capped.slowdown_distance == pytest.approx(0.135 - CLEARANCE_SLACK)
     slowed = taught_zones(cfg, near, 1)  # 0.4 m free at subgoal 1: stop unchanged, slowdown shortened
     assert slowed.stop_distance == 0.25 and slowed.slowdown_distance == pytest.approx(0.35)
+
+
+def test_the_zones_reach_no_further_than_the_route_drives_before_it_turns_in_place():
+    from vtr.runtime.safety import taught_zones, travel_ahead
+
+    # 0.3 m east in 0.1 m gaps, a quarter turn on the spot, 0.2 m north, then a pause (no turn: drives on)
+    poses = np.array(
+        [
+            [0.0, 0, 0],
+            [0.1, 0, 0],
+            [0.2, 0, 0],
+            [0.3, 0, 0],
+            [0.3, 0, 1.57],
+            [0.3, 0.1, 1.57],
+            [0.3, 0.2, 1.57],
+        ]
+    )
+    poses = np.vstack([poses, [[0.3, 0.2, 1.57], [0.3, 0.3, 1.57]]])
+    assert travel_ahead(poses) == pytest.approx([0.3, 0.2, 0.1, 0.0, 0.3, 0.2, 0.1, 0.1, 0.0])
+    assert travel_ahead(None) is None
+    cfg = SafetyConfig(stop_distance=0.25, slowdown_distance=0.6)
+    travel = travel_ahead(poses)
+    # steering to subgoal 2 (the robot past subgoal 1): 0.2 m left to drive before the turn
+    to_turn = taught_zones(cfg, None, 2, travel)
+    assert to_turn.stop_distance == pytest.approx(0.2) and to_turn.slowdown_distance == pytest.approx(0.2)
+    # so a box beside the next leg, straight ahead of the robot 0.22 m beyond its footprint, stops nothing
+    assert limit_twist(0.3, 0.0, scan_of([ahead(0.22)]), to_turn).zone == CLEAR
+    assert limit_twist(0.3, 0.0, scan_of([ahead(0.15)]), to_turn).zone == STOP  # on the way to the turn
+    assert taught_zones(cfg, None, 1, travel) == cfg.__class__(stop_distance=0.25, slowdown_distance=0.3)
