@@ -100,6 +100,8 @@ CONTROLLERS: dict[str, Method] = {
     "after_scan": Method(AFTER, match_light=True, scan=True),  # the same robot with a range scanner
     # the camera-only obstruction stop off (runtime.obstruction): what the issue found
     "after_no_obstruction": Method(replace(AFTER, obstruction=False), match_light=True),
+    # the range scan alone (its stop distance, with no camera stop before it)
+    "after_scan_only": Method(replace(AFTER, obstruction=False), match_light=True, scan=True),
     # the release before the route localiser: threshold switching, plateau, stall guard, progress gate
     "rules": Method(replace(AFTER, switching="rules"), match_light=True),
     "after_ff_0": Method(replace(AFTER, feed_forward=0.0), match_light=True),
