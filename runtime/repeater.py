@@ -105,7 +105,7 @@ class Repeater:
         self._views = frames_of(self.controller.subgoals)
         self._last = len(self._views) - 1
         self._bias = self._self_bias(self.controller.cfg.zero_bias)
-        self._travel = travel_ahead(route.travel_poses())  # the zones reach no further than the route goes
+        self._ahead = travel_ahead(route.travel_poses())  # the zones bend where the route turns in place
         # the tightest bounds of the model and of what the robot announced: the zero bias and the taught prior
         # can take a command past the network's own (a command past the robot's is refused, ending the run)
         bounds = [
@@ -277,7 +277,7 @@ class Repeater:
         v, w = v * self.config.speed, w * self.config.speed  # the same arc, slower
         v_max = min(decision.v_limit, self._v_max)  # v_limit 0: no translation in a taught turn in place
         v, w = max(-v_max, min(v_max, v)), max(-self._w_max, min(self._w_max, w))
-        zones = taught_zones(self.config.safety, self.route.clearance, target, self._travel)
+        zones = taught_zones(self.config.safety, self.route.clearance, target, self._ahead)
         guard = limit_twist(v, w, obs.scan, zones)  # stop / slow for what the range scan shows
         if guard.blocked:
             return self._wait(obs, verdict, guard.describe())

@@ -46,6 +46,9 @@ class SafetyConfig:
     slowdown_distance: float = 0.6
     slowdown_factor: float = 0.5  # v scale in the slowdown zone
     min_points: int = 1  # points a zone needs to count as occupied
+    #: The taught route's shape ahead (``taught_zones`` sets it): after ``bend[0]`` m of travel it turns on
+    #: the spot by ``bend[1]`` rad (NaN: it ends there) and drives on; the zones follow it. None: no route.
+    bend: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         for name in ("radius", "margin", "stop_distance", "slowdown_distance", "slowdown_factor"):
@@ -150,6 +153,33 @@ def swept_gaps(x: np.ndarray, y: np.ndarray, v: float, w: float, reach: float) -
     return gaps
 
 
+def _bent(
+    gaps: np.ndarray,
+    x: np.ndarray,
+    y: np.ndarray,
+    v: float,
+    w: float,
+    reach: float,
+    travel: float,
+    turn: float,
+) -> np.ndarray:
+    """``gaps`` along the commanded arc up to ``travel`` m, then straight on along the heading the route takes
+    after turning ``turn`` rad on the spot there (nothing past the route's end, ``turn`` NaN)."""
+    first = np.where(gaps <= travel, gaps, np.inf)
+    if not math.isfinite(turn):
+        return first
+    radius = v / w if w else math.inf
+    if abs(radius) > STRAIGHT_RADIUS:
+        px, py, heading = travel, 0.0, 0.0
+    else:
+        a = travel / abs(radius)
+        px, py, heading = abs(radius) * math.sin(a), radius * (1 - math.cos(a)), math.copysign(a, radius)
+    c, s = math.cos(heading + turn), math.sin(heading + turn)
+    dx, dy = x - px, y - py
+    then = swept_gaps(c * dx + s * dy, -s * dx + c * dy, 1.0, 0.0, reach) + travel
+    return np.minimum(first, then)
+
+
 def limit_twist(v: float, w: float, scan: Scan | None, cfg: SafetyConfig = SafetyConfig()) -> SafetyDecision:
     """The twist the robot may drive now, given the latest scan (None: unchanged, zone NO_SCAN)."""
     reversing = v < 0
@@ -164,6 +194,8 @@ def limit_twist(v: float, w: float, scan: Scan | None, cfg: SafetyConfig = Safet
     # The zone: the points the grown disc meets as it drives on along the commanded arc (straight ahead when
     # the robot stands or turns in place); the gap is how far it drives before it touches one.
     gaps = swept_gaps(x, y, abs(v), w if v else 0.0, reach)
+    if cfg.bend is not None and not reversing:
+        gaps = _bent(gaps, x, y, abs(v), w if v else 0.0, reach, *cfg.bend)
     ahead = np.isfinite(gaps)
     distance = bearing = None
     zone, v_out = CLEAR, v
@@ -186,41 +218,48 @@ def limit_twist(v: float, w: float, scan: Scan | None, cfg: SafetyConfig = Safet
 CLEARANCE_SLACK = 0.05
 
 
-def travel_ahead(poses: np.ndarray | None) -> np.ndarray | None:
-    """(L,) the taught travel (m) from each subgoal to where the route next stops translating: a turn in
-    place (a gap without translation where the heading changes) or the route's end; None without poses. The
-    robot driving toward a turn in place goes no further in that direction, so nothing beyond is in its way."""
+def travel_ahead(poses: np.ndarray | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """(L,) the taught travel (m) from each subgoal to where the route next stops translating, a turn in
+    place (a gap without translation where the heading changes) or the route's end, and (L,) that turn's
+    angle (rad; NaN: the route ends there); None without poses."""
     if poses is None or len(poses) < 2 or not np.isfinite(poses).all():
         return None
     gaps = np.hypot(*np.diff(poses[:, :2], axis=0).T)
-    turned = np.abs(np.remainder(np.diff(poses[:, 2]) + math.pi, 2 * math.pi) - math.pi)
-    stops = (gaps < 1e-3) & (turned > 1e-3)
-    out = np.zeros(len(poses))
+    turned = np.remainder(np.diff(poses[:, 2]) + math.pi, 2 * math.pi) - math.pi
+    stops = (gaps < 1e-3) & (np.abs(turned) > 1e-3)
+    travel, turn = np.zeros(len(poses)), np.full(len(poses), np.nan)
     for i in range(
         len(poses) - 2, -1, -1
     ):  # from the end: 0 at a turn's start, else the next one's + the gap
-        out[i] = 0.0 if stops[i] else out[i + 1] + gaps[i]
-    return out
+        if stops[i]:
+            travel[i] = 0.0
+            turn[i] = turned[i] + (turn[i + 1] if i + 1 < len(stops) and stops[i + 1] else 0.0)  # all of it
+        else:
+            travel[i], turn[i] = travel[i + 1] + gaps[i], turn[i + 1]
+    return travel, turn
 
 
 def taught_zones(
-    cfg: SafetyConfig, clearance: np.ndarray | None, target: int, travel: np.ndarray | None = None
+    cfg: SafetyConfig,
+    clearance: np.ndarray | None,
+    target: int,
+    ahead: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> SafetyConfig:
     """The zones toward subgoal ``target`` of a route taught with ``clearance`` (``Route.clearance``): never
     longer than the free distance the teach drove up to there, less CLEARANCE_SLACK, so that a route taught
-    close to a counter or a wall can be repeated while anything new in the way still stops the robot; nor
-    than the taught ``travel`` left before the route turns in place or ends (:func:`travel_ahead`), so that
-    what stands beside the leg after a turn, straight ahead of the robot driving to the turn, does not stop
-    it (the zones look again along the new heading once it has turned)."""
-    free = math.inf
-    if clearance is not None:
-        near = clearance[max(0, target - 1) : target + 1]
-        near = near[np.isfinite(near)]
-        if near.size:
-            free = max(0.0, float(near.min()) - CLEARANCE_SLACK)
-    if travel is not None and len(travel):
-        free = min(free, float(travel[max(0, min(target - 1, len(travel) - 1))]))
-    if free >= cfg.slowdown_distance:
+    close to a counter or a wall can be repeated while anything new in the way still stops the robot; and,
+    given the route's :func:`travel_ahead`, bent where the route turns in place (``SafetyConfig.bend``): what
+    stands beside the leg after a turn, straight ahead of the robot driving to it, is not in the way, what
+    stands on that leg is."""
+    if ahead is not None and len(ahead[0]):
+        i = max(0, min(target - 1, len(ahead[0]) - 1))
+        cfg = replace(cfg, bend=(float(ahead[0][i]), float(ahead[1][i])))
+    if clearance is None:
         return cfg
+    near = clearance[max(0, target - 1) : target + 1]
+    near = near[np.isfinite(near)]
+    if near.size == 0 or float(near.min()) - CLEARANCE_SLACK >= cfg.slowdown_distance:
+        return cfg
+    free = max(0.0, float(near.min()) - CLEARANCE_SLACK)
     stop = min(cfg.stop_distance, free)
     return replace(cfg, stop_distance=stop, slowdown_distance=max(stop, min(cfg.slowdown_distance, free)))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -174,30 +175,27 @@ def test_taught_zones_never_reach_past_what_the_teach_drove_up_to():
     assert slowed.stop_distance == 0.25 and slowed.slowdown_distance == pytest.approx(0.35)
 
 
-def test_the_zones_reach_no_further_than_the_route_drives_before_it_turns_in_place():
+def test_the_zones_bend_where_the_route_turns_in_place():
     from vtr.runtime.safety import taught_zones, travel_ahead
 
-    # 0.3 m east in 0.1 m gaps, a quarter turn on the spot, 0.2 m north, then a pause (no turn: drives on)
+    # 0.3 m east in 0.1 m gaps, a quarter turn to the left on the spot, 0.2 m north, a pause, 0.1 m north
     poses = np.array(
-        [
-            [0.0, 0, 0],
-            [0.1, 0, 0],
-            [0.2, 0, 0],
-            [0.3, 0, 0],
-            [0.3, 0, 1.57],
-            [0.3, 0.1, 1.57],
-            [0.3, 0.2, 1.57],
-        ]
+        [[0.0, 0, 0], [0.1, 0, 0], [0.2, 0, 0], [0.3, 0, 0], [0.3, 0, 0.8], [0.3, 0, 1.6], [0.3, 0.1, 1.6]]
     )
-    poses = np.vstack([poses, [[0.3, 0.2, 1.57], [0.3, 0.3, 1.57]]])
-    assert travel_ahead(poses) == pytest.approx([0.3, 0.2, 0.1, 0.0, 0.3, 0.2, 0.1, 0.1, 0.0])
+    poses = np.vstack([poses, [[0.3, 0.2, 1.6], [0.3, 0.2, 1.6], [0.3, 0.3, 1.6]]])
+    travel, turn = travel_ahead(poses)
+    assert travel == pytest.approx([0.3, 0.2, 0.1, 0.0, 0.0, 0.3, 0.2, 0.1, 0.1, 0.0])
+    assert turn[:5] == pytest.approx([1.6, 1.6, 1.6, 1.6, 0.8]) and np.isnan(turn[5:]).all()
     assert travel_ahead(None) is None
     cfg = SafetyConfig(stop_distance=0.25, slowdown_distance=0.6)
-    travel = travel_ahead(poses)
-    # steering to subgoal 2 (the robot past subgoal 1): 0.2 m left to drive before the turn
-    to_turn = taught_zones(cfg, None, 2, travel)
-    assert to_turn.stop_distance == pytest.approx(0.2) and to_turn.slowdown_distance == pytest.approx(0.2)
-    # so a box beside the next leg, straight ahead of the robot 0.22 m beyond its footprint, stops nothing
-    assert limit_twist(0.3, 0.0, scan_of([ahead(0.22)]), to_turn).zone == CLEAR
-    assert limit_twist(0.3, 0.0, scan_of([ahead(0.15)]), to_turn).zone == STOP  # on the way to the turn
-    assert taught_zones(cfg, None, 1, travel) == cfg.__class__(stop_distance=0.25, slowdown_distance=0.3)
+    to_turn = taught_zones(cfg, None, 2, (travel, turn))  # steering to subgoal 2: 0.2 m to the turn
+    assert to_turn.bend == pytest.approx((0.2, 1.6)) and to_turn.stop_distance == 0.25
+    # straight ahead of the robot past the turn point, beside the leg after it: not in the way ...
+    assert limit_twist(0.3, 0.0, scan_of([(0.2 + 0.4, 0.0)]), to_turn).zone == CLEAR
+    assert limit_twist(0.3, 0.0, scan_of([(0.2 + 0.4, 0.0)]), cfg).zone == SLOW  # (the straight zone)
+    # ... on that leg, 0.1 m past the footprint at the turn point: in it, after 0.2 + 0.1 m of travel
+    on_leg = limit_twist(0.3, 0.0, scan_of([(0.2, GROWN + 0.1)]), to_turn)
+    assert on_leg.zone == SLOW and on_leg.distance == pytest.approx(0.2 + 0.1 - 0.0, abs=0.03)
+    # before the turn, as without a route; past the route's end, nothing
+    assert limit_twist(0.3, 0.0, scan_of([ahead(0.15)]), to_turn).zone == STOP
+    assert limit_twist(0.3, 0.0, scan_of([ahead(0.15)]), replace(cfg, bend=(0.1, math.nan))).zone == CLEAR
