@@ -1,11 +1,16 @@
 """Stop for what is in the way: the range-scan half of the repeat's safety layer.
 
-The idea of Nav2's collision_monitor, on our robot: zones fixed to the robot, filled by the points of the
-latest range scan, each with an action. Given the commanded twist (v, w) and a :class:`Scan`,
-:func:`limit_twist` projects the scan's points into the robot frame (the scanner sits ``x_m`` ahead of the
-centre) and looks at the corridor the robot sweeps in its driving direction (ahead for v >= 0, behind for
-v < 0): as wide as the robot plus ``margin`` on each side, from the robot's edge onwards. Of the points in
-it, the nearest along the driving direction decides:
+The idea of Nav2's collision_monitor, on our robot: zones filled by the points of the latest range scan,
+each with an action. Given the commanded twist (v, w) and a :class:`Scan`, :func:`limit_twist` projects
+the scan's points into the robot frame (the scanner sits ``x_m`` ahead of the centre) and keeps those in
+the robot's way: the path its footprint, grown by ``margin``, sweeps as it drives on along the commanded
+arc (ahead for v >= 0, behind for v < 0; straight ahead while it stands or turns in place), like the
+footprint collision_monitor's approach model projects along the twist. On a taught route the path bends
+where the route turns in place (``SafetyConfig.bend``, from :func:`taught_zones`): up to the turn along the
+arc, then along the heading after it, and nothing past the route's end; so what stands beside the leg after
+a turn, straight ahead of the robot driving to it, is not in the way. Of the points in the way, the
+nearest (straight from the grown footprint, never more than the travel to it, so that the robot stops as
+far from it whichever way the arc comes at it) decides:
 
 - within ``stop_distance`` of the robot's edge: STOP, v := 0;
 - within ``slowdown_distance``: SLOW, v := v * ``slowdown_factor``;
@@ -13,8 +18,8 @@ it, the nearest along the driving direction decides:
 
 w is kept (a round robot turning in place sweeps nothing new), unless a point lies within the robot's own
 footprint grown by ``margin``: then v := 0 and w := 0 (something touches the robot or sits on the sensor).
-Nothing is remembered between calls: one scan, one decision; a point beside the corridor never stops the
-robot. The footprint is a disc of ``radius`` (our simulated robot; for another shape give the radius of
+Nothing is remembered between calls: one scan, one decision; a point beside the swept path never stops
+the robot. The footprint is a disc of ``radius`` (our simulated robot; for another shape give the radius of
 the circle that encloses it), grown by ``margin``; distances are measured from that grown disc, so a
 stop at ``stop_distance`` leaves at least ``stop_distance + margin`` to the robot itself.
 
@@ -42,7 +47,7 @@ class SafetyConfig:
 
     radius: float = ROBOT_RADIUS  # footprint: a disc (another shape: the radius of the circle enclosing it)
     margin: float = 0.02  # added to the footprint on every side
-    stop_distance: float = 0.25  # from the (grown) footprint along the driving direction
+    stop_distance: float = 0.25  # from the (grown) footprint to what is in its way
     slowdown_distance: float = 0.6
     slowdown_factor: float = 0.5  # v scale in the slowdown zone
     min_points: int = 1  # points a zone needs to count as occupied
@@ -74,10 +79,9 @@ class SafetyConfig:
 class SafetyDecision:
     """What :func:`limit_twist` let through, and the evidence for it.
 
-    ``distance``: how far the robot can still drive in its driving direction before its grown footprint
-    touches the nearest point of the corridor (m, 0 when one is already inside it); ``bearing``: that
-    point's direction from the robot's centre (rad, REP-103). Both None when the corridor is empty or
-    there is no scan. ``footprint``: a point lies within the grown footprint, so the turn was refused too.
+    ``distance``: how far the nearest point in the robot's way is from its grown footprint (m, 0 when one
+    is already inside it); ``bearing``: that point's direction from the robot's centre (rad, REP-103).
+    Both None when nothing is in the way or there is no scan. ``footprint``: a point lies within the grown footprint, so the turn was refused too.
     ``reversing``: the driving direction was backwards (v < 0), so ``distance`` is behind the robot.
     """
 
@@ -200,7 +204,10 @@ def limit_twist(v: float, w: float, scan: Scan | None, cfg: SafetyConfig = Safet
     distance = bearing = None
     zone, v_out = CLEAR, v
     if ahead.any():
-        gaps, xa, ya = gaps[ahead], x[ahead], y[ahead]
+        xa, ya = x[ahead], y[ahead]
+        # how near each point in the way is, straight (never more than the travel to it): the robot stops
+        # stop_distance short of it, whichever way the arc comes at it
+        gaps = np.maximum(np.hypot(xa, ya) - reach, 0.0)
         nearest = int(np.argmin(gaps))
         distance = float(gaps[nearest])
         bearing = math.atan2(float(ya[nearest]), -float(xa[nearest]) if reversing else float(xa[nearest]))

@@ -56,20 +56,21 @@ def test_a_point_ahead_stops_slows_or_not_by_its_distance(gap, zone, v):
 
 def test_the_zone_follows_the_commanded_arc():
     """The disc swept along the arc of (v, w): what the robot turns toward stops it, what it turns away
-    from does not, and the gap is the travel along the arc."""
+    from does not; the distance is straight from the grown footprint (the travel to it is longer)."""
     left = (0.35, 0.35)  # 0.49 m away, 45 degrees to the left: beside the straight corridor
     assert limit_twist(0.3, 0.0, scan_of([left])).zone == CLEAR
     # on a 0.35 m radius arc to the left the centre passes that point: touched after a short stretch
     turning = limit_twist(0.3, 0.3 / 0.35, scan_of([left]))
+    straight = math.hypot(0.35, 0.35) - GROWN
     along = 0.35 * (math.pi / 2 - 2 * math.asin(GROWN / 0.7))  # a quarter turn, less the chord it touches at
-    assert turning.zone == SLOW and turning.distance == pytest.approx(along, abs=0.005)
+    assert turning.zone == SLOW and turning.distance == pytest.approx(straight) and straight < along
     assert limit_twist(0.3, -0.3 / 0.35, scan_of([left])).zone == CLEAR  # turning away to the right
     # a straight-ahead point the arc curves away from: clear, though the straight corridor held it
     assert limit_twist(0.3, 1.0, scan_of([ahead(0.3)])).distance is None
     assert limit_twist(0.3, 0.0, scan_of([ahead(0.3)])).zone == SLOW
     # reversing on an arc: mirrored
     back = limit_twist(-0.3, 0.3 / 0.35, scan_of([(-0.35, -0.35)]))  # backwards, the ICR on the right
-    assert back.zone == SLOW and back.reversing and back.distance == pytest.approx(along, abs=0.005)
+    assert back.zone == SLOW and back.reversing and back.distance == pytest.approx(straight)
 
 
 def test_the_evidence_names_the_distance():
@@ -193,9 +194,11 @@ def test_the_zones_bend_where_the_route_turns_in_place():
     # straight ahead of the robot past the turn point, beside the leg after it: not in the way ...
     assert limit_twist(0.3, 0.0, scan_of([(0.2 + 0.4, 0.0)]), to_turn).zone == CLEAR
     assert limit_twist(0.3, 0.0, scan_of([(0.2 + 0.4, 0.0)]), cfg).zone == SLOW  # (the straight zone)
-    # ... on that leg, 0.1 m past the footprint at the turn point: in it, after 0.2 + 0.1 m of travel
-    on_leg = limit_twist(0.3, 0.0, scan_of([(0.2, GROWN + 0.1)]), to_turn)
-    assert on_leg.zone == SLOW and on_leg.distance == pytest.approx(0.2 + 0.1 - 0.0, abs=0.03)
+    # ... on that leg, 0.3 m past the footprint at the turn point: in the way (0.34 m from the robot)
+    on_leg = limit_twist(0.3, 0.0, scan_of([(0.2, GROWN + 0.3)]), to_turn)
+    assert on_leg.zone == SLOW and on_leg.distance == pytest.approx(
+        math.hypot(0.2, GROWN + 0.2) - GROWN, abs=0.01
+    )
     # before the turn, as without a route; past the route's end, nothing
     assert limit_twist(0.3, 0.0, scan_of([ahead(0.15)]), to_turn).zone == STOP
     assert limit_twist(0.3, 0.0, scan_of([ahead(0.15)]), replace(cfg, bend=(0.1, math.nan))).zone == CLEAR
