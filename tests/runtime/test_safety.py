@@ -197,7 +197,7 @@ def test_the_zones_bend_where_the_route_turns_in_place():
     # ... on that leg, 0.3 m past the footprint at the turn point: in the way (0.34 m from the robot)
     on_leg = limit_twist(0.3, 0.0, scan_of([(0.2, GROWN + 0.3)]), to_turn)
     assert on_leg.zone == SLOW and on_leg.distance == pytest.approx(
-        math.hypot(0.2, GROWN + 0.2) - GROWN, abs=0.01
+        math.hypot(0.2, GROWN + 0.3) - GROWN, abs=0.01
     )
     # before the turn, as without a route; past the route's end, nothing
     assert limit_twist(0.3, 0.0, scan_of([ahead(0.15)]), to_turn).zone == STOP
