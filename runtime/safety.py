@@ -200,7 +200,7 @@ def limit_twist(v: float, w: float, scan: Scan | None, cfg: SafetyConfig = Safet
     gaps = swept_gaps(x, y, abs(v), w if v else 0.0, reach)
     if cfg.bend is not None and not reversing:
         gaps = _bent(gaps, x, y, abs(v), w if v else 0.0, reach, *cfg.bend)
-    ahead = np.isfinite(gaps)
+    ahead = gaps <= cfg.slowdown_distance  # in the way within the zones' travel (inf: never)
     distance = bearing = None
     zone, v_out = CLEAR, v
     if ahead.any():

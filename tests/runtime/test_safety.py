@@ -51,7 +51,10 @@ def test_a_point_ahead_stops_slows_or_not_by_its_distance(gap, zone, v):
     d = limit_twist(0.3, 0.02, scan_of([ahead(gap)]))
     assert d.zone == zone and d.v == pytest.approx(v)
     assert d.w == 0.02  # the turn is kept
-    assert d.distance == pytest.approx(gap, abs=0.01) and d.bearing == pytest.approx(0.0, abs=0.01)
+    if gap > CFG.slowdown_distance:  # beyond the zones' reach: not in the way
+        assert d.distance is None and d.bearing is None
+    else:
+        assert d.distance == pytest.approx(gap, abs=0.01) and d.bearing == pytest.approx(0.0, abs=0.01)
 
 
 def test_the_zone_follows_the_commanded_arc():
@@ -202,3 +205,14 @@ def test_the_zones_bend_where_the_route_turns_in_place():
     # before the turn, as without a route; past the route's end, nothing
     assert limit_twist(0.3, 0.0, scan_of([ahead(0.15)]), to_turn).zone == STOP
     assert limit_twist(0.3, 0.0, scan_of([ahead(0.15)]), replace(cfg, bend=(0.1, math.nan))).zone == CLEAR
+
+
+def test_what_the_arc_reaches_only_after_the_zones_travel_is_not_in_the_way():
+    """Dev gen_192, box beside the path: a tight arc (0.34 m radius) bent 2.25 m on came back round past the
+    box, 0.15 m from the robot; only what the robot meets within the slowdown distance's travel counts."""
+    tight = (0.3, 0.3 / 0.34)
+    top = (0.0, 0.68)  # half a turn round the arc: 0.49 m away, over 0.8 m of travel
+    assert limit_twist(*tight, scan_of([top])).zone == CLEAR
+    bent = SafetyConfig(bend=(2.25, -1.02))
+    assert limit_twist(*tight, scan_of([(0.21, -0.27)]), bent).zone == CLEAR
+    assert limit_twist(*tight, scan_of([(0.21, 0.1)]), bent).zone == STOP  # on the arc, 0.04 m away
