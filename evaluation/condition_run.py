@@ -57,6 +57,8 @@ CONDITIONS: dict[str, Condition] = {
     **{name: Condition(sensor=name) for name in SENSORS},
     # a box on the taught path half-way along: stop before it (status blocked, no contact) ...
     "box_on_path": Condition(scene="box_on_path", expect="blocked"),
+    # ... and one just past a taught turn in place: first seen as the turn ends
+    "box_after_turn": Condition(scene="box_after_turn", expect="blocked"),
     # ... and, taken away after the robot has waited 2 s in front of it, resume and finish
     "box_removed": Condition(scene="box_on_path", clear_after_s=2.0),
 }
@@ -98,6 +100,8 @@ CONTROLLERS: dict[str, Method] = {
     "after_scan": Method(AFTER, match_light=True, scan=True),  # the same robot with a range scanner
     # the camera-only obstruction stop off (runtime.obstruction): what the issue found
     "after_no_obstruction": Method(replace(AFTER, obstruction=False), match_light=True),
+    # the range scan alone (its stop distance, with no camera stop before it)
+    "after_scan_only": Method(replace(AFTER, obstruction=False), match_light=True, scan=True),
     # the release before the route localiser: threshold switching, plateau, stall guard, progress gate
     "rules": Method(replace(AFTER, switching="rules"), match_light=True),
     # no turn toward the path from the floor's side offset (runtime.side_offset): VelocityNet alone beside it

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from vtr.evaluation.moving_box import box_crossing_path
-from vtr.evaluation.path_boxes import box_beside_path, box_item, box_on_path
+from vtr.evaluation.path_boxes import box_after_turn, box_beside_path, box_item, box_on_path
 from vtr.runtime.robot import Observation
 from vtr.sim2d.config import SimConfig
 
@@ -190,11 +190,12 @@ SCENES: dict[str, Callable[[dict[str, Any]], None]] = {
 PATH_SCENES: dict[str, Callable[[dict[str, Any], np.ndarray | None], None]] = {
     "obstacle_beside_path": _obstacle_beside_path,
     "box_on_path": box_on_path,
+    "box_after_turn": box_after_turn,
     "box_beside_path": box_beside_path,
     "moving_obstacle": box_crossing_path,
 }
 #: Scenes that block the taught path by design: no PathBlocked refusal (the robot must stop before them).
-BLOCKING_SCENES = ("box_on_path",)
+BLOCKING_SCENES = ("box_on_path", "box_after_turn")
 #: Scenes whose box moves during the run (evaluation.moving_box.CrossingRobot moves it).
 MOVING_SCENES = ("moving_obstacle",)
 

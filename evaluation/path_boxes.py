@@ -1,5 +1,6 @@
 """Boxes placed relative to the taught path, for the condition suite (evaluation.conditions' PATH_SCENES):
-on it half-way along (``box_on_path``: the way blocked by design), beside it (``box_beside_path``: it must
+on it half-way along (``box_on_path``: the way blocked by design) or just past a taught turn in place
+(``box_after_turn``), beside it (``box_beside_path``: it must
 pass), taken away while the robot waits (:class:`ClearingRobot`), and where a box is and how far the robot is
 from it."""
 
@@ -44,6 +45,51 @@ def box_on_path(house: dict[str, Any], path: np.ndarray | None) -> None:
     starts = [p for p in house["start_poses"] if math.hypot(p["x"] - cx, p["y"] - cy) > reach]
     changed = {**house, "start_poses": starts, "furniture": [*house["furniture"], box]}
     House(changed, "box_on_path")  # raises where the box does not fit (it always should on a taught path)
+    house.update(changed)
+
+
+#: box_after_turn: the box's centre this far (m) along the path past the end of a taught turn in place: its
+#: face 0.375 m from the robot's centre as the turn ends, 0.205 m clear of its body.
+AFTER_TURN_M = 0.5
+
+
+def turn_ends(path: np.ndarray, turned: float = math.radians(20)) -> list[int]:
+    """Indices of the taught poses where a turn in place of at least ``turned`` rad ends (the robot turned on
+    the spot, then drives on)."""
+    xy, yaw = path[:, :2], path[:, 2]
+    still = np.hypot(*np.diff(xy, axis=0).T) < 1e-3  # gap i -> i + 1 without translation
+    ends, start = [], None
+    for i, s in enumerate(still):
+        if s and start is None:
+            start = i
+        elif not s and start is not None:
+            if abs(math.remainder(float(np.unwrap(yaw[start : i + 1])[-1] - yaw[start]), math.tau)) >= turned:
+                ends.append(i)
+            start = None
+    return ends
+
+
+def box_after_turn(house: dict[str, Any], path: np.ndarray | None) -> None:
+    """The box of ``box_on_path`` centred on the taught path ``AFTER_TURN_M`` past the end of the taught turn
+    in place nearest the half-way point, square to the path there: the robot first sees it as it turns
+    (issue 19's diagnosed miss: the floor ahead is unmatched when it first comes into view). Not placeable
+    on a route without a turn in place followed by enough path."""
+    from vtr.sim2d.house import START_CLEARANCE, House
+
+    if path is None or len(path) < 2:
+        raise ValueError("the box_after_turn scene needs a taught path")
+    xy = path[:, :2]
+    arc = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    ends = [i for i in turn_ends(path) if arc[i] + AFTER_TURN_M + PATH_BOX_SIDE <= arc[-1]]
+    if not ends:
+        raise ValueError("no taught turn in place followed by 0.75 m of path")
+    end = min(ends, key=lambda i: abs(arc[i] - arc[-1] / 2))
+    cx, cy, yaw = along_path(path, (arc[end] + AFTER_TURN_M) / arc[-1])
+    box = box_item(cx, cy, yaw)
+    reach = START_CLEARANCE + PATH_BOX_SIDE / math.sqrt(2)
+    starts = [p for p in house["start_poses"] if math.hypot(p["x"] - cx, p["y"] - cy) > reach]
+    changed = {**house, "start_poses": starts, "furniture": [*house["furniture"], box]}
+    House(changed, "box_after_turn")
     house.update(changed)
 
 

@@ -45,7 +45,7 @@ from vtr.runtime.decisions import Action, Decision, Verdict
 from vtr.runtime.floor_view import Camera
 from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
-from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionDetector, ObstructionVerdict
+from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionDetector, ObstructionVerdict, moving
 from vtr.runtime.side_offset import SideEstimate, SideOffset
 from vtr.runtime.thresholds import check_subgoals, route_views
 
@@ -99,8 +99,8 @@ class Follower:
         self.beside: SideEstimate | None = None
         #: The obstruction detector's verdict on the last view (None without a detector).
         self.obstructed: ObstructionVerdict | None = None
-        self._forward = False  # commanded forward since the last view
         self._speed = 0.0  # the last forward speed commanded (m/s)
+        self._moved = False  # commanded to drive or turn since the last view
         self.index = 0  # the subgoal steered to
         self.status: Action | None = None
         self.estimate: Estimate | None = None
@@ -153,8 +153,8 @@ class Follower:
     def commanded(self, v: float, w: float, dt: float) -> None:
         """The repeat loop applied (v, w) for ``dt`` seconds: the estimate moves along the route."""
         self._idle = self._idle + 1 if abs(v) < IDLE_SPEED and abs(w) < IDLE_TURN else 0
-        self._forward = self._forward or v > FORWARD_SPEED
         self._speed = v
+        self._moved = self._moved or moving(v, w)
         self.localiser.predict(v, w, dt)
 
     def relocalise(self) -> None:
@@ -254,8 +254,8 @@ class Follower:
         """BLOCKED while the obstruction detector sees the way ahead blocked (None: go on)."""
         if self.obstruction is None:
             return None
-        forward, self._forward = self._forward, False
-        verdict = self.obstructed = self.obstruction.update(image, est.position, forward)
+        moved, self._moved = self._moved, False
+        verdict = self.obstructed = self.obstruction.update(image, est.position, moved)
         if not verdict.blocked:
             return None
         self._lost_count, self._lost_best = 0, math.inf  # what spoils the match is in the way, not elsewhere

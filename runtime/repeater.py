@@ -43,7 +43,7 @@ from vtr.runtime.protocol import BadFrameError
 from vtr.runtime.repeat_types import RepeatConfig, RepeatStatus, StepRecord, Summary
 from vtr.runtime.robot import RobotError, safe_stop
 from vtr.runtime.route import Route
-from vtr.runtime.safety import limit_twist, taught_zones
+from vtr.runtime.safety import limit_twist, taught_zones, travel_ahead
 
 __all__ = ["RepeatConfig", "RepeatStatus", "Repeater", "StepRecord", "Summary", "safe_stop"]
 
@@ -105,6 +105,7 @@ class Repeater:
         self._views = frames_of(self.controller.subgoals)
         self._last = len(self._views) - 1
         self._bias = self._self_bias(self.controller.cfg.zero_bias)
+        self._ahead = travel_ahead(route.travel_poses())  # the zones bend where the route turns in place
         # the tightest bounds of the model and of what the robot announced: the zero bias and the taught prior
         # can take a command past the network's own (a command past the robot's is refused, ending the run)
         bounds = [
@@ -275,9 +276,8 @@ class Repeater:
         v, w = v * self.config.speed, w * self.config.speed  # the same arc, slower
         v_max = min(decision.v_limit, self._v_max)  # v_limit 0: no translation in a taught turn in place
         v, w = max(-v_max, min(v_max, v)), max(-self._w_max, min(self._w_max, w))
-        guard = limit_twist(
-            v, w, obs.scan, taught_zones(self.config.safety, self.route.clearance, target)
-        )  # stop / slow for what the range scan shows
+        zones = taught_zones(self.config.safety, self.route.clearance, target, self._ahead)
+        guard = limit_twist(v, w, obs.scan, zones)  # stop / slow for what the range scan shows
         if guard.blocked:
             return self._wait(obs, verdict, guard.describe())
         v, w = guard.v, guard.w

@@ -82,8 +82,9 @@ class TeachRecorder:
 
 
 def taught_clearance(scans: list[Scan | None], commands: np.ndarray) -> np.ndarray | None:
-    """(L,) free distance (m) the teach's range scan showed at each subgoal in its driving direction (the
-    command after it, else the one before; inf: nothing in range), or None when the robot sent no scans.
+    """(L,) free distance (m) the teach's range scan showed at each subgoal along the arc it drove (the
+    command after it, else the one before; straight ahead in a turn in place; inf: nothing in range), or
+    None when the robot sent no scans.
     The repeat's stop zone never reaches further than what the teach itself drove up to (runtime.safety)."""
     if all(s is None for s in scans):
         return None
@@ -91,7 +92,7 @@ def taught_clearance(scans: list[Scan | None], commands: np.ndarray) -> np.ndarr
     for i, scan in enumerate(scans):
         if scan is None:
             continue
-        v = commands[i, 0] if commands[i, 0] != 0 or i == 0 else commands[i - 1, 0]
-        seen = limit_twist(-1.0 if v < 0 else 1.0, 0.0, scan).distance
+        v, w = commands[i] if commands[i, 0] != 0 or i == 0 else commands[i - 1]
+        seen = limit_twist(v, w, scan).distance if v else limit_twist(1.0, 0.0, scan).distance  # on its arc
         out[i] = math.inf if seen is None else seen
     return out

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionConfig, ObstructionDetector
+from vtr.runtime.obstruction import ObstructionConfig, ObstructionDetector, moving
 
 DEV_SEEDS = tuple(range(100, 106))
 DISTANCES = (1.0, 0.8, 0.6, 0.45, 0.35)
@@ -135,17 +135,17 @@ def watched_run(route: Any, script: Any, cond_name: str, seed: int, cfg: Obstruc
     trace: list[tuple[float, float, bool, float | None]] = []  # shares, forward, robot to the box's face
     fired: dict[str, Any] = {}
     tiles: list[list[float]] = []  # each view's least distance per path-region tile
-    last_v = [0.0]
+    last_vw = [(0.0, 0.0)]
 
     def on_step(record: StepRecord) -> None:
         if record.image is None or follower.estimate is None:
             return
         scores = detector.scores(record.image, follower.estimate.position, exhaustive=True)
         share, hidden = detector.shares(scores)
-        forward = last_v[0] > FORWARD_SPEED
+        forward = moving(*last_vw[0])  # drove or turned since the last view
         verdict = detector.growth.update(share, hidden, forward)
         tiles.append(np.round(scores, 2).tolist())
-        last_v[0] = record.v if record.commanded else 0.0
+        last_vw[0] = (record.v, record.w) if record.commanded else (0.0, 0.0)
         near = None if box is None or record.pose is None else box_distance(box, *record.pose[:2])
         trace.append((share, hidden, forward, near))
         if verdict.blocked and not fired:

@@ -200,3 +200,19 @@ def test_the_stop_table_counts_how_runs_ended():
     table = stops([{"runs": runs}])
     assert "| after | fp32 | box_on_path | 3 | 0 | 2 | 1 | 2 | 0.40 / 0.45 | - |" in table
     assert "| after | fp32 | noise_0.05 | 2 | 1 | 0 | 0 | 1 | - | - |" in table
+
+
+def test_the_box_after_a_turn_stands_half_a_metre_past_the_taught_turn_in_place(tmp_path):
+    from vtr.evaluation.path_boxes import turn_ends
+
+    path = np.vstack([l_path(), [[3.2, 3.6 + 0.05 * k, math.pi / 2] for k in range(1, 5)]])  # 0.8 m north
+    assert turn_ends(path) == [22]  # the last pose of the turn on the spot
+    box = box_of(json.loads(write_scene_house("box_after_turn", tmp_path, path=path).read_text()))
+    assert (
+        box is not None
+        and box["center"] == pytest.approx([3.2, 3.5])
+        and box["angle_deg"] == pytest.approx(90)
+    )
+    assert CONDITIONS["box_after_turn"].expect == "blocked"
+    with pytest.raises(ValueError, match="no taught turn in place"):
+        write_scene_house("box_after_turn", tmp_path, path=l_path()[:21])  # one straight leg

@@ -29,7 +29,7 @@ def floor_view(x: float, y: float = 0.0, yaw: float = 0.0, seed: int = 0) -> np.
     return out.astype(np.uint8)
 
 
-def straight_route(n: int = 8, gap: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+def straight_route(n: int = 24, gap: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     """The views and poses of a straight route along x, a subgoal every ``gap`` m."""
     poses = np.array([[gap * k, 0.0, 0.0] for k in range(n)])
     return np.stack([floor_view(x) for x, _, _ in poses]), poses

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -47,10 +48,32 @@ def test_nothing_seen_is_clear():
     [(0.01, STOP, 0.0), (0.2, STOP, 0.0), (0.4, SLOW, 0.15), (1.0, CLEAR, 0.3)],
 )
 def test_a_point_ahead_stops_slows_or_not_by_its_distance(gap, zone, v):
-    d = limit_twist(0.3, 0.1, scan_of([ahead(gap)]))
+    d = limit_twist(0.3, 0.02, scan_of([ahead(gap)]))
     assert d.zone == zone and d.v == pytest.approx(v)
-    assert d.w == 0.1  # the turn is kept
-    assert d.distance == pytest.approx(gap, abs=0.01) and d.bearing == pytest.approx(0.0, abs=0.01)
+    assert d.w == 0.02  # the turn is kept
+    if gap > CFG.slowdown_distance:  # beyond the zones' reach: not in the way
+        assert d.distance is None and d.bearing is None
+    else:
+        assert d.distance == pytest.approx(gap, abs=0.01) and d.bearing == pytest.approx(0.0, abs=0.01)
+
+
+def test_the_zone_follows_the_commanded_arc():
+    """The disc swept along the arc of (v, w): what the robot turns toward stops it, what it turns away
+    from does not; the distance is straight from the grown footprint (the travel to it is longer)."""
+    left = (0.35, 0.35)  # 0.49 m away, 45 degrees to the left: beside the straight corridor
+    assert limit_twist(0.3, 0.0, scan_of([left])).zone == CLEAR
+    # on a 0.35 m radius arc to the left the centre passes that point: touched after a short stretch
+    turning = limit_twist(0.3, 0.3 / 0.35, scan_of([left]))
+    straight = math.hypot(0.35, 0.35) - GROWN
+    along = 0.35 * (math.pi / 2 - 2 * math.asin(GROWN / 0.7))  # a quarter turn, less the chord it touches at
+    assert turning.zone == SLOW and turning.distance == pytest.approx(straight) and straight < along
+    assert limit_twist(0.3, -0.3 / 0.35, scan_of([left])).zone == CLEAR  # turning away to the right
+    # a straight-ahead point the arc curves away from: clear, though the straight corridor held it
+    assert limit_twist(0.3, 1.0, scan_of([ahead(0.3)])).distance is None
+    assert limit_twist(0.3, 0.0, scan_of([ahead(0.3)])).zone == SLOW
+    # reversing on an arc: mirrored
+    back = limit_twist(-0.3, 0.3 / 0.35, scan_of([(-0.35, -0.35)]))  # backwards, the ICR on the right
+    assert back.zone == SLOW and back.reversing and back.distance == pytest.approx(straight)
 
 
 def test_the_evidence_names_the_distance():
@@ -154,3 +177,42 @@ def test_taught_zones_never_reach_past_what_the_teach_drove_up_to():
     assert capped.slowdown_distance == pytest.approx(0.135 - CLEARANCE_SLACK)
     slowed = taught_zones(cfg, near, 1)  # 0.4 m free at subgoal 1: stop unchanged, slowdown shortened
     assert slowed.stop_distance == 0.25 and slowed.slowdown_distance == pytest.approx(0.35)
+
+
+def test_the_zones_bend_where_the_route_turns_in_place():
+    from vtr.runtime.safety import taught_zones, travel_ahead
+
+    # 0.3 m east in 0.1 m gaps, a quarter turn to the left on the spot, 0.2 m north, a pause, 0.1 m north
+    poses = np.array(
+        [[0.0, 0, 0], [0.1, 0, 0], [0.2, 0, 0], [0.3, 0, 0], [0.3, 0, 0.8], [0.3, 0, 1.6], [0.3, 0.1, 1.6]]
+    )
+    poses = np.vstack([poses, [[0.3, 0.2, 1.6], [0.3, 0.2, 1.6], [0.3, 0.3, 1.6]]])
+    travel, turn = travel_ahead(poses)
+    assert travel == pytest.approx([0.3, 0.2, 0.1, 0.0, 0.0, 0.3, 0.2, 0.1, 0.1, 0.0])
+    assert turn[:5] == pytest.approx([1.6, 1.6, 1.6, 1.6, 0.8]) and np.isnan(turn[5:]).all()
+    assert travel_ahead(None) is None
+    cfg = SafetyConfig(stop_distance=0.25, slowdown_distance=0.6)
+    to_turn = taught_zones(cfg, None, 2, (travel, turn))  # steering to subgoal 2: 0.2 m to the turn
+    assert to_turn.bend == pytest.approx((0.2, 1.6)) and to_turn.stop_distance == 0.25
+    # straight ahead of the robot past the turn point, beside the leg after it: not in the way ...
+    assert limit_twist(0.3, 0.0, scan_of([(0.2 + 0.4, 0.0)]), to_turn).zone == CLEAR
+    assert limit_twist(0.3, 0.0, scan_of([(0.2 + 0.4, 0.0)]), cfg).zone == SLOW  # (the straight zone)
+    # ... on that leg, 0.3 m past the footprint at the turn point: in the way (0.34 m from the robot)
+    on_leg = limit_twist(0.3, 0.0, scan_of([(0.2, GROWN + 0.3)]), to_turn)
+    assert on_leg.zone == SLOW and on_leg.distance == pytest.approx(
+        math.hypot(0.2, GROWN + 0.3) - GROWN, abs=0.01
+    )
+    # before the turn, as without a route; past the route's end, nothing
+    assert limit_twist(0.3, 0.0, scan_of([ahead(0.15)]), to_turn).zone == STOP
+    assert limit_twist(0.3, 0.0, scan_of([ahead(0.15)]), replace(cfg, bend=(0.1, math.nan))).zone == CLEAR
+
+
+def test_what_the_arc_reaches_only_after_the_zones_travel_is_not_in_the_way():
+    """Dev gen_192, box beside the path: a tight arc (0.34 m radius) bent 2.25 m on came back round past the
+    box, 0.15 m from the robot; only what the robot meets within the slowdown distance's travel counts."""
+    tight = (0.3, 0.3 / 0.34)
+    top = (0.0, 0.68)  # half a turn round the arc: 0.49 m away, over 0.8 m of travel
+    assert limit_twist(*tight, scan_of([top])).zone == CLEAR
+    bent = SafetyConfig(bend=(2.25, -1.02))
+    assert limit_twist(*tight, scan_of([(0.21, -0.27)]), bent).zone == CLEAR
+    assert limit_twist(*tight, scan_of([(0.21, 0.1)]), bent).zone == STOP  # on the arc, 0.04 m away
