@@ -127,3 +127,11 @@ def test_the_floors_recipe_collects_two_appearances_and_swaps_in_its_last_stage(
     how = SimpleNamespace(device=None, workers=None, amp=None, data_on_device=None, max_minutes=None)
     swaps = [_train_cfg(preset.train_velocitynet, s, how).appearance_swap for s in r.velocitynet]
     assert swaps == [0.0, 0.0, 0.0, 0.5]
+
+
+def test_the_model_metadata_records_the_appearances_and_the_swap() -> None:
+    from vtr.export.provenance import _TRAIN_FIELDS, data_summary
+
+    assert data_summary({"collect_config": {"appearances": 4}})["appearances"] == 4
+    assert "appearances" not in data_summary({"collect_config": {"appearances": 0}})
+    assert "appearance_swap" in _TRAIN_FIELDS
