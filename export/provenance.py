@@ -44,10 +44,12 @@ def data_summary(data_meta: Mapping[str, Any], frames: int | None = None) -> dic
     collect = data_meta.get("collect_config") or {}
     if "mix" in collect:
         out["mix"] = collect["mix"]
+    if collect.get("appearances"):  # frames rendered again with the floor laid again (training.appearances)
+        out["appearances"] = collect["appearances"]
     return out
 
 
-_TRAIN_FIELDS = ("lr", "batch_size", "steps", "seed", "augment", "val_fraction")
+_TRAIN_FIELDS = ("lr", "batch_size", "steps", "seed", "augment", "appearance_swap", "val_fraction")
 
 
 def _stage(ckpt: Mapping[str, Any], init_ckpt: Mapping[str, Any] | None = None) -> dict[str, Any]:

@@ -234,3 +234,26 @@ def lighting_spec(rng: np.random.Generator, w: float, h: float) -> dict[str, Any
             "gain": [float(rng.uniform(0.6, 0.9)), 1.0],
         }
     return spec
+
+
+def redrawn_floor(floor: dict[str, Any], rng: np.random.Generator) -> dict[str, Any]:
+    """The same house's floor laid again: between teach and repeat a floor may be re-tiled, re-coloured or
+    covered. Half the time the base keeps its kind with a new seed, tile size and grout or colours (a re-seeded
+    mosaic with other grout, as `floor_recoloured` does); otherwise it becomes a random kind. Each region (room
+    floors, rugs) keeps its polygon and is re-drawn, or is dropped so that the new base shows through."""
+    kind = str(floor.get("kind", "mosaic"))
+    if kind in FLOOR_FAMILIES and rng.random() < 0.5:
+        base = random_floor(rng, kind)
+        if kind == "mosaic":
+            base["grout"] = _hsv(rng, (0.0, 0.6), (0.15, 0.7))
+    else:
+        base = random_floor(rng)
+    base = {"tile": 0.3, "grout": [55, 55, 60], **base}  # the fields a base floor must have (sim2d.house)
+    regions = []
+    for region in floor.get("regions", []):
+        if rng.random() < 0.7:
+            family = "rug" if region.get("kind") == "rug" else None
+            regions.append({**random_floor(rng, family), "polygon": region["polygon"]})
+    if regions:
+        base["regions"] = regions
+    return base

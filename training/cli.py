@@ -62,6 +62,14 @@ def _add_common(p: argparse.ArgumentParser, pipeline: bool = False) -> None:
         help="photometric augmentation of VelocityNet's inputs (training/augment.py; default: off)",
     )
     p.add_argument(
+        "--appearance-swap",
+        type=float,
+        default=None,
+        metavar="P",
+        help="velocitynet: share of windows whose subgoal or current side comes from the same poses in another "
+        "appearance (a dataset collected with --appearances; training/appearances.py; default 0)",
+    )
+    p.add_argument(
         "--preprocessing",
         choices=PREPROCESSINGS,
         default=None,
@@ -160,6 +168,7 @@ def train_cfg(base: Any, args: argparse.Namespace, steps: int | None = None) -> 
         val_every=args.val_every,
         data_on_device=args.data_on_device,
         augment=getattr(args, "augment", None),
+        appearance_swap=getattr(args, "appearance_swap", None),
         max_minutes=getattr(args, "max_minutes", None),
     )
 

@@ -267,6 +267,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--workers", type=int, default=0, help="worker processes (default 0: one per CPU core)"
     )
     houses.add_argument(
+        "--appearances",
+        type=int,
+        default=0,
+        metavar="K",
+        help="render every frame again in one of K versions of its house with the floor laid again, for "
+        "training with --appearance-swap (training/appearances.py; default 0: none)",
+    )
+    houses.add_argument(
         "--fov-range",
         type=_range,
         default=None,

@@ -107,10 +107,17 @@ def record_house(out: str, house: str, seed: int, frames: int, cfg: CollectConfi
     """Record one house into shard files named after it; returns its index entries and tallies."""
     from vtr.runtime.atomic import atomic_path
     from vtr.sim2d import SimConfig, Simulator
+    from vtr.training.appearances import appearance_cameras, render_appearances
     from vtr.training.collect import Recording, drive
-    from vtr.training.shards import MAX_SHARD_FRAMES, shard_paths
+    from vtr.training.shards import MAX_SHARD_FRAMES, alt_path, shard_paths
 
-    sim = Simulator(SimConfig(house=house, camera=house_camera(cfg, seed), noise=cfg.noise))
+    camera = house_camera(cfg, seed)
+    sim = Simulator(SimConfig(house=house, camera=camera, noise=cfg.noise))
+    looks = (
+        appearance_cameras(house, camera, cfg.appearances, cfg.seed * 1_000_003 + seed)
+        if cfg.appearances
+        else []
+    )
     entries, tallies = [], {"collisions": 0, "commands": {}}
     done, part = 0, 0
     while done < frames:
@@ -143,6 +150,12 @@ def record_house(out: str, house: str, seed: int, frames: int, cfg: CollectConfi
             rec = Recording(arrays["images"], arrays["commands"], arrays["poses"], arrays["episodes"])
             part_cfg = replace(cfg, seed=cfg.seed * 7919 + seed * 31 + part)
             drive(sim, part_cfg, np.random.default_rng([cfg.seed, seed, part]), rec, on_frame=_tick)
+            if looks:  # the same poses in the house with its floor laid again (training.appearances)
+                with atomic_path(alt_path(Path(out), name)) as ta:
+                    alt = np.lib.format.open_memmap(ta, mode="w+", dtype=np.uint8, shape=shapes["images"][0])
+                    render_appearances(looks, arrays["poses"], arrays["episodes"], alt, part_cfg.seed)
+                    alt.flush()
+                    del alt
             for a in arrays.values():
                 a.flush()
             n_episodes, collisions, kinds = rec.n_episodes, rec.collisions, rec.kinds
@@ -263,6 +276,7 @@ def main_houses(args: Any) -> int:
         reverse_fraction=0.2,
         fov_range=getattr(args, "fov_range", None),
         height_range=getattr(args, "height_range", None),
+        appearances=getattr(args, "appearances", 0) or 0,
     )
     per_house = args.frames_per_house or max(2, args.frames // len(seeds))
     cfg = HousesConfig(

@@ -64,8 +64,13 @@ class CollectConfig:
     # (m) drawn uniformly from these ranges; None: the shipped camera. The export writes the range into the model.
     fov_range: tuple[float, float] | None = None
     height_range: tuple[float, float] | None = None
+    # Versions of each house with the floor laid again (training.appearances): every frame is rendered once more,
+    # from the same pose, in one of them (one per episode). 0: none.
+    appearances: int = 0
 
     def __post_init__(self) -> None:
+        if self.appearances < 0:
+            raise ValueError(f"CollectConfig.appearances must be >= 0, got {self.appearances!r}")
         _check_positive(self, "frames", "dt", "image_size", "episode_min", "episode_max", "segment_min")
         _check_positive(self, "segment_max", "robot_radius", "v_max", "w_max")
         if self.far_clearance < self.robot_radius:
@@ -190,6 +195,9 @@ class TrainConfig:
     amp: bool = False  # bfloat16 autocast on CUDA
     data_on_device: str = "auto"  # auto | yes | no: keep the whole uint8 dataset on the training device
     augment: bool = False  # photometric augmentation of VelocityNet's inputs (training/augment.py)
+    # Share of VelocityNet's windows whose subgoal (or current side) comes from another appearance of the same
+    # poses (training.appearances; needs a dataset collected with --appearances). 0: off.
+    appearance_swap: float = 0.0
     # Wall-time budget in minutes (0: none): training stops at the first log interval past it and finishes
     # as if its steps were done (validation, checkpoint, model.pt, report), e.g. "a fine-tune in 15 minutes".
     max_minutes: float = 0.0
@@ -204,6 +212,8 @@ class TrainConfig:
             raise ValueError(
                 f"num_threads/num_workers must be >= 0, got {self.num_threads}, {self.num_workers}"
             )
+        if not 0 <= self.appearance_swap <= 1:
+            raise ValueError(f"TrainConfig.appearance_swap must be in [0, 1], got {self.appearance_swap!r}")
         if not (math.isfinite(self.max_minutes) and self.max_minutes >= 0):
             raise ValueError(f"TrainConfig.max_minutes must be >= 0, got {self.max_minutes!r}")
         if self.data_on_device not in ("auto", "yes", "no"):

@@ -46,7 +46,12 @@ def velocity_error(u: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
 
 
 def mpc_loss(
-    velocitynet: VelocityFn, viewnet: ViewFn, frames: torch.Tensor, commands: torch.Tensor, cfg: MPCLossConfig
+    velocitynet: VelocityFn,
+    viewnet: ViewFn,
+    frames: torch.Tensor,
+    commands: torch.Tensor,
+    cfg: MPCLossConfig,
+    goals: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """The paper's offline MPC loss.
 
@@ -59,6 +64,8 @@ def mpc_loss(
         frames: (B, N + 1, 3, H, W) consecutive frames I_i .. I_{i+N}.
         commands: (B, N, 2) commands c_i .. c_{i+N-1}, each (v, w).
         cfg: weights and horizon.
+        goals: the frames VelocityNet's subgoals come from (default ``frames``): the same poses in another
+            appearance teaches that the subgoal's floor may differ from the current one's (training.appearances).
 
     Returns:
         J and a dict of its parts (J1, J2, img1, img2, vel1, vel2, and u1 = pass-1 velocities).
@@ -70,10 +77,12 @@ def mpc_loss(
             f"got {tuple(frames.shape)} and {tuple(commands.shape)}"
         )
     b = frames.shape[0]
-    first, last = frames[:, 0], frames[:, n]
+    if goals is not None and goals.shape != frames.shape:
+        raise ValueError(f"MPC loss goals {tuple(goals.shape)} differ from frames {tuple(frames.shape)}")
+    goals = frames if goals is None else goals
     # Pass 1: I_i -> I_{i+N}; pass 2: I_{i+N} -> I_i. Stacked along the batch: (2B, ...).
-    start = torch.cat([first, last], dim=0)  # (2B, 3, H, W)
-    goal = torch.cat([last, first], dim=0)  # (2B, 3, H, W)
+    start = torch.cat([frames[:, 0], frames[:, n]], dim=0)  # (2B, 3, H, W)
+    goal = torch.cat([goals[:, n], goals[:, 0]], dim=0)  # (2B, 3, H, W)
     u = velocitynet(start, goal)  # (2B, 2, N)
     if u.shape != (2 * b, 2, n):
         raise ValueError(f"VelocityNet returned shape {tuple(u.shape)}, expected ({2 * b}, 2, {n})")

@@ -55,6 +55,7 @@ STAGE_KEYS: dict[str, tuple[type, ...]] = {
     "threads": (int,),
     "val_every": (int,),
     "augment": (bool,),
+    "appearance_swap": (float, int),
     "preprocessing": (str,),
     "w1": (float, int),
     "w2": (float, int),
@@ -70,6 +71,7 @@ COLLECT_KEYS: dict[str, tuple[type, ...]] = {
     "seed": (int,),
     "noise": (float, int),
     "workers": (int,),
+    "appearances": (int,),
 }
 _NAME = re.compile(r"^[A-Za-z0-9_]+$")
 

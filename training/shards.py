@@ -42,6 +42,11 @@ def shard_paths(root: Path, name: str) -> dict[str, Path]:
     return {k: root / f"{name}.{k}.npy" for k in ARRAYS}
 
 
+def alt_path(root: Path, name: str) -> Path:
+    """A shard's optional frames of the same poses in another appearance (training.appearances)."""
+    return root / f"{name}.alt_images.npy"
+
+
 def write_shard(root: str | os.PathLike, name: str, arrays: dict[str, np.ndarray]) -> None:
     """Write one shard's arrays, each atomically (temporary file, then rename)."""
     for key, path in shard_paths(Path(root), name).items():
@@ -163,7 +168,8 @@ def is_sharded(path: str | os.PathLike) -> bool:
 def load_sharded(path: str | os.PathLike, image_size: int | None = None) -> FrameData:
     """Open a sharded dataset: images memory-mapped (lazy), the small arrays in memory; validated.
 
-    The returned FrameData has two extra attributes: ``houses`` (T,) int32 and ``house_names`` (list)."""
+    The returned FrameData has three extra attributes: ``houses`` (T,) int32, ``house_names`` (list) and
+    ``alt_images`` (the frames in another appearance, lazy like the images, or None: training.appearances)."""
     root = Path(path)
     doc = read_index(root)
     if doc is None:
@@ -178,7 +184,7 @@ def load_sharded(path: str | os.PathLike, image_size: int | None = None) -> Fram
             f'dataset {root}: {INDEX} lists shards that are not {{"name": ..., "frames": ...}}'
         )
     house_names: list[str] = []
-    maps, small = [], {k: [] for k in ARRAYS[1:]}
+    maps, alt_maps, small = [], [], {k: [] for k in ARRAYS[1:]}
     houses, episode_offset = [], 0
     for entry in shards:
         paths = shard_paths(root, str(entry["name"]))
@@ -194,6 +200,12 @@ def load_sharded(path: str | os.PathLike, image_size: int | None = None) -> Fram
                 f"dataset {root}: shard {entry['name']} does not hold {entry.get('frames')} frames"
             )
         maps.append(arrays["images"])
+        alt = alt_path(root, str(entry["name"]))
+        alt_maps.append(np.load(alt, mmap_mode="r", allow_pickle=False) if alt.is_file() else None)
+        if alt_maps[-1] is not None and alt_maps[-1].shape != arrays["images"].shape:
+            raise DatasetError(
+                f"dataset {root}: shard {entry['name']}'s other-appearance frames differ in shape"
+            )
         small["commands"].append(np.asarray(arrays["commands"], dtype=np.float32))
         small["poses"].append(np.asarray(arrays["poses"], dtype=np.float32))
         eps = np.asarray(arrays["episodes"], dtype=np.int64)
@@ -216,6 +228,8 @@ def load_sharded(path: str | os.PathLike, image_size: int | None = None) -> Fram
             f"dataset {root} has {data.image_size}x{data.image_size} images but the model expects "
             f"{image_size}x{image_size}; use the matching --preset or re-collect"
         )
+    # every shard with its other appearance, or none used (a partly re-collected folder is not mixed)
+    data.alt_images = ShardedImages(alt_maps) if all(m is not None for m in alt_maps) else None  # type: ignore
     data.houses = np.concatenate(houses)  # type: ignore[attr-defined]
     data.house_names = house_names  # type: ignore[attr-defined]
     return data

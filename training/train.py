@@ -25,6 +25,7 @@ import torch
 from torch import nn
 
 from vtr.runtime.atomic import write_text_atomic
+from vtr.training.appearances import swap_appearance
 from vtr.training.augment import AugmentConfig, InputPipeline
 from vtr.training.checkpoint import (
     CHECKPOINT,
@@ -295,7 +296,7 @@ def train_velocitynet(
     viewnet.to(dist.device).eval().requires_grad_(False)  # frozen: eval BN statistics, no weight updates
     if data is None:
         data = load_dataset(data_path, image_size=model_cfg.image_size)
-    windows = Windows(data, loss_cfg.horizon + 1, cfg, dist)
+    windows = Windows(data, loss_cfg.horizon + 1, cfg, dist, alt=cfg.appearance_swap > 0)
     extra = {
         "data": str(data_path),
         "data_meta": data.meta,
@@ -326,7 +327,11 @@ def train_velocitynet(
             goals.append(frames[:stops, 0])
         # Extra pairs ride in the same VelocityNet call as the MPC pairs: one forward per step (DDP).
         joint = JointCall(policy, torch.cat(views), torch.cat(goals)) if views else policy
-        loss, parts = mpc_loss(joint, viewnet, frames, commands, loss_cfg)
+        subgoals = None
+        # training windows in two appearances (training.appearances): pair them with appearance_swap
+        if frames.shape[1] == 2 * windows.length:
+            frames, subgoals = swap_appearance(*frames.split(windows.length, dim=1), cfg.appearance_swap, gen)
+        loss, parts = mpc_loss(joint, viewnet, frames, commands, loss_cfg, subgoals)
         parts.pop("u1")
         if batch is not None:
             parts["rec"] = velocity_error(joint.extra[: len(batch[0])], batch[2]).mean()

@@ -30,8 +30,16 @@ def images_to_float(images: torch.Tensor) -> torch.Tensor:
 class Windows:
     """The dataset as tensors plus the train/val windows of one length (2 = pairs, N + 1 = triples)."""
 
-    def __init__(self, data: FrameData, length: int, cfg: TrainConfig, dist: Dist) -> None:
+    def __init__(self, data: FrameData, length: int, cfg: TrainConfig, dist: Dist, alt: bool = False) -> None:
+        """``alt``: training batches carry the same windows in another appearance too (training.appearances):
+        frames (B, 2L, ...), the other appearance after the recorded one; validation stays recorded only."""
         self.length = length
+        self.alt_images = getattr(data, "alt_images", None) if alt else None
+        if alt and self.alt_images is None:
+            raise DatasetError(
+                "the dataset holds no frames in another appearance; collect it with `vtr collect --houses ... "
+                "--appearances K` or train without --appearance-swap"
+            )
         train_ids, self.val_ids = split_for(data, cfg)  # whole houses held out when there are several
         self.train_starts = window_starts(data.episodes, length, train_ids)
         self.val_starts = window_starts(data.episodes, length, self.val_ids)
@@ -58,11 +66,14 @@ class Windows:
         self.pin = not on_device and dist.device.type == "cuda"
         self.mean_command = data.commands[self.train_starts].mean(axis=0).astype(np.float32)
 
-    def gather_raw(self, starts: np.ndarray) -> tuple[torch.Tensor, torch.Tensor]:
-        """Window starts (B,) -> uint8 frames (B, L, H, W, 3) and commands (B, L-1, 2), where the data lives."""
+    def gather_raw(self, starts: np.ndarray, alt: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+        """Window starts (B,) -> uint8 frames (B, L, H, W, 3) and commands (B, L-1, 2), where the data lives;
+        ``alt`` (with other-appearance frames): frames (B, 2L, H, W, 3), the other appearance second."""
         idx = torch.as_tensor(starts, dtype=torch.long)[:, None] + torch.arange(self.length)  # (B, L)
         if not isinstance(self.images, torch.Tensor):
             frames = torch.from_numpy(self.images[idx.numpy()])
+            if alt and self.alt_images is not None:
+                frames = torch.cat([frames, torch.from_numpy(self.alt_images[idx.numpy()])], dim=1)
             return frames, self.commands[idx[:, :-1].to(self.commands.device)]
         idx = idx.to(self.images.device)
         return self.images[idx], self.commands[idx[:, :-1]]
@@ -82,7 +93,7 @@ class Windows:
     ) -> Iterator[tuple[torch.Tensor, torch.Tensor]]:
         """Training batches on the device. Data held on the device is indexed in place; otherwise a
         DataLoader gathers batches in ``workers`` processes into pinned memory, overlapping the copy."""
-        if self.on_device:
+        if self.on_device and self.alt_images is None:
             for _ in range(steps):
                 yield self.gather(next(batches))
             return
@@ -130,4 +141,4 @@ class _BatchList(torch.utils.data.Dataset):
         return len(self.plan)
 
     def __getitem__(self, k: int) -> tuple[torch.Tensor, torch.Tensor]:
-        return self.windows.gather_raw(self.plan[k])
+        return self.windows.gather_raw(self.plan[k], alt=True)

@@ -73,6 +73,7 @@ def _houses_config(recipe: Recipe, preset: Any) -> Any:
         noise=c.get("noise"),
         mix="repeat",
         progress=False,
+        appearances=c.get("appearances"),
     )
     collect = override(collect, reverse_fraction=0.2)  # as `vtr collect --houses`
     return HousesConfig(
@@ -137,6 +138,7 @@ def _train_cfg(base: Any, stage: Stage, args: argparse.Namespace) -> Any:
         num_threads=o.get("threads"),
         val_every=o.get("val_every"),
         augment=o.get("augment"),
+        appearance_swap=None if o.get("appearance_swap") is None else float(o["appearance_swap"]),
     )
     # how to run, not what to train: from the command line only
     return override(
