@@ -49,6 +49,8 @@ def trace(route_path: Path, cond_name: str, seed: int, controller: str) -> tuple
                         "hidden": None if o is None else round(o.hidden, 2),
                         "grow": None if o is None else o.growing_steps,
                         "blocked": None if o is None else o.blocked,
+                        "beside": None if getattr(ctrl, "beside", None) is None else round(ctrl.beside.dy, 3),
+                        "conf": None if est is None else round(est.confidence, 2),
                     }
                 )
                 return verdict
