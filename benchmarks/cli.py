@@ -1,5 +1,4 @@
-"""`vtr bench`: `latency` (per control step, per backend), `sim` (simulator throughput), `link` (faults), `pace` (realtime
-repeat time against the taught time)."""
+"""`vtr bench`: `latency` (per control step, per backend), `sim` (simulator throughput), `link` (faults)."""
 
 from __future__ import annotations
 
@@ -12,11 +11,6 @@ COMMANDS = {
     ),
     "sim": Command(
         "vtr.benchmarks.sim_throughput", "simulator steps per second (in-process and over ZeroMQ)", "sim"
-    ),
-    "pace": Command(
-        "vtr.benchmarks.realtime_pace",
-        "repeat taught routes on a wall-clock robot: time against the teach's, steps against taught steps",
-        "sim",
     ),
     "link": Command(
         "vtr.benchmarks.link_faults",

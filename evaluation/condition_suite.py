@@ -225,7 +225,12 @@ def run(cfg: SuiteConfig) -> dict[str, Any]:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """The suite's options, added to `vtr eval` (which owns --model, --int8-model, --routes, --json, ...)."""
     g = parser.add_argument_group("condition suite (--suite conditions)")
-    g.add_argument("--suite", choices=("conditions",), default=None, help="run a condition suite instead")
+    g.add_argument(
+        "--suite",
+        choices=("conditions", "pace"),
+        default=None,
+        help="run a condition suite, or the realtime pace (evaluation/realtime_pace.py), instead",
+    )
     g.add_argument(
         "--conditions", nargs="*", default=list(CONDITIONS), help="conditions (default: all: %(default)s)"
     )

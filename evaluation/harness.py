@@ -304,7 +304,7 @@ def run(cfg: EvalConfig) -> dict[str, Any]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from vtr.evaluation import condition_suite, house_suite
+    from vtr.evaluation import condition_suite, house_suite, realtime_pace
 
     add_config_arguments(parser, EvalConfig)
     parser.add_argument("--run", type=Path, default=None, help="score a run recorded by `vtr repeat --mcap`")
@@ -313,6 +313,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
     condition_suite.add_arguments(parser)
+    realtime_pace.add_arguments(parser)
     house_suite.add_arguments(parser)
 
 
@@ -321,6 +322,10 @@ def run_cli(args: argparse.Namespace) -> int:
         from vtr.evaluation import house_suite
 
         return house_suite.run_cli(args)
+    if getattr(args, "suite", None) == "pace":  # on a wall-clock robot
+        from vtr.evaluation import realtime_pace
+
+        return realtime_pace.run_cli(args)
     if getattr(args, "suite", None) == "conditions":
         from vtr.evaluation import condition_suite
 

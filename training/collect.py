@@ -272,7 +272,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=0,
         metavar="K",
         help="render every frame again in one of K versions of its house with the floor laid again, for "
-        "training with --appearance-swap (training/appearances.py; default 0: none)",
+        "training with --appearance-swap (training/appearances.py; 0: none) (default: 0)",
     )
     houses.add_argument(
         "--fov-range",

@@ -1,4 +1,4 @@
-"""`vtr bench pace`: repeat taught routes on a wall-clock robot and compare the time with the teach's.
+"""`vtr eval --suite pace`: repeat taught routes on a wall-clock robot and compare the time with the teach's.
 
 Issue 19's pace target: a repeat on a realtime robot takes at most 1.15x the taught driving time, and at most
 1.15 control steps per taught step. A lockstep simulator cannot show this (its clock waits for the runtime), so
@@ -134,30 +134,33 @@ def table(rows: list[dict]) -> str:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--routes", required=True, help="a folder of ROUTE.json scripts (paper-style house)")
-    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1], help="reset seeds (default: 0 1)")
-    parser.add_argument(
+    """The pace's one option; `vtr eval` owns --routes, --seeds, --noise, --model and --json."""
+    g = parser.add_argument_group("realtime pace (--suite pace: --routes, --seeds, --noise, --model, --json)")
+    g.add_argument(
         "--motion",
         nargs="+",
         default=["default"],
         choices=["default", "stop-and-go", "continuous"],
         help="repeat motions to compare (default: default, what `vtr repeat` does)",
     )
-    parser.add_argument("--noise", type=float, default=0.05, help="actuation noise (default: 0.05)")
-    parser.add_argument("--model", default=DEFAULT_MODEL, help="VelocityNet ONNX (default: the shipped one)")
-    parser.add_argument("--json", dest="json_path", help="write the runs here (default: not written)")
 
 
 def run_cli(args: argparse.Namespace) -> int:
-    folder = Path(args.routes)
-    routes = sorted(folder.glob("*.json")) if folder.is_dir() else []
+    from vtr.evaluation.condition_suite import route_paths
+
+    try:
+        routes = route_paths(tuple(args.routes))
+    except ValueError as exc:
+        print(f"vtr eval: {exc}", file=sys.stderr)
+        return 2
     if not routes:
-        print(f"vtr bench pace: no ROUTE.json files in {folder}", file=sys.stderr)
+        print(f"vtr eval: no ROUTE.json files in {' '.join(args.routes)}", file=sys.stderr)
         return 2
     motions = [None if m == "default" else m for m in args.motion]
+    model = str(args.model) if args.model else DEFAULT_MODEL
     load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
-        rows = pace(routes, args.seeds, motions, args.model, args.noise, Path(tmp))
+        rows = pace(routes, list(args.seeds), motions, model, float(args.noise), Path(tmp))
     print(table(rows))
     print(f"load average {load:.1f} at the start, {os.getloadavg()[0]:.1f} at the end")
     if args.json_path:

@@ -1,15 +1,14 @@
-"""`vtr bench pace` (benchmarks/realtime_pace.py): a route taught on a lockstep simulator, repeated on a realtime
+"""`vtr eval --suite pace` (evaluation/realtime_pace.py): a route taught on a lockstep simulator, repeated on a realtime
 one by `vtr repeat`'s code, its wall time set against the taught time."""
 
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
 import pytest
 
-from vtr.benchmarks import realtime_pace
+from vtr.evaluation import realtime_pace
 
 
 def _script(folder: Path) -> Path:
@@ -38,7 +37,8 @@ def test_a_realtime_repeat_is_timed_against_the_teach(tmp_path: Path) -> None:
 def test_a_folder_without_routes_is_one_line_and_exit_2(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    parser = argparse.ArgumentParser()
-    realtime_pace.add_arguments(parser)
-    assert realtime_pace.run_cli(parser.parse_args(["--routes", str(tmp_path)])) == 2
-    assert capsys.readouterr().err.strip().count("\n") == 0
+    from vtr.cli import main
+
+    assert main(["eval", "--suite", "pace", "--routes", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("vtr eval: no ROUTE.json files") and "\n" not in err
