@@ -236,3 +236,23 @@ def test_the_way_clears_though_a_column_at_the_side_of_the_region_still_mismatch
     verdicts = [det.update(side, 3.0, moved=False) for _ in range(2)]
     assert det.cfg.clear_fraction < verdicts[0].fraction and 0.05 < verdicts[0].hidden <= det.cfg.clear_hidden
     assert verdicts[0].blocked and not verdicts[1].blocked
+
+
+def test_a_growth_blocks_only_while_the_floor_beside_the_path_still_matches():
+    """Held-out set 11 with every floor tile re-coloured: 36 of 40 runs ended blocked with nothing on the path;
+    the floor beside the path had changed as much as the path region, which is no evidence of an object."""
+    from vtr.runtime.obstruction import Growth
+
+    shares = [0.05, 0.15, 0.25, 0.35, 0.45]
+    for elsewhere, blocks in ((0.9, False), (0.1, True)):
+        growth = Growth(ObstructionConfig())
+        verdicts = [growth.update(s, s, True, lambda e=elsewhere: e) for s in shares]
+        assert verdicts[-1].blocked is blocks
+    views, poses = route()
+    det = ObstructionDetector(views, poses)
+    relaid = floor_view(0.3, seed=7)  # the taught view's pose, the floor laid again
+    det.scores(relaid, 3.0)
+    assert det.elsewhere(relaid, 3.0) > det.cfg.max_elsewhere
+    boxed = box_at(views[3], 0.6)
+    det.scores(boxed, 3.0)
+    assert det.elsewhere(boxed, 3.0) <= det.cfg.max_elsewhere
