@@ -12,14 +12,13 @@ not depend on what they show). Single thread.
 
 from __future__ import annotations
 
-import argparse
 import math
-import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from vtr.runtime.cliargs import OneLineParser, add_config_arguments, config_from_args, opt
+from vtr.benchmarks.timing import stage_bench_main
+from vtr.runtime.cliargs import opt
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Camera sizes timed (W x H): the model's own (a pass-through), integer factors, and common 4:3 cameras.
@@ -62,20 +61,10 @@ def run(cfg: ResampleBenchConfig) -> dict[str, dict[str, float]]:
     return time_interleaved(fns, cfg.steps, 20)
 
 
-def format_table(stages: dict[str, dict[str, float]], cfg: ResampleBenchConfig) -> str:
-    lines = [f"{cfg.steps} steps, single thread", "| stage | p50 ms | p99 ms |", "|---|---|---|"]
-    lines += [f"| {name} | {s['p50_ms']:.3f} | {s['p99_ms']:.3f} |" for name, s in stages.items()]
-    return "\n".join(lines)
-
-
 def main(argv: list[str] | None = None) -> int:
-    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(var, "1")
-    parser: argparse.ArgumentParser = OneLineParser(description=__doc__.splitlines()[0])
-    add_config_arguments(parser, ResampleBenchConfig)
-    cfg = config_from_args(ResampleBenchConfig, parser.parse_args(argv))
-    print(format_table(run(cfg), cfg))
-    return 0
+    return stage_bench_main(
+        argv, __doc__.splitlines()[0], ResampleBenchConfig, run, lambda c: f"{c.steps} steps, single thread"
+    )
 
 
 if __name__ == "__main__":

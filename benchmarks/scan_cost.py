@@ -10,13 +10,12 @@ the scan, interleaved; then, interleaved apart, the client's decode with and wit
 
 from __future__ import annotations
 
-import argparse
 import itertools
-import os
 import sys
 from dataclasses import dataclass
 
-from vtr.runtime.cliargs import OneLineParser, add_config_arguments, config_from_args, opt
+from vtr.benchmarks.timing import stage_bench_main
+from vtr.runtime.cliargs import opt
 
 
 @dataclass(frozen=True)
@@ -84,20 +83,10 @@ def run(cfg: ScanBenchConfig) -> dict[str, dict[str, float]]:
     return stages
 
 
-def format_table(stages: dict[str, dict[str, float]], cfg: ScanBenchConfig) -> str:
-    lines = [f"{cfg.beams} beams, {cfg.steps} steps", "| stage | p50 ms | p99 ms |", "|---|---|---|"]
-    lines += [f"| {name} | {s['p50_ms']:.3f} | {s['p99_ms']:.3f} |" for name, s in stages.items()]
-    return "\n".join(lines)
-
-
 def main(argv: list[str] | None = None) -> int:
-    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(var, "1")
-    parser: argparse.ArgumentParser = OneLineParser(description=__doc__.splitlines()[0])
-    add_config_arguments(parser, ScanBenchConfig)
-    cfg = config_from_args(ScanBenchConfig, parser.parse_args(argv))
-    print(format_table(run(cfg), cfg))
-    return 0
+    return stage_bench_main(
+        argv, __doc__.splitlines()[0], ScanBenchConfig, run, lambda c: f"{c.beams} beams, {c.steps} steps"
+    )
 
 
 if __name__ == "__main__":

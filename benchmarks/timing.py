@@ -44,3 +44,32 @@ def time_interleaved(
             fn()
             samples[name][i] = time.perf_counter_ns() - t0
     return {name: summarise(s) for name, s in samples.items()}
+
+
+def stage_table(stages: dict[str, dict[str, float]], title: str) -> str:
+    """A markdown table of :func:`time_interleaved`'s stages (p50 / p99 ms) under a one-line title."""
+    lines = [title, "| stage | p50 ms | p99 ms |", "|---|---|---|"]
+    lines += [f"| {name} | {s['p50_ms']:.3f} | {s['p99_ms']:.3f} |" for name, s in stages.items()]
+    return "\n".join(lines)
+
+
+def stage_bench_main(
+    argv: list[str] | None,
+    description: str,
+    config: type,
+    run: Callable[[Any], dict[str, dict[str, float]]],
+    title: Callable[[Any], str],
+) -> int:
+    """``python -m`` entry of a stage benchmark: one thread, the config's options, the table printed."""
+    import argparse
+    import os
+
+    from vtr.runtime.cliargs import OneLineParser, add_config_arguments, config_from_args
+
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
+    parser: argparse.ArgumentParser = OneLineParser(description=description)
+    add_config_arguments(parser, config)
+    cfg = config_from_args(config, parser.parse_args(argv))
+    print(stage_table(run(cfg), title(cfg)))
+    return 0
