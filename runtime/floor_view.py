@@ -19,7 +19,7 @@ import numpy as np
 
 from vtr.runtime.contracts import CAMERA
 from vtr.runtime.frame import Frame
-from vtr.runtime.matching import Matcher, pooled_sums
+from vtr.runtime.matching import Matcher, pool, pooled_sums
 from vtr.runtime.preprocess import planar_levels
 
 #: The robot's pose relative to a taught view's: metres ahead, metres left, radians turned left.
@@ -181,17 +181,10 @@ class FloorTiles:
         """(3, band rows, cols) float32 sums of ``downsample`` x ``downsample`` blocks of ``image``'s band,
         from its planar levels (one conversion per frame, shared with the matcher and the policy); a frame's
         are its pooled sums, made once per frame and shared with the localiser's matcher (the same bits)."""
-        ds, (rows, cols) = self.matcher.cfg.downsample, self.shape
+        ds = self.matcher.cfg.downsample
         if isinstance(image, Frame):
             return pooled_sums(image, ds)[:, self.top :]
-        levels = planar_levels(image)[:, self.top * ds :].reshape(3, rows, ds, cols, ds)
-        x = levels[:, :, 0].copy()
-        for k in range(1, ds):
-            x += levels[:, :, k]
-        y = x[..., 0].copy()
-        for k in range(1, ds):
-            y += x[..., k]
-        return y
+        return pool(planar_levels(image)[:, self.top * ds :], ds)  # sums of integers: the same bits
 
     def features(
         self, band: np.ndarray, which: np.ndarray | None = None, shifted: bool = False

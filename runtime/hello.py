@@ -6,11 +6,10 @@ on the first problem. Fields hello gained within protocol version 1 after its fi
 optional with documented defaults, and :func:`accept_hello` is the one check `vtr teach` and `vtr repeat` apply:
 the defaults filled in, a warning naming what the robot should add. :func:`check_camera` compares the robot's
 camera with the camera a route was taught with and the camera a model was trained on, and raises
-:class:`CameraMismatchError` with a one-line message naming the first difference; :func:`check_robot_fits`
+:class:`CameraMismatchError` with a one-line message naming the first difference. A camera need not be the
+model's size: :func:`fit_robot` plans how its frames become the model's input (runtime.resample: centre crop,
+narrowed to the widest field of view the model saw, resampled), compares the camera the model then sees, and
 adds the limits and the control step (:class:`RobotMismatchError`, of which a camera mismatch is one kind).
-A camera need not be the model's size: :func:`fit_robot` plans how its frames become the model's input
-(runtime.resample: centre crop, narrowed to the widest field of view the model saw, resampled) and compares the
-camera the model then sees.
 """
 
 from __future__ import annotations
@@ -376,8 +375,3 @@ def mapping_notes(mapping: CameraMapping) -> list[str]:
     if mapping.identity:
         return []
     return [mapping.narrowing() or f"the camera's frames are resampled for the model: {mapping.describe()}"]
-
-
-def check_robot_fits(hello: Hello, route_cam: dict[str, Any] | None, model: Any) -> list[str]:
-    """:func:`fit_robot`'s notes (the mapping left out)."""
-    return fit_robot(hello, route_cam, model)[1]

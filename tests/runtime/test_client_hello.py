@@ -12,7 +12,7 @@ from vtr.runtime.hello import (
     CameraMismatchError,
     RobotMismatchError,
     check_camera,
-    check_robot_fits,
+    fit_robot,
     parse_hello,
 )
 from vtr.runtime.model_meta import ModelMeta
@@ -82,14 +82,14 @@ def test_small_differences_pass_and_unknowns_are_noted_not_refused():
 def test_the_robot_must_accept_what_the_model_commands():
     h = parse_hello(hello(limits={"v_max": 0.3, "w_max": 1.0, "max_duration": 10.0}))
     with pytest.raises(RobotMismatchError, match="v_max=0.5 m/s but the robot accepts at most 0.3") as info:
-        check_robot_fits(h, {"width": 128, "height": 128}, ModelMeta())
+        fit_robot(h, {"width": 128, "height": 128}, ModelMeta())[1]
     slow = parse_hello(hello(dt=0.2))
     assert not isinstance(info.value, CameraMismatchError)  # the limits are not the camera
     with pytest.raises(RobotMismatchError, match="control step is 0.1 s"):
-        check_robot_fits(slow, None, ModelMeta())
-    assert check_robot_fits(
-        parse_hello(hello()), {"width": 128, "height": 128, "camera_height": 0.3}, ModelMeta()
-    )
+        fit_robot(slow, None, ModelMeta())[1]
+    assert fit_robot(parse_hello(hello()), {"width": 128, "height": 128, "camera_height": 0.3}, ModelMeta())[
+        1
+    ]
 
 
 def test_the_model_records_its_camera_and_older_models_without_it_still_load():

@@ -7,7 +7,7 @@ import pytest
 
 from vtr.export.provenance import camera_of
 from vtr.runtime.contracts import CameraSpec
-from vtr.runtime.hello import CameraMismatchError, Hello, check_camera_range, check_robot_fits, fit_robot
+from vtr.runtime.hello import CameraMismatchError, Hello, check_camera_range, fit_robot
 from vtr.runtime.model_meta import CameraRange, ModelMeta
 from vtr.runtime.protocol import Limits
 
@@ -38,7 +38,7 @@ def test_the_range_travels_in_the_metadata():
 def test_a_robot_inside_the_range_is_accepted(fov, height):
     meta = ModelMeta(**RANGE.props())
     route = {"width": 128, "height": 128, "fov_deg": fov, "height_m": height}
-    assert check_robot_fits(_hello(fov, height), route, meta) == []
+    assert fit_robot(_hello(fov, height), route, meta)[1] == []
 
 
 @pytest.mark.parametrize(
@@ -47,7 +47,7 @@ def test_a_robot_inside_the_range_is_accepted(fov, height):
 def test_a_robot_outside_the_range_is_refused_in_one_line_with_the_fine_tune(fov, height, what):
     meta = ModelMeta(**RANGE.props())
     with pytest.raises(CameraMismatchError) as err:
-        check_robot_fits(_hello(fov, height), None, meta)
+        fit_robot(_hello(fov, height), None, meta)[1]
     msg = str(err.value)
     assert "\n" not in msg and what in msg and "fov 60-120 deg, height 0.15-0.6 m" in msg
     assert "vtr train velocitynet --init models/velocitynet.pt" in msg
@@ -57,15 +57,15 @@ def test_the_route_must_still_match_the_robot_exactly():
     meta = ModelMeta(**RANGE.props())
     route = {"width": 128, "height": 128, "fov_deg": 70.0, "height_m": 0.3}
     with pytest.raises(CameraMismatchError, match="but the route was made with 70 deg"):
-        check_robot_fits(_hello(100.0, 0.3), route, meta)
+        fit_robot(_hello(100.0, 0.3), route, meta)[1]
 
 
 def test_a_model_of_one_camera_keeps_the_two_degree_rule():
     meta = ModelMeta()  # 90 deg, 0.3 m, no range
     assert meta.camera_range is None
-    check_robot_fits(_hello(91.5, 0.31), None, meta)
+    fit_robot(_hello(91.5, 0.31), None, meta)[1]
     with pytest.raises(CameraMismatchError, match="tolerance 2 deg") as err:
-        check_robot_fits(_hello(87.0, 0.3), None, meta)
+        fit_robot(_hello(87.0, 0.3), None, meta)[1]
     assert "vtr train velocitynet" in str(err.value)  # the fine-tune command
     mapping, _ = fit_robot(_hello(93.0, 0.3), None, meta)  # wider: cropped to what the model saw
     assert mapping.narrowed and mapping.seen_fov_deg == pytest.approx(90.0)
