@@ -23,9 +23,9 @@ Each image:
    motion the belief expects before the end, ``RouteLocaliser.left_to_end``, so that it never drives the
    robot past the end) and no translation where the teach turned in place;
    where the teach drove forward, a turn back toward the taught path (``Decision.turn``, added by the
-   repeat loop) from the side offset the floor shows (``runtime.side_offset``: ``side_gain`` rad/s per
-   metre beside the path per m/s of the taught speed, at most ``SIDE_TURN_MAX``). VelocityNet lines the
-   view up with the subgoal's, which closes a side offset only over a few wall distances of travel.
+   repeat loop) from the side offset the floor shows (``runtime.side_offset``: a pure pursuit of the path
+   point ``side_lookahead`` ahead, at most ``SIDE_TURN_MAX``). VelocityNet lines the view up with the
+   subgoal's, which closes a side offset only over a few wall distances of travel.
 
 The subgoal steered to changes because the estimate moved (ADVANCE events when it moved past subgoals, a
 JUMP back when the views placed the robot behind); never by a timeout, a plateau or a jump on a stall.
@@ -236,10 +236,10 @@ class Follower:
         )
 
     def _side_turn(self, image: Frame, position: float, gap: int) -> float:
-        """The turn (rad/s) toward the taught path that the floor's side offset asks for: ``side_gain`` per
-        metre beside it per m/s of forward speed (the taught speed there, or the last command's if slower:
-        turning closes no side offset on the spot), none where the teach or the robot did not drive
-        forward, or the floor does not tell (``runtime.side_offset``)."""
+        """The turn (rad/s) toward the taught path that the floor's side offset asks for: a pure pursuit of the
+        path point ``side_lookahead`` ahead, ``side_gain`` x atan(dy / side_lookahead) (see ControllerConfig),
+        at most SIDE_TURN_MAX; none where the teach or the robot did not drive forward (turning closes no side
+        offset on the spot), or the floor does not tell (``runtime.side_offset``)."""
         speed = min(float(self.commands[gap, 0]), self._speed)  # the pace the robot is driving at
         self.beside = None
         if self.side is None or speed <= FORWARD_SPEED:
@@ -247,7 +247,7 @@ class Follower:
         self.beside = self.side.estimate(image, position)
         if self.beside is None:
             return 0.0
-        turn = -self.cfg.side_gain * speed * self.beside.dy
+        turn = -self.cfg.side_gain * math.atan(self.beside.dy / self.cfg.side_lookahead)
         return max(-SIDE_TURN_MAX, min(SIDE_TURN_MAX, turn))
 
     def _blocked(self, image: np.ndarray, est: Estimate) -> Decision | None:

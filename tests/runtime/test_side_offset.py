@@ -68,24 +68,29 @@ class HeadingOnly:
 
     image_shape = (128, 128)
 
-    def __init__(self, robot: SideRobot) -> None:
-        self.robot = robot
+    def __init__(self, robot: SideRobot, pace: float = 0.25) -> None:
+        self.robot, self.pace = robot, pace
 
     def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
         w = -3.0 * self.robot.yaw
-        return np.array([[0.25, 0.25], [w, w]], dtype=np.float32)
+        return np.array([[self.pace, self.pace], [w, w]], dtype=np.float32)
 
 
-def drive(dy: float, **cfg) -> tuple[RepeatStatus | None, SideRobot]:
+def drive(dy: float, pace: float = 0.25, **cfg) -> tuple[RepeatStatus | None, SideRobot]:
+    """Repeat a straight route taught at ``pace`` m/s from ``dy`` m beside it; the robot keeps its path."""
     n = 16
     views, poses = straight_route(n, 0.1)
     commands = np.zeros((n, 2))
-    commands[:-1, 0] = 0.25
+    commands[:-1, 0] = pace
     route = Route(images=views, poses=poses, commands=commands, name="floor", dt=0.1)
     robot = SideRobot(dy)
-    config = RepeatConfig(controller=ControllerConfig(zero_bias=0.0, obstruction=False, **cfg), max_steps=200)
-    rep = Repeater(robot, HeadingOnly(robot), route, config=config)
+    config = RepeatConfig(controller=ControllerConfig(zero_bias=0.0, obstruction=False, **cfg), max_steps=400)
+    path: list[tuple[float, float]] = []
+    rep = Repeater(
+        robot, HeadingOnly(robot, pace), route, config=config, on_step=lambda r: path.append(r.pose)
+    )
     rep.run()
+    robot.path = [p[:2] for p in path if p is not None]
     return rep.status, robot
 
 
@@ -93,6 +98,16 @@ def test_a_start_beside_the_path_is_closed_on_the_way():
     for dy in (0.10, -0.10):
         status, robot = drive(dy)
         assert status is RepeatStatus.FINISHED and abs(robot.y) < 0.02, (status, robot.y)
+
+
+@pytest.mark.parametrize("pace", [0.1, 0.25])
+def test_a_side_offset_closes_over_the_lookahead_at_any_pace(pace):
+    # issue 19: the side turn grew with the speed, so a slowly taught route (or a slow repeat) kept a 10 cm
+    # start's offset over a metre (here: over 1 cm to the end at 0.1 m/s, within 1 cm after 0.77 m at 0.25
+    # m/s); a pursuit of the path point side_lookahead ahead closes it alike at both (0.61, 0.69 m)
+    status, robot = drive(0.10, pace)
+    closed = next((x for x, y in robot.path if abs(y) < 0.01), math.inf)
+    assert status is RepeatStatus.FINISHED and closed < 0.75, (pace, closed)
 
 
 def test_without_the_side_correction_the_offset_stays_and_the_view_is_lost():
