@@ -12,10 +12,11 @@ from floor_fakes import CAM, floor_view, straight_route
 
 from vtr.runtime.contracts import Observation
 from vtr.runtime.controller import ControllerConfig
+from vtr.runtime.follower import Follower
 from vtr.runtime.follower import side_offset as side_offset_of
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
 from vtr.runtime.route import Route
-from vtr.runtime.side_offset import SideOffset
+from vtr.runtime.side_offset import SideEstimate, SideOffset
 
 
 def side_offset() -> SideOffset:
@@ -123,3 +124,26 @@ def test_small_views_search_fewer_shifts_and_tiny_ones_have_no_side_offset():
         warnings.simplefilter("error")
         small.estimate(floor_view(0.3, 0.03)[::4, ::4].copy(), 3.0)
     assert side_offset_of(views[:, ::8, ::8].copy(), poses, CAM) is None  # 16 x 16
+
+
+class Told:
+    """A floor registration that tells the side offsets it is given, one per view."""
+
+    def __init__(self, offsets: list[float]) -> None:
+        self.offsets = iter(offsets)
+
+    def estimate(self, view: np.ndarray, position: float) -> SideEstimate:
+        return SideEstimate(next(self.offsets), 0.0, 10)
+
+
+def test_the_side_turn_waits_for_views_in_a_row_and_one_wrong_view_does_not_turn_the_robot():
+    views, poses = straight_route(8, 0.1)
+    commands = np.zeros((8, 2))
+    commands[:-1, 0] = 0.25
+    cfg = ControllerConfig(zero_bias=0.0, obstruction=False)
+    follower = Follower(views, cfg, commands, poses, poses, camera=CAM)
+    follower.side, follower._speed = Told([0.0, 0.0, 0.08, 0.0, 0.02, 0.02]), 0.25  # type: ignore[assignment]
+    turns = [follower._side_turn(views[2], 2.0, 2, driving=True) for _ in range(6)]
+    assert turns[:4] == [0.0] * 4  # two views, then the one 8 cm off among two on the path
+    assert turns[5] == pytest.approx(-cfg.side_gain * math.atan(0.02 / cfg.side_lookahead))
+    assert follower._side_turn(views[2], 2.0, 2, driving=False) == 0.0 and follower._side_run == []
