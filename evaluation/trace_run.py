@@ -4,7 +4,9 @@
 (evaluation.condition_run) exactly as the suite does, and prints, for every judged image: the subgoal
 i steered to, the error to i against its threshold, the error to i+1, and where the robot truly is
 against subgoal i's taught pose (distance, yaw difference and the nearest point of the taught path), and
-the error the unchanged house would give at that same pose (``clean``: the camera without the change).
+the error the unchanged house would give at that same pose (``clean``: the camera without the change), and
+how far to the left of the nearest taught pose the robot truly is (``cross_mm``) against what the floor told
+the follower (``side_mm``, runtime.side_offset; NaN where it did not tell).
 A clean error under the threshold with the error above it is a matching failure (the change, not the pose,
 holds the robot); a clean error above it means the robot is off the pose: a steering (policy) failure. The simulator's true pose is used for this diagnosis
 only. ``--json`` writes the rows.
@@ -38,7 +40,7 @@ def trace(
     from vtr.evaluation.conditions import LIGHTING, LitRobot, write_scene_house
     from vtr.evaluation.harness import teach
     from vtr.models import find_model
-    from vtr.runtime.controller import Controller
+    from vtr.runtime.follower import controller_for_route
     from vtr.runtime.light import LightMatchedPolicy
     from vtr.runtime.repeater import RepeatConfig, Repeater, StepRecord
     from vtr.sim2d import CameraConfig, Pose, SimConfig, Simulator
@@ -64,7 +66,7 @@ def trace(
             robot = LitRobot(robot, LIGHTING[cond.light])
         if method.match_light:
             policy = LightMatchedPolicy(policy, side_ramp=method.side_ramp)
-        ctrl = Controller.for_route(route, method.controller)
+        ctrl = controller_for_route(route, method.controller)
         robot.reset(pose=start_pose(route.poses[0], cond.offset, seed), seed=seed)
 
         def on_step(rec: StepRecord) -> None:
@@ -82,6 +84,8 @@ def trace(
                 e_clean = math.nan
             gx, gy, gyaw = taught[i]
             d = np.hypot(taught[:, 0] - x, taught[:, 1] - y)
+            nx, ny, nyaw = taught[int(d.argmin())]
+            beside = getattr(ctrl, "beside", None)
             rows.append(
                 {
                     "step": rec.step,
@@ -97,6 +101,8 @@ def trace(
                     "dyaw_deg": math.degrees(math.remainder(yaw - gyaw, math.tau)),
                     "nearest_mm": 1000 * float(d.min()),
                     "nearest_k": int(d.argmin()),
+                    "cross_mm": 1000 * ((y - ny) * math.cos(nyaw) - (x - nx) * math.sin(nyaw)),
+                    "side_mm": math.nan if beside is None else 1000 * beside.dy,
                     "v": rec.v,
                     "w": rec.w,
                     "status": rec.status.value if rec.status else "",
@@ -143,13 +149,15 @@ def main(argv: list[str] | None = None) -> int:
     rows, end = trace(
         route, args.condition, args.seed, args.controller, args.model, base=args.house or "house"
     )
-    print(" step    i  action    error  clean  thresh  err_i+1  dist_mm  dyaw  near_mm near_k")
+    print(
+        " step    i  action    error  clean  thresh  err_i+1  dist_mm  dyaw  near_mm near_k cross_mm side_mm"
+    )
     for k, r in enumerate(rows):
         if k % args.every == 0 or r["status"] or k == len(rows) - 1:
             print(
                 f"{r['step']:5d} {r['i']:4d}  {r['action'][:8]:8s} {r['error']:6.3f} {r['clean_error']:6.3f}  {r['threshold']:6.3f}  "
                 f"{r['error_next']:6.3f}  {r['dist_mm']:7.1f} {r['dyaw_deg']:5.1f}  {r['nearest_mm']:7.1f} "
-                f"{r['nearest_k']:5d}"
+                f"{r['nearest_k']:5d}  {r['cross_mm']:7.1f} {r['side_mm']:7.1f}"
             )
     print(end)
     if args.json is not None:

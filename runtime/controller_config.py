@@ -31,11 +31,17 @@ class ControllerConfig:
     #: localiser: the same for the turn rate. 0: VelocityNet steers alone, so its heading and side corrections
     #: keep their full gain (dev routes, start 10 cm / 10 deg off: cross-track 41 -> 26 mm against 0.5).
     feed_forward_turn: float = 0.0
-    #: localiser: turn toward the taught path by this many rad/s per metre beside it per m/s of forward
-    #: speed, the side offset read from the floor (runtime.side_offset); 0: VelocityNet alone (ablation
-    #: ``after_no_side``). Dev routes 101-105, start 10 cm / 10 deg off: 6/10 -> 10/10 on the route, cross-track
-    #: 25 -> 18 mm; 20 (80) closed the offset slower (overshot) on a traced dev run.
-    side_gain: float = 40.0
+    #: localiser: where the floor tells the side offset ``dy`` (runtime.side_offset), turn toward the taught
+    #: path so that the robot heads for the path point ``side_lookahead`` metres ahead (pure pursuit): add
+    #: ``side_gain`` x atan(dy / side_lookahead) rad/s, at most ``follower.SIDE_TURN_MAX``. VelocityNet holds
+    #: the heading its view asks for at about 3.6 rad/s per rad (a fit of its turn on dev traces: -3.6 psi - 2.0
+    #: dy), so this moves the heading it holds to the pursuit heading, at any pace; 0: VelocityNet alone
+    #: (ablation ``after_no_side``). The earlier law (40 rad/s per m per m/s of speed) closed a 10 cm / 10 deg
+    #: start over 1.0-1.2 m on dev routes and slower still on slowly taught ones (issue 19, evaluation/README).
+    side_gain: float = 3.6
+    #: localiser: the pursuit's lookahead (m): a side offset closes over about this much travel (plus the
+    #: turn), once the heading toward the path is within SIDE_TURN_MAX's reach.
+    side_lookahead: float = 0.2
     #: localiser: FINISHED needs the estimate within this many gaps of the last subgoal.
     finish_span: float = 0.5
     #: localiser: stop as blocked when the camera sees the way ahead blocked (runtime.obstruction; routes
@@ -175,9 +181,12 @@ class ControllerConfig:
             ("feed_forward_turn", 1.0),
             ("finish_span", 2.0),
             ("side_gain", 100.0),
+            ("side_lookahead", 2.0),
         ):
             if not 0 <= getattr(self, name) <= hi:
                 raise ValueError(f"{name} must be in [0, {hi}], got {getattr(self, name)!r}")
+        if not self.side_lookahead > 0:
+            raise ValueError(f"side_lookahead must be > 0, got {self.side_lookahead!r}")
         if self.e_m_mode not in THRESHOLD_MODES:
             raise ValueError(f"e_m_mode must be one of {THRESHOLD_MODES}, got {self.e_m_mode!r}")
         positive = {

@@ -23,9 +23,9 @@ Each image:
    motion the belief expects before the end, ``RouteLocaliser.left_to_end``, so that it never drives the
    robot past the end) and no translation where the teach turned in place;
    where the teach drove forward, a turn back toward the taught path (``Decision.turn``, added by the
-   repeat loop) from the side offset the floor shows (``runtime.side_offset``: ``side_gain`` rad/s per
-   metre beside the path per m/s of the taught speed, at most ``SIDE_TURN_MAX``). VelocityNet lines the
-   view up with the subgoal's, which closes a side offset only over a few wall distances of travel.
+   repeat loop) from the side offset the floor shows (``runtime.side_offset``: a pure pursuit of the path
+   point ``side_lookahead`` ahead, at most ``SIDE_TURN_MAX``). VelocityNet lines the view up with the
+   subgoal's, which closes a side offset only over a few wall distances of travel.
 
 The subgoal steered to changes because the estimate moved (ADVANCE events when it moved past subgoals, a
 JUMP back when the views placed the robot behind); never by a timeout, a plateau or a jump on a stall.
@@ -56,6 +56,10 @@ if TYPE_CHECKING:
 IDLE_SPEED, IDLE_TURN = 0.01, 0.02
 #: The most the side correction turns (rad/s): VelocityNet keeps the rest of the turn range.
 SIDE_TURN_MAX = 0.5
+#: The side turn follows the median of this many floor estimates of views in a row while driving: one view's
+#: estimate can be wrong by centimetres (just after a turn in place, the taught floor warped to a pose the
+#: localiser has a little off), and a pursuit acts on it at any pace.
+SIDE_VIEWS = 3
 
 
 class Follower:
@@ -97,6 +101,7 @@ class Follower:
         self.side = side_offset(subgoals, travel_poses, camera) if self.cfg.side_gain > 0 else None
         #: Where the floor put the robot beside the taught path on the last command (None: it did not tell).
         self.beside: SideEstimate | None = None
+        self._side_run: list[float] = []  # the side offsets of the last views in a row the floor told
         #: The obstruction detector's verdict on the last view (None without a detector).
         self.obstructed: ObstructionVerdict | None = None
         self._speed = 0.0  # the last forward speed commanded (m/s)
@@ -232,22 +237,28 @@ class Follower:
             note=f"at {est.position:.2f} (confidence {est.confidence:.2f})",
             v_limit=0.0 if hold else math.inf,
             prior=prior,
-            turn=0.0 if hold or last == 0 else self._side_turn(image, est.position, gap),
+            turn=self._side_turn(image, est.position, gap, driving=not hold and last > 0),
         )
 
-    def _side_turn(self, image: Frame, position: float, gap: int) -> float:
-        """The turn (rad/s) toward the taught path that the floor's side offset asks for: ``side_gain`` per
-        metre beside it per m/s of forward speed (the taught speed there, or the last command's if slower:
-        turning closes no side offset on the spot), none where the teach or the robot did not drive
-        forward, or the floor does not tell (``runtime.side_offset``)."""
+    def _side_turn(self, image: Frame, position: float, gap: int, driving: bool) -> float:
+        """The turn (rad/s) toward the taught path that the floor's side offset asks for: a pure pursuit of the
+        path point ``side_lookahead`` ahead, ``side_gain`` x atan(dy / side_lookahead) (see ControllerConfig),
+        at most SIDE_TURN_MAX, ``dy`` the median of the last SIDE_VIEWS views' estimates; none until that many
+        views in a row told it, nor where the teach or the robot did not drive forward (turning closes no side
+        offset on the spot) or the floor does not tell (``runtime.side_offset``)."""
         speed = min(float(self.commands[gap, 0]), self._speed)  # the pace the robot is driving at
-        self.beside = None
-        if self.side is None or speed <= FORWARD_SPEED:
-            return 0.0
-        self.beside = self.side.estimate(image, position)
+        run, self.beside = self._side_run, None
+        if driving and self.side is not None and speed > FORWARD_SPEED:
+            self.beside = self.side.estimate(image, position)
         if self.beside is None:
+            run.clear()
             return 0.0
-        turn = -self.cfg.side_gain * speed * self.beside.dy
+        run.append(self.beside.dy)
+        del run[:-SIDE_VIEWS]
+        if len(run) < SIDE_VIEWS:
+            return 0.0
+        dy = sorted(run)[len(run) // 2]
+        turn = -self.cfg.side_gain * math.atan(dy / self.cfg.side_lookahead)
         return max(-SIDE_TURN_MAX, min(SIDE_TURN_MAX, turn))
 
     def _blocked(self, image: np.ndarray, est: Estimate) -> Decision | None:

@@ -15,7 +15,8 @@ ROUTE = ROUTES_DIR / "translation.json"
 def test_rows_follow_the_run_and_the_clean_error_equals_the_error_in_the_unchanged_house(tmp_path: Path):
     rows, end = trace(ROUTE, "noise_0.05", seed=0)
     assert rows and end.startswith("finished")
-    assert rows[0]["dist_mm"] == 0.0 and rows[0]["i"] == 0  # starts on the first taught pose
+    # starts on the first taught pose, steering to the subgoal ahead of it (the follower's lead)
+    assert rows[0]["nearest_mm"] == 0.0 and rows[0]["nearest_k"] == 0 and rows[0]["i"] <= 1
     # nothing changed but the actuation: the unchanged house at the true pose is the camera image
     np.testing.assert_allclose([r["clean_error"] for r in rows], [r["error"] for r in rows], atol=1e-6)
     assert max(r["i"] for r in rows) > 0
@@ -24,3 +25,12 @@ def test_rows_follow_the_run_and_the_clean_error_equals_the_error_in_the_unchang
     out = tmp_path / "t.json"
     assert main([str(ROUTE), "noise_0.05", "--every", "50", "--json", str(out)]) == 0 and out.is_file()
     assert main([str(ROUTE), "no_such_condition"]) == 2
+
+
+def test_it_traces_the_follower_and_the_side_offset_it_sees():
+    rows, end = trace(ROUTE, "offset_10cm_10deg", seed=0)
+    assert rows[0]["cross_mm"] > 90  # started 10 cm to the left
+    seen = [
+        r for r in rows if np.isfinite(r["side_mm"])
+    ]  # the follower's floor estimate (the rules have none)
+    assert seen and abs(seen[0]["side_mm"] - seen[0]["cross_mm"]) < 30

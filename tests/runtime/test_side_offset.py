@@ -12,10 +12,11 @@ from floor_fakes import CAM, floor_view, straight_route
 
 from vtr.runtime.contracts import Observation
 from vtr.runtime.controller import ControllerConfig
+from vtr.runtime.follower import Follower
 from vtr.runtime.follower import side_offset as side_offset_of
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
 from vtr.runtime.route import Route
-from vtr.runtime.side_offset import SideOffset
+from vtr.runtime.side_offset import SideEstimate, SideOffset
 
 
 def side_offset() -> SideOffset:
@@ -68,24 +69,29 @@ class HeadingOnly:
 
     image_shape = (128, 128)
 
-    def __init__(self, robot: SideRobot) -> None:
-        self.robot = robot
+    def __init__(self, robot: SideRobot, pace: float = 0.25) -> None:
+        self.robot, self.pace = robot, pace
 
     def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
         w = -3.0 * self.robot.yaw
-        return np.array([[0.25, 0.25], [w, w]], dtype=np.float32)
+        return np.array([[self.pace, self.pace], [w, w]], dtype=np.float32)
 
 
-def drive(dy: float, **cfg) -> tuple[RepeatStatus | None, SideRobot]:
+def drive(dy: float, pace: float = 0.25, **cfg) -> tuple[RepeatStatus | None, SideRobot]:
+    """Repeat a straight route taught at ``pace`` m/s from ``dy`` m beside it; the robot keeps its path."""
     n = 16
     views, poses = straight_route(n, 0.1)
     commands = np.zeros((n, 2))
-    commands[:-1, 0] = 0.25
+    commands[:-1, 0] = pace
     route = Route(images=views, poses=poses, commands=commands, name="floor", dt=0.1)
     robot = SideRobot(dy)
-    config = RepeatConfig(controller=ControllerConfig(zero_bias=0.0, obstruction=False, **cfg), max_steps=200)
-    rep = Repeater(robot, HeadingOnly(robot), route, config=config)
+    config = RepeatConfig(controller=ControllerConfig(zero_bias=0.0, obstruction=False, **cfg), max_steps=400)
+    path: list[tuple[float, float]] = []
+    rep = Repeater(
+        robot, HeadingOnly(robot, pace), route, config=config, on_step=lambda r: path.append(r.pose)
+    )
     rep.run()
+    robot.path = [p[:2] for p in path if p is not None]
     return rep.status, robot
 
 
@@ -93,6 +99,16 @@ def test_a_start_beside_the_path_is_closed_on_the_way():
     for dy in (0.10, -0.10):
         status, robot = drive(dy)
         assert status is RepeatStatus.FINISHED and abs(robot.y) < 0.02, (status, robot.y)
+
+
+@pytest.mark.parametrize("pace", [0.1, 0.25])
+def test_a_side_offset_closes_over_the_lookahead_at_any_pace(pace):
+    # issue 19: the side turn grew with the speed, so a slowly taught route (or a slow repeat) kept a 10 cm
+    # start's offset over a metre (here: over 1 cm to the end at 0.1 m/s, within 1 cm after 0.77 m at 0.25
+    # m/s); a pursuit of the path point side_lookahead ahead closes it alike at both (0.61, 0.69 m)
+    status, robot = drive(0.10, pace)
+    closed = next((x for x, y in robot.path if abs(y) < 0.01), math.inf)
+    assert status is RepeatStatus.FINISHED and closed < 0.75, (pace, closed)
 
 
 def test_without_the_side_correction_the_offset_stays_and_the_view_is_lost():
@@ -108,3 +124,26 @@ def test_small_views_search_fewer_shifts_and_tiny_ones_have_no_side_offset():
         warnings.simplefilter("error")
         small.estimate(floor_view(0.3, 0.03)[::4, ::4].copy(), 3.0)
     assert side_offset_of(views[:, ::8, ::8].copy(), poses, CAM) is None  # 16 x 16
+
+
+class Told:
+    """A floor registration that tells the side offsets it is given, one per view."""
+
+    def __init__(self, offsets: list[float]) -> None:
+        self.offsets = iter(offsets)
+
+    def estimate(self, view: np.ndarray, position: float) -> SideEstimate:
+        return SideEstimate(next(self.offsets), 0.0, 10)
+
+
+def test_the_side_turn_waits_for_views_in_a_row_and_one_wrong_view_does_not_turn_the_robot():
+    views, poses = straight_route(8, 0.1)
+    commands = np.zeros((8, 2))
+    commands[:-1, 0] = 0.25
+    cfg = ControllerConfig(zero_bias=0.0, obstruction=False)
+    follower = Follower(views, cfg, commands, poses, poses, camera=CAM)
+    follower.side, follower._speed = Told([0.0, 0.0, 0.08, 0.0, 0.02, 0.02]), 0.25  # type: ignore[assignment]
+    turns = [follower._side_turn(views[2], 2.0, 2, driving=True) for _ in range(6)]
+    assert turns[:4] == [0.0] * 4  # two views, then the one 8 cm off among two on the path
+    assert turns[5] == pytest.approx(-cfg.side_gain * math.atan(0.02 / cfg.side_lookahead))
+    assert follower._side_turn(views[2], 2.0, 2, driving=False) == 0.0 and follower._side_run == []
