@@ -34,7 +34,8 @@ def worker(variant: str, model: str) -> None:
     from vtr.runtime.preprocess import to_nchw
 
     BenchStep = step_bench.BenchStep
-    if variant == "taught":  # needs a checkout with step_bench.sample_taught (copy the file into an older one)
+    # "taught" needs a checkout with step_bench.sample_taught (copy the file into an older one)
+    if variant == "taught":
         current, route, poses = step_bench.sample_taught(128, 128)
         kwargs: dict[str, object] = {"match_light": True, "poses": poses}
     else:
