@@ -178,9 +178,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--route", help="ROUTE.npz from step_bench_ab --write (default: made now)")
     parser.add_argument(
         "--variant",
-        choices=("raw", "patch", "light"),
+        choices=("raw", "patch", "light", "taught"),
         default="light",
-        help="the step's image comparison (default: light)",
+        help="the step's image comparison (default: light; taught: light on a route with taught poses, "
+        "the obstruction detector and side estimate at work)",
     )
     parser.add_argument("--steps", type=int, default=3000, help="timed steps (default: 3000)")
     parser.add_argument("--warmup", type=int, default=300, help="untimed steps first (default: 300)")
@@ -188,7 +189,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cpu", action="store_true", help="time the thread's CPU, not the wall clock")
     parser.add_argument("--json", help="also write the medians here")
     args = parser.parse_args(argv)
-    rep = _repeaters(_route_file(args), args.model)[args.variant]
+    if args.variant == "taught":  # the light step on the benchmark's route with its taught poses
+        from vtr.benchmarks.step_bench import BenchStep, sample_taught
+
+        current, route, poses = sample_taught(128, 128)
+        rep = BenchStep(args.model, 1, current, route, match_light=True, poses=poses).repeater
+    else:
+        rep = _repeaters(_route_file(args), args.model)[args.variant]
     if args.cprofile:
         print(cprofile_top(rep, args.steps, args.warmup, args.cprofile))
         return 0
