@@ -196,7 +196,7 @@ class LightMatchedPolicy:
     the side ramp removed but not the channel statistics matched: its standardisation takes out any gain and
     offset per channel, so matching them first changed the network's input only by that step's rounding to
     whole levels and its clipping at 0 and 255 (with ``_EPS``'s share of a flat channel's variance), and cost
-    about a tenth of the step (benchmarks/results/latency_step_s4.md).
+    4-6% of the step's CPU (benchmarks/results/latency_step_s4.md).
     """
 
     def __init__(self, policy: Any, side_ramp: bool = True) -> None:
