@@ -33,7 +33,7 @@ import numpy as np
 
 from vtr.benchmarks.backends import bench_backends
 from vtr.benchmarks.hardware import all_cores, child_env
-from vtr.benchmarks.latency_report import STEP_VARIANTS, format_report, ratios
+from vtr.benchmarks.latency_report import STEP_VARIANTS, TAUGHT_VARIANT, format_report, ratios
 from vtr.benchmarks.results import write_json
 from vtr.benchmarks.timing import summarise, time_interleaved
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
@@ -108,9 +108,13 @@ def _model_io(path: Path) -> tuple[int, int, int]:
     return h, w, n
 
 
-def bench_stages(cfg: LatencyConfig, current: np.ndarray, route: np.ndarray) -> dict[str, Any]:
+def bench_stages(
+    cfg: LatencyConfig, current: np.ndarray, route: np.ndarray, poses: np.ndarray | None = None
+) -> dict[str, Any]:
     """The runtime's own stages at cfg.threads, and the whole step: the real ``Repeater.step``, with the
-    raw error, with patch matching, without the zero command, and with light matching too.
+    raw error, with patch matching, without the zero command, and with light matching too; and, given the
+    route's taught ``poses``, the light-matched step on the route with them (``whole_step_taught``: the
+    obstruction detector and the side estimate at work, as on every forward step of a real route).
 
     The stages are timed round-robin in one loop. Each whole-step variant is timed in its own loop,
     round-robin with inference on its own policy (``pairs``; its ratio is judged against that inference):
@@ -129,6 +133,10 @@ def bench_stages(cfg: LatencyConfig, current: np.ndarray, route: np.ndarray) -> 
         "whole_step_continuous": BenchStep(cfg.model, cfg.threads, current, route, continuous=True),
         "whole_step_match_light": BenchStep(cfg.model, cfg.threads, current, route, match_light=True),
     }
+    if poses is not None:
+        variants[TAUGHT_VARIANT] = BenchStep(
+            cfg.model, cfg.threads, current, route, match_light=True, poses=poses
+        )
     step = variants["whole_step"]
     robot, policy = step.robot, step.policy
     feeds = {INPUT_CURRENT: to_nchw(current), INPUT_SUBGOAL: to_nchw(subgoal)}
@@ -251,11 +259,11 @@ def run(cfg: LatencyConfig) -> dict[str, Any]:
     import platform
 
     from vtr.benchmarks.flops import count_flops
-    from vtr.benchmarks.step_bench import sample_route
+    from vtr.benchmarks.step_bench import sample_taught
     from vtr.runtime.preprocess import to_nchw
 
     h, w, _ = _model_io(cfg.model)
-    current, route = sample_route(h, w)
+    current, route, poses = sample_taught(h, w)
     x, y = to_nchw(current), to_nchw(route[0])
     flops = count_flops(cfg.model)
     progress = Progress("vtr bench latency", total=6, eta=False)  # one live line on stderr, a terminal only
@@ -273,7 +281,7 @@ def run(cfg: LatencyConfig) -> dict[str, Any]:
         "gflop": flops["gflop"],
         "flops": flops,
         "machine": {"cores": all_cores(), "processor": platform.processor() or platform.machine()},
-        "stages": measured("stages", lambda: bench_stages(cfg, current, route)),
+        "stages": measured("stages", lambda: bench_stages(cfg, current, route, poses)),
         "zmq": measured("zmq", lambda: bench_zmq(cfg) if cfg.zmq else {"skipped": "disabled"}),
         "backends": measured("backends", lambda: bench_backends(cfg, x, y, flops["gflop"])),
         "memory": measured("memory", lambda: bench_memory(cfg) if cfg.memory else {"skipped": "disabled"}),

@@ -82,12 +82,26 @@ class LoopbackRobot:
         protocol.decode_reply(self._replies["stop"], expect_cmd="stop", expect_seq=1)
 
 
+#: The command the sample route is driven with (m/s, rad/s, s): its taught command at every subgoal.
+DRIVE = (0.2, 0.1, 0.1)
+
+
 def sample_route(height: int, width: int, length: int = ROUTE_LENGTH) -> tuple[np.ndarray, np.ndarray]:
     """A current frame and a taught route of ``length`` frames driven from near it (first subgoal first).
 
     From the simulator when it is installed, else shifted synthetic texture. The route's views change
     from subgoal to subgoal, as on a real route, so the controller uses patch matching (a route of one
     repeated view is "too plain" and makes it fall back to the raw error)."""
+    current, route, _ = sample_taught(height, width, length)
+    return current, route
+
+
+def sample_taught(
+    height: int, width: int, length: int = ROUTE_LENGTH
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`sample_route`'s current frame and route, and the route's (length, 3) taught poses (x, y, yaw: the
+    simulator's, or a straight line along the synthetic texture), each subgoal driven with :data:`DRIVE`."""
+    v, w, dt = DRIVE
     try:
         from vtr.sim2d import CameraConfig, Pose, SimConfig, Simulator
 
@@ -97,7 +111,10 @@ def sample_route(height: int, width: int, length: int = ROUTE_LENGTH) -> tuple[n
         first = sim.reset(pose=Pose(start.x, start.y, start.yaw), seed=0)
         current = sim.step(0.1, 0.1, 0.1)  # near the first subgoal, not on it
         sim.reset(pose=Pose(start.x, start.y, start.yaw), seed=0)
-        frames = [first] + [sim.step(0.2, 0.1, 0.1) for _ in range(length - 1)]
+        frames, poses = [first], [(start.x, start.y, start.yaw)]
+        for _ in range(length - 1):
+            frames.append(sim.step(v, w, dt))
+            poses.append((sim.pose.x, sim.pose.y, sim.pose.yaw))
     except (
         Exception
     ):  # simulator missing (the runtime-only memory probe): the timings do not depend on content
@@ -106,7 +123,8 @@ def sample_route(height: int, width: int, length: int = ROUTE_LENGTH) -> tuple[n
         texture = (base * 255).astype(np.uint8)
         frames = [np.roll(texture, 2 * k, axis=1) for k in range(length)]
         current = np.roll(texture, 1, axis=1)
-    return np.ascontiguousarray(current), np.ascontiguousarray(np.stack(frames))
+        poses = [(v * dt * k, 0.0, 0.0) for k in range(length)]
+    return np.ascontiguousarray(current), np.ascontiguousarray(np.stack(frames)), np.array(poses, np.float64)
 
 
 class BenchStep:
@@ -119,7 +137,11 @@ class BenchStep:
     ``ROUTE_LENGTH`` copies, on which the controller falls back to the raw error (``matching`` says which
     one is in force). The zero command after each step is sent, as the daemon does by default
     (stop-and-go); ``continuous=True`` leaves it out (`vtr repeat --motion continuous`). ``match_light=True``
-    wraps the policy in ``LightMatchedPolicy`` as `vtr repeat` does by default.
+    wraps the policy in ``LightMatchedPolicy`` as `vtr repeat` does by default. ``poses``: the route's taught
+    poses (from :func:`sample_taught`), with :data:`DRIVE` as its taught command everywhere: the step of a
+    real route, whose obstruction detector warps the taught floor ahead and whose side estimate registers
+    the floor rows on every forward step; without them (all poses zero, no taught motion) neither has any
+    floor to judge, and the step leaves both out.
     """
 
     name = "runtime.repeater.Repeater.step on a loopback link (protocol decode/encode, no socket)"
@@ -133,6 +155,7 @@ class BenchStep:
         continuous: bool = False,
         match_light: bool = False,
         match: MatchConfig | None = None,
+        poses: np.ndarray | None = None,
     ) -> None:
         from vtr.runtime.controller import ControllerConfig
         from vtr.runtime.policy import OnnxPolicy
@@ -151,8 +174,8 @@ class BenchStep:
         n = len(route)
         taught = Route(
             images=np.ascontiguousarray(route),
-            poses=np.zeros((n, 3)),
-            commands=np.zeros((n, 2)),
+            poses=np.zeros((n, 3)) if poses is None else np.asarray(poses, np.float64),
+            commands=np.zeros((n, 2)) if poses is None else np.tile(DRIVE[:2], (n, 1)),
             name="bench",
             dt=self.policy.meta.dt,
         )

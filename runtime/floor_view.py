@@ -197,6 +197,13 @@ class FloorTiles:
         out = self.matcher.normalised(band.ravel().take(index))
         return out if shifted else out[0]
 
+    def frame_features(self, frame: Frame, which: np.ndarray) -> np.ndarray:
+        """:meth:`features` of a frame's pooled band (``which``, unshifted), the same bits, from the tiles'
+        centred values and spreads the localiser's matcher made for the frame (``Matcher.moments``)."""
+        centred, spread = self.matcher.moments(frame)
+        tiles = self.tiles[which]
+        return np.divide(centred[tiles], self.matcher.floored(spread[tiles])).reshape(len(tiles), -1)
+
     def warp(self, band: np.ndarray, offset: Offset) -> np.ndarray:
         """A taught pooled band as the floor looks from ``offset`` (nearest pooled pixel; pixels above the
         horizon stay)."""

@@ -135,9 +135,37 @@ class Matcher:
         return ("patch_features", self.cfg)
 
     def _frame_features(self, frame: Frame) -> np.ndarray:
-        features = self._normalised(self._tiles(pooled_sums(frame, self.cfg.downsample)))[0]
+        centred, spread = self.moments(frame)
+        features = np.divide(centred, self.floored(spread)).reshape(centred.shape[0], -1)
         features.flags.writeable = False
         return features
+
+    def moments(self, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
+        """A frame's (tiles, C, patch * patch) tile values less their means and (tiles, C, 1) spreads (before
+        the floor), read-only: made once per frame, downsample and patch, and shared by every matcher with
+        those (the localiser's, the obstruction detector's: only their floors differ). Each tile is
+        normalised on its own, so its features from these have the bits :meth:`normalised` gives it."""
+        key = ("patch_moments", self.cfg.downsample, self.cfg.patch)
+        return frame.derived(key, self._frame_moments)
+
+    def _frame_moments(self, frame: Frame) -> tuple[np.ndarray, np.ndarray]:
+        tiles = self._tiles(pooled_sums(frame, self.cfg.downsample))[0]
+        spread = self._centre(tiles)
+        tiles.flags.writeable = spread.flags.writeable = False
+        return tiles, spread
+
+    def _centre(self, tiles: np.ndarray) -> np.ndarray:
+        """In place: (..., C, p * p) tiles of pooled sums less their means; returns their (..., C, 1) spreads."""
+        p = self.cfg.patch
+        # the mean: the sums are of integers (pooled levels) below 2**24, exact in any order, so a BLAS
+        # product gives the bits ndarray.mean's pairwise sum does
+        tiles -= np.matmul(tiles, _ones(p * p, tiles.dtype))[..., None] / (p * p)
+        return np.sqrt(np.einsum("...i,...i->...", tiles, tiles) / (p * p))[..., None]
+
+    def floored(self, spread: np.ndarray) -> np.ndarray:
+        """Tile spreads (pooled-sum units) floored at ``std_floor`` (0..255 units): what features divide by."""
+        f = self.cfg.downsample
+        return np.maximum(spread, np.float32(self.cfg.std_floor * f * f))
 
     def _tiles(self, pooled: np.ndarray) -> np.ndarray:
         """(1, tiles, C, p * p) tiles of one image's pooled sums (C, H / f, W / f), in a new array."""
@@ -153,14 +181,9 @@ class Matcher:
 
     def _normalised(self, tiles: np.ndarray) -> np.ndarray:
         """(B, tiles, C, p * p) pooled sums -> (B, tiles, C * p * p) features, normalised in place."""
-        f, p = self.cfg.downsample, self.cfg.patch
-        # the mean: the sums are of integers (pooled levels) below 2**24, exact in any order, so a BLAS
-        # product gives the bits ndarray.mean's pairwise sum does
-        tiles -= np.matmul(tiles, _ones(p * p, tiles.dtype))[..., None] / (p * p)
-        std = np.sqrt(np.einsum("...i,...i->...", tiles, tiles) / (p * p))[..., None]
-        tiles /= np.maximum(std, np.float32(self.cfg.std_floor * f * f))
-        b, n, c, _ = tiles.shape
-        return tiles.reshape(b, n, c * p * p)
+        tiles /= self.floored(self._centre(tiles))
+        b, n, c, pp = tiles.shape
+        return tiles.reshape(b, n, c * pp)
 
     def normalised(self, tiles: np.ndarray) -> np.ndarray:
         """(B, tiles, C, patch * patch) float32 tiles of pooled sums (each value the sum of a downsample x

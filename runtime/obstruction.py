@@ -343,7 +343,7 @@ class ObstructionDetector:
         d = np.zeros(len(floor.tiles), dtype=np.float32)
         if not len(active):
             return d
-        own = floor.features(floor.pool(view), active)
+        own = floor.frame_features(view, active)  # the localiser's tile moments of this frame, shared
         k, offset = taught_offset(self.poses, position)
         d[active] = self.matcher.tile_distances(own, self._feats[k : k + 2, active]).min(axis=0)
         todo = np.flatnonzero(d[active] > thr)  # positions in active

@@ -39,6 +39,7 @@ STAGES: tuple[tuple[str, str, str], ...] = (
     ("judge.obstruction", "obstruction", "update"),
     ("judge.obstruction.pool", "floor", "pool"),
     ("judge.obstruction.features", "floor", "features"),
+    ("judge.side", "side", "estimate"),  # the floor's side offset: only where the robot drives forward
     ("commanded", "localiser", "predict"),  # the localiser's motion update, after the step's command
     ("predict", "policy", "predict"),
     ("predict.light_match", "light", "matched_planar"),
@@ -65,6 +66,7 @@ def _owners(rep: Any) -> dict[str, Any]:
         "localiser": getattr(rep.controller, "localiser", None),
         "obstruction": getattr(rep.controller, "obstruction", None),
         "floor": getattr(getattr(rep.controller, "obstruction", None), "floor", None),
+        "side": getattr(rep.controller, "side", None),
         "matching": matching,
         "frame": frame,
         "preprocess": preprocess,
@@ -75,8 +77,12 @@ def _owners(rep: Any) -> dict[str, Any]:
     }
 
 
-def profile_stages(rep: Any, steps: int, warmup: int) -> dict[str, dict[str, float]]:
-    """Median us per step of each stage (and of the whole step) over ``steps`` steps of ``rep``."""
+def profile_stages(
+    rep: Any, steps: int, warmup: int, clock: Callable[[], int] = time.perf_counter_ns
+) -> dict[str, dict[str, float]]:
+    """Median us per step of each stage (and of the whole step) over ``steps`` steps of ``rep``; ``clock``:
+    wall time, or ``time.thread_time_ns`` for the CPU time of the step's thread (what a busy machine's waits
+    for a core leave out)."""
     owners = _owners(rep)
     per_step: dict[str, int] = {}
     calls: dict[str, int] = {}
@@ -84,11 +90,11 @@ def profile_stages(rep: Any, steps: int, warmup: int) -> dict[str, dict[str, flo
 
     def wrap(label: str, call: Callable[..., Any]) -> Callable[..., Any]:
         def timed(*args: Any, **kwargs: Any) -> Any:
-            t0 = time.perf_counter_ns()
+            t0 = clock()
             try:
                 return call(*args, **kwargs)
             finally:
-                per_step[label] = per_step.get(label, 0) + time.perf_counter_ns() - t0
+                per_step[label] = per_step.get(label, 0) + clock() - t0
                 calls[label] = calls.get(label, 0) + counting
 
         return timed
@@ -106,9 +112,9 @@ def profile_stages(rep: Any, steps: int, warmup: int) -> dict[str, dict[str, flo
         for i in range(warmup + steps):
             per_step.clear()
             counting = int(i >= warmup)
-            t0 = time.perf_counter_ns()
+            t0 = clock()
             record = rep.step()
-            whole = time.perf_counter_ns() - t0
+            whole = clock() - t0
             if not record.commanded:
                 raise RuntimeError(f"the repeat ended ({record.status})")
             if i < warmup:
@@ -172,20 +178,29 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--route", help="ROUTE.npz from step_bench_ab --write (default: made now)")
     parser.add_argument(
         "--variant",
-        choices=("raw", "patch", "light"),
+        choices=("raw", "patch", "light", "taught"),
         default="light",
-        help="the step's image comparison (default: light)",
+        help="the step's image comparison (default: light; taught: light on a route with taught poses, "
+        "the obstruction detector and side estimate at work)",
     )
     parser.add_argument("--steps", type=int, default=3000, help="timed steps (default: 3000)")
     parser.add_argument("--warmup", type=int, default=300, help="untimed steps first (default: 300)")
     parser.add_argument("--cprofile", type=int, metavar="N", help="print cProfile's top N functions instead")
+    parser.add_argument("--cpu", action="store_true", help="time the thread's CPU, not the wall clock")
     parser.add_argument("--json", help="also write the medians here")
     args = parser.parse_args(argv)
-    rep = _repeaters(_route_file(args), args.model)[args.variant]
+    if args.variant == "taught":  # the light step on the benchmark's route with its taught poses
+        from vtr.benchmarks.step_bench import BenchStep, sample_taught
+
+        current, route, poses = sample_taught(128, 128)
+        rep = BenchStep(args.model, 1, current, route, match_light=True, poses=poses).repeater
+    else:
+        rep = _repeaters(_route_file(args), args.model)[args.variant]
     if args.cprofile:
         print(cprofile_top(rep, args.steps, args.warmup, args.cprofile))
         return 0
-    result = profile_stages(rep, args.steps, args.warmup)
+    clock = time.thread_time_ns if args.cpu else time.perf_counter_ns
+    result = profile_stages(rep, args.steps, args.warmup, clock)
     for name, s in result.items():
         depth = name.count(".")
         calls = f"  x{s['calls_per_step']:.0f}" if s["calls_per_step"] != 1 else ""

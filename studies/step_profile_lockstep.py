@@ -21,19 +21,26 @@ from pathlib import Path
 
 import numpy as np
 
-#: The variants: BenchStep keyword arguments (the image comparison and light matching).
-VARIANTS = ("light", "patch", "raw")
+#: The variants: BenchStep keyword arguments (the image comparison and light matching; ``taught``: the light
+#: step on the route with its taught poses, the obstruction detector and the side estimate at work).
+VARIANTS = ("light", "patch", "raw", "taught")
 
 
 def worker(variant: str, model: str) -> None:
     """Step on each line read from stdin; write "compute_cpu compute_wall inference judge" (us) per step."""
-    from vtr.benchmarks.step_bench import BenchStep, sample_route
+    from vtr.benchmarks import step_bench
     from vtr.runtime.matching import MatchConfig
     from vtr.runtime.model_meta import INPUT_CURRENT, INPUT_SUBGOAL
     from vtr.runtime.preprocess import to_nchw
 
-    current, route = sample_route(128, 128)
-    kwargs = {"light": {"match_light": True}, "patch": {}, "raw": {"match": MatchConfig.paper()}}[variant]
+    BenchStep = step_bench.BenchStep
+    # "taught" needs a checkout with step_bench.sample_taught (copy the file into an older one)
+    if variant == "taught":
+        current, route, poses = step_bench.sample_taught(128, 128)
+        kwargs: dict[str, object] = {"match_light": True, "poses": poses}
+    else:
+        current, route = step_bench.sample_route(128, 128)
+        kwargs = {"light": {"match_light": True}, "patch": {}, "raw": {"match": MatchConfig.paper()}}[variant]
     bench = BenchStep(model, 1, current, route, **kwargs)
     feeds = {INPUT_CURRENT: to_nchw(current), INPUT_SUBGOAL: to_nchw(route[0])}
     controller = bench.repeater.controller

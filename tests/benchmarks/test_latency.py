@@ -86,7 +86,11 @@ def test_latency_smoke_run(tiny_model: Path, tmp_path: Path) -> None:
         "whole_step": "patch",
         "whole_step_continuous": "patch",
         "whole_step_match_light": "patch",
+        "whole_step_taught": "patch",
     }
+    # the step on the route with its taught poses is reported beside the budget's
+    taught = result["stages"]["compute"][latency_report.TAUGHT_VARIANT]["step_compute"]
+    assert result["ratios"]["taught_step_compute_p99_ms"] == taught["p99_ms"]
     on_disk = json.loads((tmp_path / "lat.json").read_text())
     assert on_disk["gflop"] == pytest.approx(result["gflop"])
     # each whole step's compute apart from its link, and the budget judged on vtr repeat's default step
@@ -131,3 +135,29 @@ def test_vtr_bench_latency_cli(tiny_model: Path, tmp_path: Path, capsys: pytest.
     assert set(other["step_overhead"]) == set(latency_report.STEP_VARIANTS)
     assert other["stages"]["pairs"]["whole_step_match_light"]["inference"]["n"] == 3
     assert main(["bench", "latency", "--model", str(tmp_path / "missing.onnx")]) == 2
+
+
+def test_the_taught_step_judges_the_floor_as_a_real_routes_does(tmp_path: Path) -> None:
+    """On the sample route with its taught poses and forward commands the obstruction detector scores the
+    floor ahead and the side estimate registers the floor rows; with all poses zero neither has floor."""
+    from vtr.benchmarks.step_bench import BenchStep, sample_taught
+
+    meta = ModelMeta(image_height=128, image_width=128, horizon=2)
+    model = make_standin_velocitynet(tmp_path / "m.onnx", meta=meta, widths=(4, 8))
+    current, route, poses = sample_taught(128, 128)
+    seen: dict[str, list[int]] = {}
+    for name, step in (
+        ("taught", BenchStep(model, 1, current, route, match_light=True, poses=poses)),
+        ("plain", BenchStep(model, 1, current, route, match_light=True)),
+    ):
+        ctl = step.repeater.controller
+        calls = seen[name] = []
+        estimate = ctl.side.estimate if ctl.side is not None else None
+        if estimate is not None:
+            ctl.side.estimate = lambda *a, calls=calls, estimate=estimate: calls.append(1) or estimate(*a)
+        for _ in range(4):
+            step()
+        regions = ctl.obstruction.weights if ctl.obstruction is not None else None
+        seen[name + "_region"] = [int(regions is not None and regions.any())]
+    assert seen["taught"] and seen["taught_region"] == [1]
+    assert not seen["plain"] and seen["plain_region"] == [0]

@@ -13,7 +13,7 @@ from vtr.runtime import matching
 from vtr.runtime.follower import Follower
 from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.light import LightMatchedPolicy
-from vtr.runtime.matching import Matcher, pooled_sums
+from vtr.runtime.matching import Matcher
 from vtr.runtime.route import Route
 
 
@@ -69,11 +69,14 @@ def counted(monkeypatch):
     counts = {
         "planar": Counting(frame_module.planar),
         "pool": Counting(matching.pool),
-        "normalised": Counting(Matcher._normalised),
+        "moments": Counting(lambda frame, make: make(frame)),
     }
     monkeypatch.setattr(frame_module, "planar", counts["planar"])
     monkeypatch.setattr(matching, "pool", counts["pool"])
-    monkeypatch.setattr(Matcher, "_normalised", lambda self, tiles: counts["normalised"](self, tiles))
+    make = Matcher._frame_moments
+    monkeypatch.setattr(
+        Matcher, "_frame_moments", lambda self, frame: counts["moments"](frame, lambda fr: make(self, fr))
+    )
     return counts
 
 
@@ -93,11 +96,10 @@ def test_one_step_makes_each_frames_levels_pooled_sums_and_features_once(counted
     assert f.matcher.features(frame) is f.matcher.features(frame)  # kept on the frame, not made again
     assert counted["planar"].calls_on(image) == 1
     assert counted["pool"].calls_on(frame.levels) == 1  # shared by the localiser's matcher and the detector
-    # the detector's floor band of this frame is a view of the same pooled sums, not a pooling of its own
-    band = [out for arg, out in zip(bands.args, bands.results, strict=True) if arg is frame]
-    assert len(band) == 1 and np.shares_memory(band[0], pooled_sums(frame, f.matcher.cfg.downsample))
-    # the localiser's matcher normalises once, for this frame's features (the detector has its own matcher)
-    assert sum(a is f.matcher for a in counted["normalised"].args) == 1
+    # the detector pools no band of this frame: its tiles' features come from the tile moments the localiser's
+    # matcher made (centred values and spreads, made once per frame; only the floor on the spread differs)
+    assert bands.calls_on(frame) == 0
+    assert counted["moments"].calls_on(frame) == 1
     assert not f.matcher.features(frame).flags.writeable
 
 
@@ -109,6 +111,22 @@ def test_the_detector_pools_a_frame_as_it_pools_the_same_image():
     assert shared.dtype == own.dtype and np.array_equal(shared, own)
     features = f.matcher.features(Frame.decoded(image))
     assert np.array_equal(features, f.matcher.features(image[None])[0])
+
+
+@pytest.mark.parametrize("x", [0.2, 0.42, 0.77])
+def test_the_detectors_tile_features_from_the_shared_moments_are_its_own_bits(x):
+    """The detector's features of a frame's tiles, from the localiser's tile moments, equal those it makes
+    from the pooled band itself (each tile normalised on its own; only the floor on the spread differs)."""
+    f = follower()
+    floor = f.obstruction.floor
+    image = box_at(view(x), 0.5)
+    frame = Frame.decoded(image)
+    f.matcher.features(frame)  # the localiser's matcher makes the moments first, as in the step
+    which = np.arange(len(floor.tiles))
+    shared = floor.frame_features(frame, which)
+    assert floor.matcher.cfg.std_floor != f.matcher.cfg.std_floor
+    assert shared.dtype == np.float32 and np.array_equal(shared, floor.features(floor.pool(image), which))
+    assert np.array_equal(floor.frame_features(frame, which[::3]), shared[::3])
 
 
 def test_distances_over_a_window_are_the_trimmed_means_of_the_per_tile_differences():
