@@ -39,12 +39,14 @@ estimate.position, moved)`` with ``moved`` true when the robot was commanded to 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
 from vtr.runtime.floor_view import (
     Camera,
     FloorTiles,
+    Offset,
     near_path,
     path_ahead,
     path_weights,
@@ -67,6 +69,29 @@ STRAIGHT_M = 0.005
 def moving(v: float, w: float) -> bool:
     """Whether the command (v, w) moves the robot: driving forward, or turning (in place or on an arc)."""
     return v > FORWARD_SPEED or abs(w) > TURN_SPEED
+
+
+#: Where the floor puts the robot beside the taught pose: ``(dy, psi)`` (m left, rad turned left), or None.
+SideFn = Callable[[], "tuple[float, float] | None"]
+
+
+def beside(offset: Offset, dy: float, psi: float) -> Offset:
+    """The pose ``dy`` to the left of and turned ``psi`` from the taught pose at ``offset`` (relative to a
+    taught view), relative to that view."""
+    ahead, left, turn = offset
+    return ahead - math.sin(turn) * dy, left + math.cos(turn) * dy, turn + psi
+
+
+def _once(fn: SideFn) -> SideFn:
+    """``fn``, called at most once."""
+    memo: list[tuple[float, float] | None] = []
+
+    def call() -> tuple[float, float] | None:
+        if not memo:
+            memo.append(fn())
+        return memo[0]
+
+    return call
 
 
 class ObstructionDetector:
@@ -121,6 +146,7 @@ class ObstructionDetector:
         self._feats = np.stack([self.floor.features(self.floor.pool(image)) for image in subgoals])
         self._bands: dict[int, np.ndarray] = {}  # pooled taught bands of the last few subgoals
         self.growth = Growth(cfg)
+        self._side: SideFn | None = None  # the side offset of the view being judged (update's ``side``)
 
     def reset(self) -> None:
         """Forget the tracked region (a new run, or the robot moved elsewhere)."""
@@ -195,14 +221,21 @@ class ObstructionDetector:
             if len(self._bands) >= 4:
                 self._bands.clear()
             band = self._bands[k] = floor.pool(self.subgoals[k])
-        warped = floor.warp(band, offset)
-        for shifted in (False, True):
-            views = floor.features(warped, active[todo], shifted)
-            best = self.matcher.tile_distances(own[todo], views).min(axis=0)
-            d[active[todo]] = np.minimum(d[active[todo]], best)
-            todo = todo[d[active[todo]] > thr]
-            if not len(todo):
-                break
+        warps = [offset]
+        side = self._side() if self._side is not None else None
+        if side is not None:  # the robot is beside the taught pose: the floor as it looks from there
+            warps.append(beside(offset, *side))
+        for at in warps:
+            warped = floor.warp(band, at)
+            for shifted in (False, True):
+                views = floor.features(warped, active[todo], shifted)
+                best = self.matcher.tile_distances(own[todo], views).min(axis=0)
+                d[active[todo]] = np.minimum(d[active[todo]], best)
+                todo = todo[d[active[todo]] > thr]
+                if not len(todo):
+                    return d
+        # floor the teach never saw from there (past the taught view's edge) tells nothing: not unmatched
+        d[active[todo[~floor.seen(warps[-1])[active[todo]]]]] = 0.0
         return d
 
     def shares(self, scores: np.ndarray) -> tuple[float, float]:
@@ -217,21 +250,33 @@ class ObstructionDetector:
         """The unmatched share of the path region in one view (no tracking)."""
         return self.shares(self.scores(view, position))[0]
 
-    def update(self, view: np.ndarray, position: float, moved: bool) -> ObstructionVerdict:
+    def update(
+        self, view: np.ndarray, position: float, moved: bool, side: SideFn | None = None
+    ) -> ObstructionVerdict:
         """Judge one view (see :meth:`scores`); ``moved``: the robot was commanded to move (forward or
-        turning, :func:`moving`) since the last view."""
-        share, hidden = self.shares(self.scores(view, position))
-        if not self.weights.any():
-            self.growth.unseen()
-        return self.growth.update(share, hidden, moved, lambda: self.elsewhere(view, position))
+        turning, :func:`moving`) since the last view; ``side``: where the floor puts the robot beside the
+        taught pose at ``position`` (``(dy, psi)``: metres to the left, radians turned left; None where it
+        does not tell), asked once, only when some tiles match no taught view at the taught pose: the
+        taught floor warped to that pose too lines up with the floor where the robot truly is (a robot
+        10 cm beside the path sees the floor 0.3 m ahead 10 pooled pixels across, past the shifts)."""
+        self._side = _once(side) if side is not None else None
+        try:
+            share, hidden = self.shares(self.scores(view, position))
+            if not self.weights.any():
+                self.growth.unseen()
+            return self.growth.update(share, hidden, moved, lambda: self.elsewhere(view, position))
+        finally:
+            self._side = None
 
 
 __all__ = [
     "FORWARD_SPEED",
     "TURN_SPEED",
+    "SideFn",
     "Growth",
     "ObstructionConfig",
     "ObstructionDetector",
     "ObstructionVerdict",
+    "beside",
     "moving",
 ]

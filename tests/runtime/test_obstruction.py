@@ -256,3 +256,38 @@ def test_a_growth_blocks_only_while_the_floor_beside_the_path_still_matches():
     boxed = box_at(views[3], 0.6)
     det.scores(boxed, 3.0)
     assert det.elsewhere(boxed, 3.0) <= det.cfg.max_elsewhere
+
+
+@pytest.mark.parametrize("dy, turn_deg", [(0.1, -10.0), (-0.1, 10.0), (0.0, 10.0), (0.1, 0.0)])
+def test_a_robot_beside_the_taught_pose_sees_the_floor_match_where_the_floor_puts_it(dy, turn_deg):
+    """Dev offset_10cm_10deg runs ended blocked with nothing on the path: warped to the taught pose only, the
+    floor near a robot 10 cm beside it and turned is unmatched as a box would leave it. Warped to the pose
+    the floor registration gives (``side``), it matches; a box there still does not."""
+    views, poses = route()
+    det = ObstructionDetector(views, poses)
+    view = floor_view(0.3, dy, math.radians(turn_deg))
+    side = (dy, math.radians(turn_deg))
+    assert det.update(view, 3.0, moved=False).fraction > det.cfg.block_fraction - 0.1
+    # a turned robot sees some near floor the taught view did not (past its edge): those tiles stay unmatched
+    lined_up = det.update(view, 3.0, moved=False, side=lambda: side)
+    assert lined_up.fraction < det.cfg.onset_fraction + 0.06 and lined_up.hidden <= det.cfg.clear_hidden
+    assert det.update(view, 3.0, moved=False, side=lambda: None).fraction > det.cfg.block_fraction - 0.1
+    # a box ahead of the robot, wherever it stands, is no floor: it grows unmatched and blocks
+    det.reset()
+    verdicts = [det.update(box_at(view, d), 3.0, True, lambda: side) for d in np.arange(1.6, 0.3, -0.05)]
+    assert not verdicts[0].blocked and verdicts[-1].blocked
+
+
+def test_the_side_offset_is_asked_once_a_view_and_only_when_the_taught_pose_leaves_tiles_unmatched():
+    views, poses = route()
+    det = ObstructionDetector(views, poses)
+    asked: list[int] = []
+
+    def side() -> tuple[float, float]:
+        asked.append(1)
+        return (0.1, -0.17)
+
+    det.update(views[3], 3.0, moved=True, side=side)
+    assert not asked  # the floor matches at the taught pose: nothing to ask
+    det.update(floor_view(0.3, 0.1, -0.17), 3.0, moved=True, side=side)
+    assert len(asked) == 1  # the path region and the floor beside it both use the one answer
