@@ -115,7 +115,9 @@ class Growth:
     def reset(self) -> None:
         self.last = 0.0  # the share on the last step the robot moved
         self.base = 0.0  # the least share since the growth began (its start)
-        self.low = 0.0  # the least share since the region last matched (the unmatched spell's start)
+        # the least share since the region last matched (the unmatched spell's start); none seen yet: a region
+        # unmatched from the first view on (a re-laid floor) never grew from a matched one
+        self.low = 1.0
         self.growing = 0  # moving steps since then without a drop of more than slack
         self.blocked = False
         self.clear = 0

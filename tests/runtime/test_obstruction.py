@@ -291,3 +291,16 @@ def test_the_side_offset_is_asked_once_a_view_and_only_when_the_taught_pose_leav
     assert not asked  # the floor matches at the taught pose: nothing to ask
     det.update(floor_view(0.3, 0.1, -0.17), 3.0, moved=True, side=side)
     assert len(asked) == 1  # the path region and the floor beside it both use the one answer
+
+
+def test_a_path_region_unmatched_since_the_first_view_never_grew_from_a_matched_floor():
+    """Dev floor_recoloured (gen_105, seed 0): the path region was 67-97% unmatched from the first view on, the
+    share wandered up by chance and blocked on the one view the floor beside it dipped to 50% unmatched. No
+    view ever matched: nothing grew from a matched floor. A box coming closer does grow from one."""
+    from vtr.runtime.obstruction import Growth
+
+    relaid = [0.71, 0.8, 0.8, 0.77, 0.87, 0.87, 0.97, 0.97]
+    growth = Growth(ObstructionConfig())
+    assert not any(growth.update(s, s, True, lambda: 0.3).blocked for s in relaid)
+    growth = Growth(ObstructionConfig())  # a box half-way along a short route: in view from the start, small
+    assert [growth.update(s, s, True, lambda: 0.1).blocked for s in (0.2, 0.3, 0.4, 0.5)][-1]
