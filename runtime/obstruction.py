@@ -264,6 +264,8 @@ class ObstructionDetector:
             share, hidden = self.shares(self.scores(view, position))
             if not self.weights.any():
                 self.growth.unseen()
+                if not self.growth.blocked:  # no region in view is no matched view of it
+                    return ObstructionVerdict(False, 0.0, 0, "path region out of view")
             return self.growth.update(share, hidden, moved, lambda: self.elsewhere(view, position))
         finally:
             self._side = None

@@ -122,11 +122,15 @@ class Growth:
         self.blocked = False
         self.clear = 0
         self.fresh = False  # the path came into view unmatched: no matched view of it to grow from
+        self.seen = False  # any view of the path region judged yet
 
     def unseen(self) -> None:
-        """No floor of the path in view (it turns out of view): the next region seen is new."""
+        """No floor of the path in view (it turns out of view): the next region seen is new. It may grow
+        from unmatched only where the floor matched before the path went out of view (or none was seen
+        yet): a floor that matched nowhere before the turn (re-laid) tells nothing after it either."""
         if not self.blocked:
-            self.growing, self.last, self.low, self.fresh = 0, 0.0, 1.0, True
+            self.fresh = self.fresh or self.low <= self.cfg.max_base or not self.seen
+            self.growing, self.last, self.low = 0, 0.0, 1.0
 
     def update(
         self, share: float, hidden: float, moved: bool, elsewhere: Callable[[], float] | None = None
@@ -142,6 +146,7 @@ class Growth:
                 note = f"way clear: path region {share:.0%} unmatched, {hidden:.0%} up to its far end"
                 return ObstructionVerdict(False, share, 0, note, hidden)
             return ObstructionVerdict(True, share, self.growing, self.note(share), hidden)
+        self.seen = True
         if share < cfg.onset_fraction:
             self.growing, self.low, self.fresh = 0, share, False
         elif moved:

@@ -304,3 +304,23 @@ def test_a_path_region_unmatched_since_the_first_view_never_grew_from_a_matched_
     assert not any(growth.update(s, s, True, lambda: 0.3).blocked for s in relaid)
     growth = Growth(ObstructionConfig())  # a box half-way along a short route: in view from the start, small
     assert [growth.update(s, s, True, lambda: 0.1).blocked for s in (0.2, 0.3, 0.4, 0.5)][-1]
+
+
+def test_a_path_that_turns_back_into_view_unmatched_blocks_only_where_the_floor_matched_before_the_turn():
+    """Dev floor_recoloured (gen_101, gen_107): the path region was unmatched before a taught turn in place
+    and after it; the views with the path out of view counted as matched ones, so the unmatched region after
+    the turn grew "from a matched floor" and blocked. A box just past the turn on a floor that matched
+    before it still blocks."""
+    from vtr.runtime.obstruction import Growth
+
+    after_turn = [0.5, 0.6, 0.7, 0.8, 0.9]
+    for before, blocks in (([0.8, 0.75, 0.85], False), ([0.02, 0.0, 0.03], True)):
+        growth = Growth(ObstructionConfig())
+        for s in before:
+            growth.update(s, s, True, lambda: 0.1)
+        for _ in range(3):
+            growth.unseen()
+        assert [growth.update(s, s, True, lambda: 0.1).blocked for s in after_turn][-1] is blocks
+    growth = Growth(ObstructionConfig())  # a route that starts with the turn: nothing seen before it
+    growth.unseen()
+    assert [growth.update(s, s, True, lambda: 0.1).blocked for s in after_turn][-1]
