@@ -9,7 +9,11 @@ blocked half of the time. The robot is a little off that pose (a few centimetres
 tile of the view is compared with the warped view's tile shifted by up to ``shift_rows`` x ``shift_cols``
 pooled pixels, and with the taught views of subgoals ``k`` and ``k + 1`` as they are, as the patch matcher
 compares (normalised per channel, so light drops out): a tile is *unmatched* when none of them is within
-``tile_threshold``.
+``tile_threshold``. A robot further off (10 cm beside the path, turned 10 degrees: the floor 0.3 m ahead
+moves 10 pooled pixels) gets one more try, where the floor registration (runtime.side_offset, through
+``update``'s ``side``) places it beside the taught pose: the floor warped to there lines up again, what
+stands on it still does not. Floor the taught view never saw from that pose (past its edge) is no
+evidence either way.
 
 Only the tiles where the path ahead appears count (:meth:`ObstructionDetector.region`): the floor within
 ``half_width_m`` of the taught path from ``s`` on, ``near_m`` to ``far_m`` along it, as it lies from the
