@@ -229,6 +229,11 @@ class ObstructionDetector:
         side = self._side() if self._side is not None else None
         if side is not None:  # the robot is beside the taught pose: the floor as it looks from there
             warps.append(beside(offset, *side))
+        best_known = warps[-1]
+        # the localiser places the robot up to a subgoal or two off along the route: the floor from there
+        ahead, left, turn = best_known
+        c, s = math.cos(turn), math.sin(turn)
+        warps += [(ahead + c * d, left + s * d, turn) for d in (self.cfg.along_m, -self.cfg.along_m) if d]
         for at in warps:
             warped = floor.warp(band, at)
             for shifted in (False, True):
@@ -239,7 +244,7 @@ class ObstructionDetector:
                 if not len(todo):
                     return d
         # floor the teach never saw from there (past the taught view's edge) tells nothing: not unmatched
-        d[active[todo[~floor.seen(warps[-1])[active[todo]]]]] = 0.0
+        d[active[todo[~floor.seen(best_known)[active[todo]]]]] = 0.0
         return d
 
     def shares(self, scores: np.ndarray) -> tuple[float, float]:

@@ -23,6 +23,10 @@ class ObstructionConfig:
     #: Pooled pixels (2 image pixels each) the warped taught view is shifted by, each way, down and across.
     shift_rows: int = 1
     shift_cols: int = 2
+    #: Metres ahead and behind the pose the robot is placed at that the taught floor is also warped to, where
+    #: tiles stay unmatched there: the localiser's estimate lags or leads by up to this (dev offset_10cm_10deg,
+    #: gen_104: 10 cm behind the robot; 0: no such tries).
+    along_m: float = 0.1
     #: The path region: half the corridor's width and its near and far ends ahead of the camera (m).
     half_width_m: float = 0.2
     near_m: float = 0.3
@@ -59,6 +63,8 @@ class ObstructionConfig:
     max_elsewhere: float = 0.5
 
     def __post_init__(self) -> None:
+        if not (isinstance(self.along_m, (int, float)) and 0.0 <= self.along_m <= 1.0):
+            raise ValueError(f"ObstructionConfig.along_m must be in [0, 1] m, got {self.along_m!r}")
         for name in ("tile_threshold", "std_floor", "half_width_m", "near_m", "far_m"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):

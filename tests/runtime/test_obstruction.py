@@ -324,3 +324,17 @@ def test_a_path_that_turns_back_into_view_unmatched_blocks_only_where_the_floor_
     growth = Growth(ObstructionConfig())  # a route that starts with the turn: nothing seen before it
     growth.unseen()
     assert [growth.update(s, s, True, lambda: 0.1).blocked for s in after_turn][-1]
+
+
+@pytest.mark.parametrize("ahead", [0.12, -0.1])
+def test_a_robot_placed_a_subgoal_or_two_off_along_the_route_sees_the_floor_match_a_little_ahead_or_behind(
+    ahead,
+):
+    """Dev offset_10cm_10deg gen_104: the localiser placed the robot 10 cm behind where it was, and the floor
+    near it, warped to the pose it was placed at, grew unmatched as a box would."""
+    views, poses = route(40, 0.05)
+    view = floor_view(1.0 + ahead)
+    fixed = ObstructionDetector(views, poses, ObstructionConfig(along_m=0.0))
+    det = ObstructionDetector(views, poses)
+    assert fixed.update(view, 20.0, moved=False).fraction > det.cfg.onset_fraction + 0.1
+    assert det.update(view, 20.0, moved=False).fraction <= det.cfg.clear_fraction
