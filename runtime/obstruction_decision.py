@@ -121,8 +121,8 @@ class Growth:
     def reset(self) -> None:
         self.last = 0.0  # the share on the last step the robot moved
         self.base = 0.0  # the least share since the growth began (its start)
-        # the least share since the region last matched (the unmatched spell's start); none seen yet: a region
-        # unmatched from the first view on (a re-laid floor) never grew from a matched one
+        # the least share since the region last matched (the unmatched spell's start); none seen yet: the first
+        # view sets it (``update``)
         self.low = 1.0
         self.growing = 0  # moving steps since then without a drop of more than slack
         self.blocked = False
@@ -152,6 +152,11 @@ class Growth:
                 note = f"way clear: path region {share:.0%} unmatched, {hidden:.0%} up to its far end"
                 return ObstructionVerdict(False, share, 0, note, hidden)
             return ObstructionVerdict(True, share, self.growing, self.note(share), hidden)
+        if not self.seen and share >= cfg.onset_fraction and elsewhere is not None:
+            # unmatched from the first view on: something on the path already in view where the floor beside
+            # it matches (a box just past a turn near the start, dev box_after_turn gen_102), else the floor
+            # itself changed (re-laid), and nothing grew from a matched floor
+            self.low = 0.0 if elsewhere() <= cfg.max_elsewhere else 1.0
         self.seen = True
         if share < cfg.onset_fraction:
             self.growing, self.low, self.fresh = 0, share, False

@@ -301,7 +301,11 @@ def test_a_path_region_unmatched_since_the_first_view_never_grew_from_a_matched_
 
     relaid = [0.71, 0.8, 0.8, 0.77, 0.87, 0.87, 0.97, 0.97]
     growth = Growth(ObstructionConfig())
-    assert not any(growth.update(s, s, True, lambda: 0.3).blocked for s in relaid)
+    beside = iter([0.75] + [0.3] * 10)  # the floor beside the path unmatched on the first view
+    assert not any(growth.update(s, s, True, lambda: next(beside)).blocked for s in relaid)
+    growth = Growth(ObstructionConfig())  # dev box_after_turn gen_102: the box in view from the start
+    assert growth.update(0.5, 0.4, False, lambda: 0.1).note and growth.low == 0.0
+    assert [growth.update(s, s, True, lambda: 0.1).blocked for s in (0.5, 0.6, 0.7, 0.8)][-1]
     growth = Growth(ObstructionConfig())  # a box half-way along a short route: in view from the start, small
     assert [growth.update(s, s, True, lambda: 0.1).blocked for s in (0.2, 0.3, 0.4, 0.5)][-1]
 
@@ -316,8 +320,8 @@ def test_a_path_that_turns_back_into_view_unmatched_blocks_only_where_the_floor_
     after_turn = [0.5, 0.6, 0.7, 0.8, 0.9]
     for before, blocks in (([0.8, 0.75, 0.85], False), ([0.02, 0.0, 0.03], True)):
         growth = Growth(ObstructionConfig())
-        for s in before:
-            growth.update(s, s, True, lambda: 0.1)
+        for s in before:  # re-laid: the floor beside the path unmatched as much
+            growth.update(s, s, True, lambda: 0.8)
         for _ in range(3):
             growth.unseen()
         assert [growth.update(s, s, True, lambda: 0.1).blocked for s in after_turn][-1] is blocks
