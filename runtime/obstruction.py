@@ -26,7 +26,8 @@ unmatched share is at least ``block_fraction``, has kept growing (never dropping
 for ``grow_steps`` steps in which the robot moved (drove forward or turned: :func:`moving`), by
 ``min_growth`` in all, grew from a region that matched (``max_base`` or less unmatched) or came into view
 unmatched (a path that turned out of view and back, as in a taught turn in place: its floor was never seen
-matched), and at least ``hidden_fraction`` of the region is unmatched all the way up its column to the
+matched; only where the floor matched before the turn), or was unmatched from the first view while the floor
+beside it matched (a box already in view), and at least ``hidden_fraction`` of the region is unmatched all the way up its column to the
 region's far end, while no more than ``max_elsewhere`` of the floor beside the region is unmatched. A floor
 that looks different everywhere (a new carpet), a robot off its pose (which mismatches the floor nearest to
 it first), or a region that is unmatched while the robot stands, does not fire. Things lower than about two thirds of the camera's height hide too little of the far floor to be
