@@ -210,7 +210,32 @@ class FloorTiles:
         dx, dy, turn = offset
         if not (dx or dy or turn):
             return band
-        ds, (rows, cols) = self.matcher.cfg.downsample, self.shape
+        rows, cols = self.shape
+        row, col = self._source(offset)
+        index = np.clip(row, 0, rows - 1, out=row).astype(np.intp) * cols
+        index += np.clip(col, 0, cols - 1, out=col).astype(np.intp)
+        if self._sky:
+            index = np.vstack([self._still, index])
+        return band.reshape(3, -1)[:, index]
+
+    def seen(self, offset: Offset) -> np.ndarray:
+        """(tiles,) whether the taught view saw the floor each tile's centre sees from ``offset``: a tile
+        whose floor lay past the taught view's edge (a robot turned or beside the taught pose sees floor
+        the teach did not) cannot match it, and is no evidence of anything."""
+        rows, cols = self.shape
+        row, col = self._source(offset)
+        p = self.matcher.cfg.patch
+        per_row = self.camera.width // (self.matcher.cfg.downsample * p)
+        r = np.clip((self.tiles // per_row) * p - self.top + p // 2 - self._sky, 0, len(row) - 1)
+        c = (self.tiles % per_row) * p + p // 2
+        at_r, at_c = row[r, c], col[r, c]
+        return (at_r >= 0) & (at_r < rows) & (at_c >= 0) & (at_c < cols)
+
+    def _source(self, offset: Offset) -> tuple[np.ndarray, np.ndarray]:
+        """(floor rows, cols) float pooled band coordinates, in the taught view, of the floor point each
+        pooled pixel below the horizon sees from ``offset``."""
+        dx, dy, turn = offset
+        ds = self.matcher.cfg.downsample
         h, w, f = self.camera.height, self.camera.width, self.camera.focal_px
         c, s = math.cos(turn), math.sin(turn)
         # in the taught camera's frame the floor point is dx + A (c + s side) ahead, dy + A (s - c side) left
@@ -225,11 +250,7 @@ class FloorTiles:
         row += np.float32(h / 2 / ds - self.top)
         col = np.multiply(left, np.float32(-f / ds), out=left)
         col += np.float32(w / 2 / ds)
-        index = np.clip(row, 0, rows - 1, out=row).astype(np.intp) * cols
-        index += np.clip(col, 0, cols - 1, out=col).astype(np.intp)
-        if self._sky:
-            index = np.vstack([self._still, index])
-        return band.reshape(3, -1)[:, index]
+        return row, col
 
 
 __all__ = [

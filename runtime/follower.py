@@ -45,7 +45,7 @@ from vtr.runtime.decisions import Action, Decision, Verdict
 from vtr.runtime.floor_view import Camera
 from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
-from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionDetector, ObstructionVerdict, moving
+from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionDetector, ObstructionVerdict, SideFn, moving
 from vtr.runtime.side_offset import SideEstimate, SideOffset
 from vtr.runtime.thresholds import check_subgoals, route_views
 
@@ -99,6 +99,10 @@ class Follower:
             obstruction_detector(subgoals, travel_poses, camera) if self.cfg.obstruction else None
         )
         self.side = side_offset(subgoals, travel_poses, camera) if self.cfg.side_gain > 0 else None
+        # the detector warps the taught floor to where the floor puts the robot beside the path, too
+        self._floor_side = self.side or (
+            side_offset(subgoals, travel_poses, camera) if self.obstruction else None
+        )
         #: Where the floor put the robot beside the taught path on the last command (None: it did not tell).
         self.beside: SideEstimate | None = None
         self._side_run: list[float] = []  # the side offsets of the last views in a row the floor told
@@ -266,7 +270,9 @@ class Follower:
         if self.obstruction is None:
             return None
         moved, self._moved = self._moved, False
-        verdict = self.obstructed = self.obstruction.update(image, est.position, moved)
+        verdict = self.obstructed = self.obstruction.update(
+            image, est.position, moved, self._beside(image, est)
+        )
         if not verdict.blocked:
             return None
         self._lost_count, self._lost_best = 0, math.inf  # what spoils the match is in the way, not elsewhere
@@ -278,6 +284,19 @@ class Follower:
             f"path region unmatched ({verdict.hidden:.0%} up to its far end), growing for "
             f"{verdict.growing_steps} steps",
         )
+
+    def _beside(self, image: Frame, est: Estimate) -> SideFn | None:
+        """The robot's offset (dy, psi) beside the taught pose at the estimate, as the floor shows it, for
+        the obstruction detector to ask (None: no floor registration)."""
+        side = self._floor_side
+        if side is None:
+            return None
+
+        def ask() -> tuple[float, float] | None:
+            found = side.estimate(image, est.position)
+            return None if found is None else (found.dy, found.psi)
+
+        return ask
 
     def _lost(self, est: Estimate) -> Decision | None:
         if self.cfg.lost_steps <= 0 or est.best_error <= self.lost_bound:

@@ -9,7 +9,11 @@ blocked half of the time. The robot is a little off that pose (a few centimetres
 tile of the view is compared with the warped view's tile shifted by up to ``shift_rows`` x ``shift_cols``
 pooled pixels, and with the taught views of subgoals ``k`` and ``k + 1`` as they are, as the patch matcher
 compares (normalised per channel, so light drops out): a tile is *unmatched* when none of them is within
-``tile_threshold``.
+``tile_threshold``. A robot further off (10 cm beside the path, turned 10 degrees: the floor 0.3 m ahead
+moves 10 pooled pixels) gets one more try, where the floor registration (runtime.side_offset, through
+``update``'s ``side``) places it beside the taught pose: the floor warped to there lines up again, what
+stands on it still does not. Floor the taught view never saw from that pose (past its edge) is no
+evidence either way.
 
 Only the tiles where the path ahead appears count (:meth:`ObstructionDetector.region`): the floor within
 ``half_width_m`` of the taught path from ``s`` on, ``near_m`` to ``far_m`` along it, as it lies from the
@@ -22,7 +26,8 @@ unmatched share is at least ``block_fraction``, has kept growing (never dropping
 for ``grow_steps`` steps in which the robot moved (drove forward or turned: :func:`moving`), by
 ``min_growth`` in all, grew from a region that matched (``max_base`` or less unmatched) or came into view
 unmatched (a path that turned out of view and back, as in a taught turn in place: its floor was never seen
-matched), and at least ``hidden_fraction`` of the region is unmatched all the way up its column to the
+matched; only where the floor matched before the turn), or was unmatched from the first view while the floor
+beside it matched (a box already in view), and at least ``hidden_fraction`` of the region is unmatched all the way up its column to the
 region's far end, while no more than ``max_elsewhere`` of the floor beside the region is unmatched. A floor
 that looks different everywhere (a new carpet), a robot off its pose (which mismatches the floor nearest to
 it first), or a region that is unmatched while the robot stands, does not fire. Things lower than about two thirds of the camera's height hide too little of the far floor to be
@@ -40,13 +45,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 
 from vtr.runtime.floor_view import (
     Camera,
     FloorTiles,
+    Offset,
     near_path,
     path_ahead,
     path_weights,
@@ -55,6 +60,7 @@ from vtr.runtime.floor_view import (
 )
 from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.matching import MatchConfig, Matcher
+from vtr.runtime.obstruction_decision import Growth, ObstructionConfig, ObstructionVerdict
 
 #: Commands faster than this (m/s) count as driving forward, or turning faster than this (rad/s) as turning:
 #: either moves the robot (``update``'s ``moved``).
@@ -70,162 +76,27 @@ def moving(v: float, w: float) -> bool:
     return v > FORWARD_SPEED or abs(w) > TURN_SPEED
 
 
-@dataclass(frozen=True)
-class ObstructionConfig:
-    """The detector's settings; chosen on development routes only (evaluation/README.md)."""
-
-    #: A tile's distance (matcher units: 0 same, ~1.13 unrelated textures) above which it is unmatched.
-    tile_threshold: float = 0.55
-    #: The matcher's floor on a tile's spread (0..255 units), higher than for localising: a plain patch of
-    #: floor under a light that changes across it (one side darker) must stay plain.
-    std_floor: float = 8.0
-    #: Pooled pixels (2 image pixels each) the warped taught view is shifted by, each way, down and across.
-    shift_rows: int = 1
-    shift_cols: int = 2
-    #: The path region: half the corridor's width and its near and far ends ahead of the camera (m).
-    half_width_m: float = 0.2
-    near_m: float = 0.3
-    far_m: float = 1.5
-    #: The least floor of the path in view, as a share of what a straight path shows, for a view to count:
-    #: a path turning out of view (a taught turn in place ahead) leaves a few tiles, too few to judge by.
-    min_region: float = 0.3
-    #: Unmatched share of the path region from which a growth is tracked, and at which it blocks.
-    onset_fraction: float = 0.1
-    block_fraction: float = 0.3
-    #: Forward steps the share must have grown over (each no more than ``slack`` below the one before), by
-    #: how much in all, and the most it may have been when the growth began.
-    grow_steps: int = 3
-    min_growth: float = 0.1
-    slack: float = 0.05
-    max_base: float = 0.25
-    #: The least share of the region that must be unmatched all the way up its column to the corridor's far
-    #: end: what stands on the path hides the floor behind it, where a robot off its pose mismatches the
-    #: floor nearest to it first.
-    hidden_fraction: float = 0.2
-    #: Once blocked: the share at or under which the way counts as clear, for this many views in a row ...
-    clear_fraction: float = 0.1
-    clear_steps: int = 2
-    #: ... or the share unmatched up to the far end at or under which it does: the floor behind where the
-    #: box stood is seen again (dev route 104: taken away, 13-23% stayed unmatched near a robot stopped a
-    #: little off its pose, 3% up to the far end, against 30% while the box stood there; dev route 175:
-    #: 5.0-5.3% for 4 s, 21% near the robot, against 31-39% with the box: half of ``hidden_fraction``).
-    clear_hidden: float = 0.1
-    #: The most of the floor beside the path region (the rest of the floor ``near_m`` to ``far_m`` ahead)
-    #: that may be unmatched when a growth blocks: where the floor beside the path does not match either (a
-    #: re-laid or re-coloured floor; a robot far off its pose), what changed is the floor or the pose, not
-    #: something on the path (held-out set 11 with the floor re-coloured blocked 36 runs of 40 without it;
-    #: dev boxes on the path blocked with 11-17% unmatched beside it).
-    max_elsewhere: float = 0.5
-
-    def __post_init__(self) -> None:
-        for name in ("tile_threshold", "std_floor", "half_width_m", "near_m", "far_m"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"ObstructionConfig.{name} must be a finite number > 0, got {value!r}")
-        if self.far_m <= self.near_m:
-            raise ValueError(f"ObstructionConfig.far_m ({self.far_m}) must exceed near_m ({self.near_m})")
-        fractions = ("onset_fraction", "block_fraction", "min_growth", "slack", "max_base", "hidden_fraction")
-        fractions += ("min_region",)
-        for name in (*fractions, "clear_fraction", "clear_hidden", "max_elsewhere"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
-                raise ValueError(f"ObstructionConfig.{name} must be in [0, 1], got {value!r}")
-        if not 0 < self.block_fraction or self.onset_fraction > self.block_fraction:
-            raise ValueError(
-                f"ObstructionConfig: need 0 < block_fraction and onset_fraction <= block_fraction, got "
-                f"{self.onset_fraction}, {self.block_fraction}"
-            )
-        if self.clear_fraction >= self.block_fraction:
-            raise ValueError(
-                f"ObstructionConfig.clear_fraction ({self.clear_fraction}) must be under block_fraction "
-                f"({self.block_fraction})"
-            )
-        if self.clear_hidden >= self.hidden_fraction:
-            raise ValueError(
-                f"ObstructionConfig.clear_hidden ({self.clear_hidden}) must be under hidden_fraction "
-                f"({self.hidden_fraction})"
-            )
-        for name, least in (("grow_steps", 1), ("clear_steps", 1), ("shift_rows", 0), ("shift_cols", 0)):
-            value = getattr(self, name)
-            if not isinstance(value, int) or isinstance(value, bool) or value < least:
-                raise ValueError(f"ObstructionConfig.{name} must be an integer >= {least}, got {value!r}")
+#: Where the floor puts the robot beside the taught pose: ``(dy, psi)`` (m left, rad turned left), or None.
+SideFn = Callable[[], "tuple[float, float] | None"]
 
 
-@dataclass(frozen=True)
-class ObstructionVerdict:
-    """The detector's answer on one view: ``fraction``, the unmatched share of the path region (0..1);
-    ``growing_steps``, the moving steps it has grown over; ``note``, the evidence in words; ``hidden``,
-    the share unmatched all the way up its column to the corridor's far end."""
-
-    blocked: bool
-    fraction: float
-    growing_steps: int
-    note: str
-    hidden: float = 0.0  # the share unmatched all the way to the corridor's far end
+def beside(offset: Offset, dy: float, psi: float) -> Offset:
+    """The pose ``dy`` to the left of and turned ``psi`` from the taught pose at ``offset`` (relative to a
+    taught view), relative to that view."""
+    ahead, left, turn = offset
+    return ahead - math.sin(turn) * dy, left + math.cos(turn) * dy, turn + psi
 
 
-class Growth:
-    """Folds each view's unmatched share into the decision (see the module docstring)."""
+def _once(fn: SideFn) -> SideFn:
+    """``fn``, called at most once."""
+    memo: list[tuple[float, float] | None] = []
 
-    def __init__(self, cfg: ObstructionConfig) -> None:
-        self.cfg = cfg
-        self.reset()
+    def call() -> tuple[float, float] | None:
+        if not memo:
+            memo.append(fn())
+        return memo[0]
 
-    def reset(self) -> None:
-        self.last = 0.0  # the share on the last step the robot moved
-        self.base = 0.0  # the least share since the growth began (its start)
-        self.low = 0.0  # the least share since the region last matched (the unmatched spell's start)
-        self.growing = 0  # moving steps since then without a drop of more than slack
-        self.blocked = False
-        self.clear = 0
-        self.fresh = False  # the path came into view unmatched: no matched view of it to grow from
-
-    def unseen(self) -> None:
-        """No floor of the path in view (it turns out of view): the next region seen is new."""
-        if not self.blocked:
-            self.growing, self.last, self.low, self.fresh = 0, 0.0, 1.0, True
-
-    def update(
-        self, share: float, hidden: float, moved: bool, elsewhere: Callable[[], float] | None = None
-    ) -> ObstructionVerdict:
-        """Fold one view's unmatched share and hidden share in: the verdict. ``elsewhere``: the unmatched
-        share of the floor beside the path region, asked only when everything else says blocked."""
-        cfg = self.cfg
-        if self.blocked:
-            clear = share <= cfg.clear_fraction or hidden <= cfg.clear_hidden
-            self.clear = self.clear + 1 if clear else 0
-            if self.clear >= cfg.clear_steps:
-                self.reset()
-                note = f"way clear: path region {share:.0%} unmatched, {hidden:.0%} up to its far end"
-                return ObstructionVerdict(False, share, 0, note, hidden)
-            return ObstructionVerdict(True, share, self.growing, self.note(share), hidden)
-        if share < cfg.onset_fraction:
-            self.growing, self.low, self.fresh = 0, share, False
-        elif moved:
-            if not self.growing:
-                self.base = share
-            elif share < self.last - cfg.slack:  # shrank: count the growth again from here
-                self.growing = 0
-            self.base, self.low = min(self.base, share), min(self.low, share)
-            self.growing += 1
-        if moved or share < cfg.onset_fraction:
-            self.last = share
-        self.blocked = (
-            share >= cfg.block_fraction
-            and self.growing >= cfg.grow_steps
-            and share - self.base >= cfg.min_growth
-            and (self.low <= cfg.max_base or self.fresh)
-            and hidden >= cfg.hidden_fraction
-        )
-        if self.blocked and elsewhere is not None and elsewhere() > cfg.max_elsewhere:
-            self.blocked = False  # the floor beside the path changed as much: not evidence of something on it
-        note = self.note(share) if self.blocked else f"path region {share:.0%} unmatched"
-        return ObstructionVerdict(self.blocked, share, self.growing, note, hidden)
-
-    def note(self, share: float) -> str:
-        return (
-            f"view ahead blocked: {share:.0%} of the path region unmatched, growing for {self.growing} steps"
-        )
+    return call
 
 
 class ObstructionDetector:
@@ -280,6 +151,7 @@ class ObstructionDetector:
         self._feats = np.stack([self.floor.features(self.floor.pool(image)) for image in subgoals])
         self._bands: dict[int, np.ndarray] = {}  # pooled taught bands of the last few subgoals
         self.growth = Growth(cfg)
+        self._side: SideFn | None = None  # the side offset of the view being judged (update's ``side``)
 
     def reset(self) -> None:
         """Forget the tracked region (a new run, or the robot moved elsewhere)."""
@@ -354,14 +226,26 @@ class ObstructionDetector:
             if len(self._bands) >= 4:
                 self._bands.clear()
             band = self._bands[k] = floor.pool(self.subgoals[k])
-        warped = floor.warp(band, offset)
-        for shifted in (False, True):
-            views = floor.features(warped, active[todo], shifted)
-            best = self.matcher.tile_distances(own[todo], views).min(axis=0)
-            d[active[todo]] = np.minimum(d[active[todo]], best)
-            todo = todo[d[active[todo]] > thr]
-            if not len(todo):
-                break
+        warps = [offset]
+        side = self._side() if self._side is not None else None
+        if side is not None:  # the robot is beside the taught pose: the floor as it looks from there
+            warps.append(beside(offset, *side))
+        best_known = warps[-1]
+        # the localiser places the robot up to a subgoal or two off along the route: the floor from there
+        ahead, left, turn = best_known
+        c, s = math.cos(turn), math.sin(turn)
+        warps += [(ahead + c * d, left + s * d, turn) for d in (self.cfg.along_m, -self.cfg.along_m) if d]
+        for at in warps:
+            warped = floor.warp(band, at)
+            for shifted in (False, True):
+                views = floor.features(warped, active[todo], shifted)
+                best = self.matcher.tile_distances(own[todo], views).min(axis=0)
+                d[active[todo]] = np.minimum(d[active[todo]], best)
+                todo = todo[d[active[todo]] > thr]
+                if not len(todo):
+                    return d
+        # floor the teach never saw from there (past the taught view's edge) tells nothing: not unmatched
+        d[active[todo[~floor.seen(best_known)[active[todo]]]]] = 0.0
         return d
 
     def shares(self, scores: np.ndarray) -> tuple[float, float]:
@@ -376,21 +260,35 @@ class ObstructionDetector:
         """The unmatched share of the path region in one view (no tracking)."""
         return self.shares(self.scores(view, position))[0]
 
-    def update(self, view: np.ndarray, position: float, moved: bool) -> ObstructionVerdict:
+    def update(
+        self, view: np.ndarray, position: float, moved: bool, side: SideFn | None = None
+    ) -> ObstructionVerdict:
         """Judge one view (see :meth:`scores`); ``moved``: the robot was commanded to move (forward or
-        turning, :func:`moving`) since the last view."""
-        share, hidden = self.shares(self.scores(view, position))
-        if not self.weights.any():
-            self.growth.unseen()
-        return self.growth.update(share, hidden, moved, lambda: self.elsewhere(view, position))
+        turning, :func:`moving`) since the last view; ``side``: where the floor puts the robot beside the
+        taught pose at ``position`` (``(dy, psi)``: metres to the left, radians turned left; None where it
+        does not tell), asked once, only when some tiles match no taught view at the taught pose: the
+        taught floor warped to that pose too lines up with the floor where the robot truly is (a robot
+        10 cm beside the path sees the floor 0.3 m ahead 10 pooled pixels across, past the shifts)."""
+        self._side = _once(side) if side is not None else None
+        try:
+            share, hidden = self.shares(self.scores(view, position))
+            if not self.weights.any():
+                self.growth.unseen()
+                if not self.growth.blocked:  # no region in view is no matched view of it
+                    return ObstructionVerdict(False, 0.0, 0, "path region out of view")
+            return self.growth.update(share, hidden, moved, lambda: self.elsewhere(view, position))
+        finally:
+            self._side = None
 
 
 __all__ = [
     "FORWARD_SPEED",
     "TURN_SPEED",
+    "SideFn",
     "Growth",
     "ObstructionConfig",
     "ObstructionDetector",
     "ObstructionVerdict",
+    "beside",
     "moving",
 ]

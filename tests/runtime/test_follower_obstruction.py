@@ -151,3 +151,20 @@ def test_the_wait_runs_on_the_robots_clock_and_on_the_wall_clock_only_where_that
     stuck = Stuck(box_x=1.2)
     rep = repeat(stuck, wait_s=2.0)
     assert rep.status is RepeatStatus.BLOCKED and rep.waited_steps <= 3
+
+
+@pytest.mark.parametrize("side_gain", [None, 0.0])
+def test_the_detector_warps_the_floor_to_where_the_floor_puts_the_robot_beside_the_path(side_gain):
+    """The follower hands the detector the floor registration's (dy, psi), with or without the side turn."""
+    from types import SimpleNamespace
+
+    cfg = None if side_gain is None else ControllerConfig(side_gain=side_gain)
+    follower = Follower.for_route(floor_route(), cfg)
+    ask = follower._beside(floor_view(0.3, 0.08, -0.1), SimpleNamespace(position=3.0))
+    assert ask is not None
+    dy, psi = ask()
+    assert dy == pytest.approx(0.08, abs=0.01) and psi == pytest.approx(-0.1, abs=0.02)
+    assert (
+        Follower.for_route(floor_route(), ControllerConfig(obstruction=False, side_gain=0.0))._floor_side
+        is None
+    )

@@ -256,3 +256,89 @@ def test_a_growth_blocks_only_while_the_floor_beside_the_path_still_matches():
     boxed = box_at(views[3], 0.6)
     det.scores(boxed, 3.0)
     assert det.elsewhere(boxed, 3.0) <= det.cfg.max_elsewhere
+
+
+@pytest.mark.parametrize("dy, turn_deg", [(0.1, -10.0), (-0.1, 10.0), (0.0, 10.0), (0.1, 0.0)])
+def test_a_robot_beside_the_taught_pose_sees_the_floor_match_where_the_floor_puts_it(dy, turn_deg):
+    """Dev offset_10cm_10deg runs ended blocked with nothing on the path: warped to the taught pose only, the
+    floor near a robot 10 cm beside it and turned is unmatched as a box would leave it. Warped to the pose
+    the floor registration gives (``side``), it matches; a box there still does not."""
+    views, poses = route()
+    det = ObstructionDetector(views, poses)
+    view = floor_view(0.3, dy, math.radians(turn_deg))
+    side = (dy, math.radians(turn_deg))
+    assert det.update(view, 3.0, moved=False).fraction > det.cfg.block_fraction - 0.1
+    # a turned robot sees some near floor the taught view did not (past its edge): those tiles stay unmatched
+    lined_up = det.update(view, 3.0, moved=False, side=lambda: side)
+    assert lined_up.fraction < det.cfg.onset_fraction + 0.06 and lined_up.hidden <= det.cfg.clear_hidden
+    assert det.update(view, 3.0, moved=False, side=lambda: None).fraction > det.cfg.block_fraction - 0.1
+    # a box ahead of the robot, wherever it stands, is no floor: it grows unmatched and blocks
+    det.reset()
+    verdicts = [det.update(box_at(view, d), 3.0, True, lambda: side) for d in np.arange(1.6, 0.3, -0.05)]
+    assert not verdicts[0].blocked and verdicts[-1].blocked
+
+
+def test_the_side_offset_is_asked_once_a_view_and_only_when_the_taught_pose_leaves_tiles_unmatched():
+    views, poses = route()
+    det = ObstructionDetector(views, poses)
+    asked: list[int] = []
+
+    def side() -> tuple[float, float]:
+        asked.append(1)
+        return (0.1, -0.17)
+
+    det.update(views[3], 3.0, moved=True, side=side)
+    assert not asked  # the floor matches at the taught pose: nothing to ask
+    det.update(floor_view(0.3, 0.1, -0.17), 3.0, moved=True, side=side)
+    assert len(asked) == 1  # the path region and the floor beside it both use the one answer
+
+
+def test_a_path_region_unmatched_since_the_first_view_never_grew_from_a_matched_floor():
+    """Dev floor_recoloured (gen_105, seed 0): the path region was 67-97% unmatched from the first view on, the
+    share wandered up by chance and blocked on the one view the floor beside it dipped to 50% unmatched. No
+    view ever matched: nothing grew from a matched floor. A box coming closer does grow from one."""
+    from vtr.runtime.obstruction import Growth
+
+    relaid = [0.71, 0.8, 0.8, 0.77, 0.87, 0.87, 0.97, 0.97]
+    growth = Growth(ObstructionConfig())
+    beside = iter([0.75] + [0.3] * 10)  # the floor beside the path unmatched on the first view
+    assert not any(growth.update(s, s, True, lambda: next(beside)).blocked for s in relaid)
+    growth = Growth(ObstructionConfig())  # dev box_after_turn gen_102: the box in view from the start
+    assert growth.update(0.5, 0.4, False, lambda: 0.1).note and growth.low == 0.0
+    assert [growth.update(s, s, True, lambda: 0.1).blocked for s in (0.5, 0.6, 0.7, 0.8)][-1]
+    growth = Growth(ObstructionConfig())  # a box half-way along a short route: in view from the start, small
+    assert [growth.update(s, s, True, lambda: 0.1).blocked for s in (0.2, 0.3, 0.4, 0.5)][-1]
+
+
+def test_a_path_that_turns_back_into_view_unmatched_blocks_only_where_the_floor_matched_before_the_turn():
+    """Dev floor_recoloured (gen_101, gen_107): the path region was unmatched before a taught turn in place
+    and after it; the views with the path out of view counted as matched ones, so the unmatched region after
+    the turn grew "from a matched floor" and blocked. A box just past the turn on a floor that matched
+    before it still blocks."""
+    from vtr.runtime.obstruction import Growth
+
+    after_turn = [0.5, 0.6, 0.7, 0.8, 0.9]
+    for before, blocks in (([0.8, 0.75, 0.85], False), ([0.02, 0.0, 0.03], True)):
+        growth = Growth(ObstructionConfig())
+        for s in before:  # re-laid: the floor beside the path unmatched as much
+            growth.update(s, s, True, lambda: 0.8)
+        for _ in range(3):
+            growth.unseen()
+        assert [growth.update(s, s, True, lambda: 0.1).blocked for s in after_turn][-1] is blocks
+    growth = Growth(ObstructionConfig())  # a route that starts with the turn: nothing seen before it
+    growth.unseen()
+    assert [growth.update(s, s, True, lambda: 0.1).blocked for s in after_turn][-1]
+
+
+@pytest.mark.parametrize("ahead", [0.12, -0.1])
+def test_a_robot_placed_a_subgoal_or_two_off_along_the_route_sees_the_floor_match_a_little_ahead_or_behind(
+    ahead,
+):
+    """Dev offset_10cm_10deg gen_104: the localiser placed the robot 10 cm behind where it was, and the floor
+    near it, warped to the pose it was placed at, grew unmatched as a box would."""
+    views, poses = route(40, 0.05)
+    view = floor_view(1.0 + ahead)
+    fixed = ObstructionDetector(views, poses, ObstructionConfig(along_m=0.0))
+    det = ObstructionDetector(views, poses)
+    assert fixed.update(view, 20.0, moved=False).fraction > det.cfg.onset_fraction + 0.1
+    assert det.update(view, 20.0, moved=False).fraction <= det.cfg.clear_fraction
