@@ -276,7 +276,7 @@ class Follower:
         """The lost bound at ``position`` (subgoal units): the larger of its two subgoals' bounds, each the
         route's, or ``lost_factor`` times the wider taught gap next to it (where the teach's neighbouring
         views differ more, as in a fast turn in place or facing a wall close up, often at a route's end, a
-        view between them differs more too: dev routes ended `lost` 14-22 degrees short of a final turn)."""
+        view between them differs more too: dev routes ended `lost` 8-22 degrees short of a final turn)."""
         last = len(self) - 1
         lo = min(max(int(math.floor(position)), 0), last)
         return float(max(self.lost_bounds[lo], self.lost_bounds[min(lo + 1, last)]))
