@@ -90,7 +90,8 @@ class ControllerConfig:
     plateau_needs_motion: bool = True
     #: "Changed" means a distance of at least this fraction of the current subgoal's incoming gap.
     motion_fraction: float = 0.25
-    #: Lost when the best nearby match exceeds lost_factor * the route's median gap ...
+    #: Lost when the best nearby match exceeds lost_factor * the route's median gap (or the wider taught gap
+    #: next to the subgoals there, where more: thresholds.lost_bounds) ...
     lost_factor: float = 2.0
     #: ... for this many consecutive commands; 0 disables the test.
     lost_steps: int = 5

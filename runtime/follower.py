@@ -16,7 +16,9 @@ Each image:
    ``Route.travel_poses``) to warp the floor by: a route without them has no camera-only stop (the range
    scan's zones in the repeat loop still apply); ``ControllerConfig.obstruction`` turns it off (ablations);
 5. lost: for ``lost_steps`` images in a row no subgoal near the estimate matches the view (the best
-   distance is over the lost bound) and the match is not improving: LOST, with the evidence;
+   distance is over the lost bound there: the route's, or ``lost_factor`` times the taught gaps next to the
+   estimate where those are wider, ``thresholds.lost_bounds``) and the match is not improving: LOST, with
+   the evidence;
 6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
    ahead, rounded up to a subgoal), with the taught command at the estimated position as feed-forward
    (``Decision.prior``, blended by the repeat loop; it fades out over the last control step of taught
@@ -47,7 +49,7 @@ from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
 from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionDetector, ObstructionVerdict, SideFn, moving
 from vtr.runtime.side_offset import SideEstimate, SideOffset
-from vtr.runtime.thresholds import check_subgoals, route_views
+from vtr.runtime.thresholds import check_subgoals, lost_bounds, route_views
 
 if TYPE_CHECKING:
     from vtr.runtime.route import Route
@@ -88,6 +90,8 @@ class Follower:
         self.cfg, self.matcher, self._feats, self.gaps = views.cfg, views.matcher, views.feats, views.gaps
         self.fallback, self.thresholds, self.median_gap = views.fallback, views.thresholds, views.median_gap
         self.lost_bound = views.lost_bound
+        #: per subgoal: the route's bound, or ``lost_factor`` times the wider gap next to it where more
+        self.lost_bounds = lost_bounds(self.gaps, n, self.cfg, self.lost_bound)
         self._steps = float(steps_per_subgoal)
         motion = taught_motion(travel_poses, self.commands, n, dt * steps_per_subgoal)
         self.localiser = RouteLocaliser(
@@ -298,11 +302,21 @@ class Follower:
 
         return ask
 
+    def bound_at(self, position: float) -> float:
+        """The lost bound at ``position`` (subgoal units): the larger of its two subgoals' bounds, each the
+        route's, or ``lost_factor`` times the wider taught gap next to it (where the teach's neighbouring
+        views differ more, as in a fast turn in place or facing a wall close up, often at a route's end, a
+        view between them differs more too: dev routes ended `lost` 8-22 degrees short of a final turn)."""
+        last = len(self) - 1
+        lo = min(max(int(math.floor(position)), 0), last)
+        return float(max(self.lost_bounds[lo], self.lost_bounds[min(lo + 1, last)]))
+
     def _lost(self, est: Estimate) -> Decision | None:
-        if self.cfg.lost_steps <= 0 or est.best_error <= self.lost_bound:
+        bound = self.bound_at(est.position)
+        if self.cfg.lost_steps <= 0 or est.best_error <= bound:
             self._lost_count, self._lost_best = 0, math.inf
             return None
-        if est.best_error < self._lost_best - 0.02 * self.lost_bound:  # still closing in on a match
+        if est.best_error < self._lost_best - 0.02 * bound:  # still closing in on a match
             self._lost_best = est.best_error
             return None
         self._lost_count += 1
@@ -312,7 +326,7 @@ class Follower:
             Action.LOST,
             est.best_error,
             f"lost near subgoal {int(round(est.position))}: best match {est.best_error:.3f} at subgoal "
-            f"{est.best} (bound {self.lost_bound:.3f}), confidence {est.confidence:.2f}",
+            f"{est.best} (bound {bound:.3f}), confidence {est.confidence:.2f}",
         )
 
 
