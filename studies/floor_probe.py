@@ -78,6 +78,7 @@ def probe(model: str, images: dict[str, np.ndarray], scenes: list[str]) -> dict[
     for scene in scenes:
         d = cmd[scene] - cmd["taught"]
         row[f"dv_rms_{scene}"] = float(np.sqrt((d[:, 0] ** 2).mean()))
+        row[f"dv_mean_{scene}"] = float(d[:, 0].mean())  # < 0: the scene slows the robot down
         row[f"dw_rms_{scene}"] = float(np.sqrt((d[:, 1] ** 2).mean()))
     return row
 
