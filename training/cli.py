@@ -125,6 +125,13 @@ def add_velocitynet_arguments(p: argparse.ArgumentParser) -> None:
         default=None,
         help="weight of the stop term, VelocityNet(I, I) -> 0: stand still on the subgoal (default: 0)",
     )
+    p.add_argument(
+        "--w-consistency",
+        type=float,
+        default=None,
+        help="weight of the floor-consistency term: the command must not change when the current image's floor "
+        "is laid again (an --appearances dataset; training/consistency.py; default: 0)",
+    )
     _add_common(p)
 
 
@@ -187,7 +194,12 @@ def run_cli(args: argparse.Namespace) -> int:
     if w_rec is None and getattr(args, "recovery", None):
         w_rec = 0.5
     preset.loss = override(
-        preset.loss, w1=args.w1, w2=args.w2, w_recovery=w_rec, w_stop=getattr(args, "w_stop", None)
+        preset.loss,
+        w1=args.w1,
+        w2=args.w2,
+        w_recovery=w_rec,
+        w_stop=getattr(args, "w_stop", None),
+        w_consistency=getattr(args, "w_consistency", None),
     )
     preset.velocitynet = override(preset.velocitynet, preprocessing=args.preprocessing)
     if args.stage == "viewnet":

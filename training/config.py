@@ -167,9 +167,12 @@ class MPCLossConfig:
     # standing on its subgoal shows the network a pair it never saw (in the example room it drove off the
     # first subgoal at error 0)
     w_stop: float = 0.0
+    # weight of the floor-consistency term (training/consistency.py): the command on a pair whose current
+    # image is in another appearance (a floor laid again) equals the matched pair's; needs --appearances data
+    w_consistency: float = 0.0
 
     def __post_init__(self) -> None:
-        for name in ("w_recovery", "w_stop"):
+        for name in ("w_recovery", "w_stop", "w_consistency"):
             if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
                 raise ValueError(f"MPCLossConfig.{name} must be >= 0, got {getattr(self, name)!r}")
         if self.w1 < 0 or self.w2 < 0 or self.w1 + self.w2 <= 0:

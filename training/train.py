@@ -37,6 +37,7 @@ from vtr.training.checkpoint import (
     save_checkpoint,
 )
 from vtr.training.config import MPCLossConfig, TrainConfig, VelocityNetConfig, ViewNetConfig, to_dict
+from vtr.training.consistency import consistency_error, consistency_pairs
 from vtr.training.dataset import FrameData, load_dataset
 from vtr.training.distributed import Dist, any_rank, barrier, setup_dist
 from vtr.training.extra_pairs import JointCall, recovery_batches
@@ -296,7 +297,8 @@ def train_velocitynet(
     viewnet.to(dist.device).eval().requires_grad_(False)  # frozen: eval BN statistics, no weight updates
     if data is None:
         data = load_dataset(data_path, image_size=model_cfg.image_size)
-    windows = Windows(data, loss_cfg.horizon + 1, cfg, dist, alt=cfg.appearance_swap > 0)
+    alt = cfg.appearance_swap > 0 or loss_cfg.w_consistency > 0
+    windows = Windows(data, loss_cfg.horizon + 1, cfg, dist, alt=alt)
     extra = {
         "data": str(data_path),
         "data_meta": data.meta,
@@ -325,19 +327,30 @@ def train_velocitynet(
         if stops:
             views.append(frames[:stops, 0])
             goals.append(frames[:stops, 0])
+        other = None
+        # training windows in two appearances (training.appearances): pair them with appearance_swap
+        if frames.shape[1] == 2 * windows.length:
+            frames, other = frames.split(windows.length, dim=1)
+        same = max(1, frames.shape[0] // 4) if other is not None and loss_cfg.w_consistency > 0 else 0
+        if same:  # the floor-consistency pairs (training.consistency), after the stop pairs
+            pairs = consistency_pairs(frames, other, same, loss_cfg.horizon, gen)
+            views.append(pairs[0])
+            goals.append(pairs[1])
         # Extra pairs ride in the same VelocityNet call as the MPC pairs: one forward per step (DDP).
         joint = JointCall(policy, torch.cat(views), torch.cat(goals)) if views else policy
         subgoals = None
-        # training windows in two appearances (training.appearances): pair them with appearance_swap
-        if frames.shape[1] == 2 * windows.length:
-            frames, subgoals = swap_appearance(*frames.split(windows.length, dim=1), cfg.appearance_swap, gen)
+        if other is not None:
+            frames, subgoals = swap_appearance(frames, other, cfg.appearance_swap, gen)
         loss, parts = mpc_loss(joint, viewnet, frames, commands, loss_cfg, subgoals)
         parts.pop("u1")
         if batch is not None:
             parts["rec"] = velocity_error(joint.extra[: len(batch[0])], batch[2]).mean()
             loss = loss + loss_cfg.w_recovery * parts["rec"]
+        if same:
+            parts["same"] = consistency_error(joint.extra[joint.extra.shape[0] - 2 * same :])
+            loss = loss + loss_cfg.w_consistency * parts["same"]
         if stops:
-            u = joint.extra[joint.extra.shape[0] - stops :]
+            u = joint.extra[joint.extra.shape[0] - 2 * same - stops : joint.extra.shape[0] - 2 * same]
             parts["stop"] = velocity_error(u, torch.zeros_like(u)).mean()
             loss = loss + loss_cfg.w_stop * parts["stop"]
         return loss, parts

@@ -135,3 +135,13 @@ def test_the_model_metadata_records_the_appearances_and_the_swap() -> None:
     assert data_summary({"collect_config": {"appearances": 4}})["appearances"] == 4
     assert "appearances" not in data_summary({"collect_config": {"appearances": 0}})
     assert "appearance_swap" in _TRAIN_FIELDS
+
+
+def test_training_with_the_floor_consistency_term_runs_and_records_it(looks: Path, tmp_path: Path) -> None:
+    vn = tmp_path / "vn"
+    assert cli.main(["train", "viewnet", *TINY, "--data", str(looks), "--out", str(vn)]) == 0
+    out = tmp_path / "vel"
+    argv = ["train", "velocitynet", *TINY, "--data", str(looks), "--viewnet", str(vn), "--out", str(out)]
+    assert cli.main([*argv, "--w-consistency", "1", "--w-stop", "0.5"]) == 0
+    ckpt = torch.load(out / "model.pt", weights_only=True)
+    assert ckpt["loss_config"]["w_consistency"] == 1.0
