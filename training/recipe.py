@@ -59,6 +59,7 @@ STAGE_KEYS: dict[str, tuple[type, ...]] = {
     "preprocessing": (str,),
     "w1": (float, int),
     "w2": (float, int),
+    "w_consistency": (float, int),
 }
 #: How each stage runs rather than what it trains: they may change when a run is resumed.
 RUN_KEYS = ("threads",)

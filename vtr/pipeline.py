@@ -166,7 +166,12 @@ def _velocitynet(
     inherit = SimpleNamespace(init=init, preprocessing=o.get("preprocessing"), augment=o.get("augment"))
     if init is not None:
         inherit_init_settings(inherit)  # a fine-tune keeps its base's input normalisation and augmentation
-    loss = override(preset.loss, w1=o.get("w1"), w2=o.get("w2"))
+    loss = override(
+        preset.loss,
+        w1=o.get("w1"),
+        w2=o.get("w2"),
+        w_consistency=None if o.get("w_consistency") is None else float(o["w_consistency"]),
+    )
     model_cfg = override(preset.velocitynet, preprocessing=inherit.preprocessing)
     train = override(_train_cfg(preset.train_velocitynet, stage, args), augment=inherit.augment)
     sdir = out / stage.name

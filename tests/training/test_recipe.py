@@ -160,3 +160,28 @@ def test_an_interrupted_collection_keeps_the_houses_it_finished(tmp_path: Path) 
     other = HousesConfig(**{**other.__dict__, "collect": CollectConfig(image_size=32, seed=5, mix="repeat")})
     with pytest.raises(ValueError, match="recorded with other settings"):
         run_houses(other, progress=False, resume=True)
+
+
+def test_a_recipe_stage_sets_the_floor_consistency_weight(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """`w_consistency` in a VelocityNet stage reaches the stage's loss (a key the recipe takes but drops would
+    train another model than the file says)."""
+    import argparse
+
+    from vtr import pipeline
+    from vtr.training import train
+    from vtr.training.config import get_preset
+    from vtr.training.recipe import Stage
+
+    seen: dict[str, object] = {}
+
+    def fake_train(data, viewnet, sdir, model_cfg, loss, cfg, resume, loaded, init):  # noqa: ANN001, ANN202
+        seen["loss"] = loss
+
+    monkeypatch.setattr(train, "train_velocitynet", fake_train)
+    recipe = recipes.load("tiny-test")
+    stage = Stage("velocitynet", {"w_consistency": 0.25, "steps": 1})
+    args = argparse.Namespace(device="cpu", workers=0, amp=None, data_on_device=None, max_minutes=None)
+    pipeline._velocitynet(tmp_path, recipe, stage, get_preset(recipe.preset), args, None)
+    assert seen["loss"].w_consistency == 0.25
