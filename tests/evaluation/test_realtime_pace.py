@@ -29,7 +29,9 @@ def test_a_realtime_repeat_is_timed_against_the_teach(tmp_path: Path) -> None:
         assert row["status"] == "finished", row
         assert row["taught_s"] == pytest.approx(1.5, abs=0.11)  # the 1.5 s segment, to a subgoal step
         assert row["time_ratio"] == pytest.approx(row["wall_s"] / row["taught_s"], rel=0.01)
-        assert 0.5 < row["time_ratio"] < 5 and row["mean_error_mm"] < 30
+        # no upper bound: a wall clock on a shared machine waits for a core (6x under load 6); the pace itself
+        # is a benchmark (`vtr eval --suite pace`), not a timed test
+        assert row["time_ratio"] > 0.5 and row["mean_error_mm"] < 30
     table = realtime_pace.table(rows)
     assert "| default | 1 | 1 |" in table and "| continuous | 1 | 1 |" in table
 
