@@ -28,7 +28,9 @@ for ``grow_steps`` steps in which the robot moved (drove forward or turned: :fun
 unmatched (a path that turned out of view and back, as in a taught turn in place: its floor was never seen
 matched; only where the floor matched before the turn), or was unmatched from the first view while the floor
 beside it matched (a box already in view), and at least ``hidden_fraction`` of the region is unmatched all the way up its column to the
-region's far end, while no more than ``max_elsewhere`` of the floor beside the region is unmatched. A floor
+region's far end, while no more than ``max_elsewhere`` of the floor beside the region is unmatched (judged
+on taught tiles with texture that the floor plane explains, :meth:`ObstructionDetector.floor_evidence`: walls
+and furniture stay when a floor is re-laid, and would water its share down). A floor
 that looks different everywhere (a new carpet), a robot off its pose (which mismatches the floor nearest to
 it first), or a region that is unmatched while the robot stands, does not fire. Things lower than about two thirds of the camera's height hide too little of the far floor to be
 seen this way (the range sensor's job). Once blocked, the verdict holds until the region matches again
@@ -69,6 +71,10 @@ FORWARD_SPEED, TURN_SPEED = 0.02, 0.05
 
 #: A path ahead that strays less than this (m) from the camera's axis is the straight corridor.
 STRAIGHT_M = 0.005
+
+#: The least travel (m) between two taught views for the floor plane to tell floor from what stands up: a
+#: wall or a cupboard moves across the view differently from the floor it hides only over a baseline.
+FLOOR_BASE_M = 0.1
 
 
 def moving(v: float, w: float) -> bool:
@@ -150,8 +156,36 @@ class ObstructionDetector:
         self.weights = self._straight
         self._feats = np.stack([self.floor.features(self.floor.pool(image)) for image in subgoals])
         self._bands: dict[int, np.ndarray] = {}  # pooled taught bands of the last few subgoals
+        self._evidence: dict[int, np.ndarray] = {}  # floor_evidence per subgoal, made when first asked
         self.growth = Growth(cfg)
+        self._unseen = np.zeros(len(tiles), dtype=bool)  # the tiles of the last view the teach never saw
         self._side: SideFn | None = None  # the side offset of the view being judged (update's ``side``)
+
+    def floor_evidence(self, k: int) -> np.ndarray:
+        """(tiles,) whether each tile of taught view ``k`` can show the floor changed: it has texture (a plain
+        patch matches any plain patch, a re-coloured floor's too) and it is floor, not a wall or furniture
+        (which a re-laid floor leaves as they were): every taught view ``FLOOR_BASE_M`` to two subgoals away,
+        warped by the floor plane to view ``k``, matches it where it saw it (what stands up moves across the
+        view otherwise). Without taught poses, or no such view near, every textured tile. Made when first
+        asked (only a growth about to block asks), then kept."""
+        known = self._evidence.get(k)
+        if known is not None:
+            return known
+        cfg, floor = self.cfg, self.floor
+        evidence = np.abs(self._feats[k]).mean(axis=-1) > cfg.tile_threshold / 2
+        for j in (k - 2, k - 1, k + 1, k + 2):
+            if self.poses is None or not 0 <= j < len(self.poses):
+                continue
+            (xj, yj, aj), (xk, yk, ak) = self.poses[j], self.poses[k]
+            c, s = math.cos(aj), math.sin(aj)
+            dx, dy = xk - xj, yk - yj
+            at = (c * dx + s * dy, -s * dx + c * dy, math.remainder(ak - aj, math.tau))
+            if math.hypot(at[0], at[1]) >= FLOOR_BASE_M:
+                warped = floor.features(floor.warp(floor.pool(self.subgoals[j]), at))
+                d = self.matcher.tile_distances(self._feats[k], warped)[0]
+                evidence &= (d <= cfg.tile_threshold) | ~floor.seen(at)
+        self._evidence[k] = evidence
+        return evidence
 
     def reset(self) -> None:
         """Forget the tracked region (a new run, or the robot moved elsewhere)."""
@@ -199,13 +233,19 @@ class ObstructionDetector:
         return self._distances(view, position, np.flatnonzero(self.weights), exhaustive)
 
     def elsewhere(self, view: Frame | np.ndarray, position: float) -> float:
-        """The unmatched share of the floor tiles outside the path region of the last view scored."""
+        """The unmatched share of the floor beside the path region of the last view scored: its tiles the
+        taught view shows as floor (:meth:`floor_evidence`) and saw from where the robot is. Walls and furniture
+        never change with the floor, and would water a re-laid floor's share down."""
         view = as_frame(view, self.subgoals.shape[1:3])
-        outside = np.flatnonzero(self.weights == 0)
+        k = taught_offset(self.poses, position)[0]
+        outside = np.flatnonzero((self.weights == 0) & self.floor_evidence(k))
         if not len(outside):
             return 0.0
         d = self._distances(view, position, outside)
-        return float(np.count_nonzero(d[outside] > self.cfg.tile_threshold)) / len(outside)
+        judged = outside[~self._unseen[outside]]
+        if not len(judged):
+            return 0.0
+        return float(np.count_nonzero(d[judged] > self.cfg.tile_threshold)) / len(judged)
 
     def _distances(
         self, view: Frame, position: float, active: np.ndarray, exhaustive: bool = False
@@ -213,6 +253,7 @@ class ObstructionDetector:
         """:meth:`scores` for the tiles ``active`` (indices into ``floor.tiles``), 0 for the others."""
         floor, thr = self.floor, -1.0 if exhaustive else self.cfg.tile_threshold
         d = np.zeros(len(floor.tiles), dtype=np.float32)
+        self._unseen = np.zeros(len(floor.tiles), dtype=bool)  # tiles the teach never saw from there
         if not len(active):
             return d
         own = floor.frame_features(view, active)  # the localiser's tile moments of this frame, shared
@@ -245,7 +286,8 @@ class ObstructionDetector:
                 if not len(todo):
                     return d
         # floor the teach never saw from there (past the taught view's edge) tells nothing: not unmatched
-        d[active[todo[~floor.seen(best_known)[active[todo]]]]] = 0.0
+        unseen = active[todo[~floor.seen(best_known)[active[todo]]]]
+        d[unseen], self._unseen[unseen] = 0.0, True
         return d
 
     def shares(self, scores: np.ndarray) -> tuple[float, float]:

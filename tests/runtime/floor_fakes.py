@@ -49,3 +49,26 @@ def box_at(image: np.ndarray, distance: float, side: float = 0.25) -> np.ndarray
     f, h = CAM.focal_px, CAM.height_m
     base, half = 64 + int(f * h / distance), max(1, int(f * side / 2 / distance))
     return with_blob(image, slice(40, min(base, 128)), slice(64 - half, 64 + half))
+
+
+def corridor_view(
+    x: float, y: float = 0.0, yaw: float = 0.0, seed: int = 0, half_m: float = 0.5
+) -> np.ndarray:
+    """:func:`floor_view` between two walls ``half_m`` to each side of the x axis, of 5 x 5 cm blocks of random
+    colours that stay when the floor is laid again (``seed``)."""
+    out = floor_view(x, y, yaw, seed)
+    colours = np.random.default_rng(99).integers(30, 220, (256, 64, 3))
+    f = CAM.focal_px
+    rows, cols = np.mgrid[0 : CAM.height, 0 : CAM.width] + 0.5
+    down, right = (rows - CAM.height / 2) / f, (cols - CAM.width / 2) / f
+    left = math.sin(yaw) - math.cos(yaw) * right  # metres to the left per metre ahead
+    floor_at = CAM.height_m / np.where(down > 0, down, np.nan)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        wall_at = np.where(left > 0, half_m - y, -half_m - y) / left
+        wall = (wall_at > 0) & ~(floor_at < wall_at)
+        along = x + (math.cos(yaw) + math.sin(yaw) * right) * wall_at
+        up = CAM.height_m - down * wall_at
+        i = np.floor(np.where(wall, along, 0) / 0.05).astype(int) % 256
+        j = np.clip(np.floor(np.where(wall, up, 0) / 0.05).astype(int), 0, 63)
+    out[wall] = colours[i, j][wall]
+    return out

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from floor_fakes import CAM, box_at, floor_view, with_blob
+from floor_fakes import CAM, box_at, corridor_view, floor_view, with_blob
 from floor_fakes import straight_route as route
 
 from vtr.runtime.floor_view import path_weights, taught_offset
@@ -291,6 +291,28 @@ def test_the_side_offset_is_asked_once_a_view_and_only_when_the_taught_pose_leav
     assert not asked  # the floor matches at the taught pose: nothing to ask
     det.update(floor_view(0.3, 0.1, -0.17), 3.0, moved=True, side=side)
     assert len(asked) == 1  # the path region and the floor beside it both use the one answer
+
+
+def test_the_floor_beside_the_path_is_judged_on_taught_floor_only_not_on_walls():
+    """Dev floor_recoloured (gen_106, gen_107): the path region 78-100% unmatched, yet under half the "floor
+    beside the path" unmatched, as walls (which a re-laid floor leaves as they were) counted among it. Only
+    textured taught tiles that the floor plane explains count: between two walls 0.5 m to each side, a
+    re-laid floor is unmatched all beside the path; a box on it leaves that floor matched."""
+    poses = np.array([[0.1 * k, 0.0, 0.0] for k in range(24)])
+    views = np.stack([corridor_view(x) for x, _, _ in poses])
+    det = ObstructionDetector(views, poses)
+    walls = np.stack([corridor_view(x) != floor_view(x) for x, _, _ in poses]).any(axis=-1)
+    assert walls[3].any()
+    relaid = corridor_view(0.3, seed=7)
+    det.scores(relaid, 3.0)
+    assert det.elsewhere(relaid, 3.0) > det.cfg.max_elsewhere  # 0.375 with the walls counted
+    boxed = box_at(views[3], 0.6)
+    det.scores(boxed, 3.0)
+    assert det.elsewhere(boxed, 3.0) <= det.cfg.max_elsewhere
+    # no tile that sees mostly wall is evidence of the floor
+    tile = det.matcher.cfg.downsample * det.matcher.cfg.patch
+    wall_share = walls[3].reshape(8, tile, 8, tile).mean(axis=(1, 3)).ravel()[det.floor.tiles]
+    assert not det.floor_evidence(3)[wall_share > 0.5].any()
 
 
 def test_a_path_region_unmatched_since_the_first_view_never_grew_from_a_matched_floor():
