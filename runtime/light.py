@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from vtr.runtime.frame import Frame, as_frame
-from vtr.runtime.preprocess import STANDARDISED, clip_ufunc, planar_levels
+from vtr.runtime.preprocess import clip_ufunc, planar_levels
 
 #: Floor on a channel's standard deviation (0..255): a flat channel is shifted, not stretched.
 _STD_FLOOR = 2.0
@@ -167,12 +167,10 @@ def matched_planar(
     side_ramp: bool = True,
     out: np.ndarray | None = None,
     scratch: np.ndarray | None = None,
-    statistics: bool = True,
 ) -> np.ndarray:
     """float32 (3, H, W): ``current`` (a frame, or uint8 (H, W, 3)) recoloured to ``reference``, in 0..255
     levels: the values of ``match_statistics(remove_side_ramp(current))``, planar and in float32. ``out`` and
-    ``scratch`` (float32 (3, H, W)) are reused buffers; the result is ``out``. ``statistics=False`` leaves the
-    channel statistics as they are (the side ramp's values alone: ``remove_side_ramp(current)``)."""
+    ``scratch`` (float32 (3, H, W)) are reused buffers; the result is ``out``."""
     levels = planar_levels(current)  # a frame's own levels: the controller's matcher used them already
     if side_ramp:
         p = _ramp(levels, reference.cols, out)
@@ -181,7 +179,7 @@ def matched_planar(
     else:
         p = out
         np.copyto(p, levels)
-    return _stats_in_place(p, reference.mean, reference.std, scratch) if statistics else p
+    return _stats_in_place(p, reference.mean, reference.std, scratch)
 
 
 class LightMatchedPolicy:
@@ -191,34 +189,24 @@ class LightMatchedPolicy:
     wrapped policy's. A subgoal's statistics are kept on its frame (:meth:`Frame.derived`); the recoloured
     image goes to the wrapped policy as a frame made from its planar float32 levels, which ``OnnxPolicy``
     scales into its input tensor without a uint8 round trip (another policy reads ``frame.image``).
-
-    A policy whose model standardises each channel itself (``meta.preprocessing`` is ``STANDARDISED``) gets
-    the side ramp removed but not the channel statistics matched: its standardisation takes out any gain and
-    offset per channel, so matching them first changed the network's input only by that step's rounding to
-    whole levels and its clipping at 0 and 255 (with ``_EPS``'s share of a flat channel's variance), and cost
-    4-6% of the step's CPU (benchmarks/results/latency_step_s4.md).
     """
 
     def __init__(self, policy: Any, side_ramp: bool = True) -> None:
         self.policy, self.side_ramp = policy, side_ramp
         self._scratch: np.ndarray | None = None  # the squares of the channel statistics, reused
-        meta = getattr(policy, "meta", None)
-        #: Whether the channel statistics are matched (not for a model that standardises them away).
-        self.statistics = getattr(meta, "preprocessing", None) != STANDARDISED
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.policy, name)
 
     def match(self, current: Frame | np.ndarray, subgoal: Frame | np.ndarray) -> np.ndarray:
-        """float32 (3, H, W) levels of ``current`` recoloured to ``subgoal`` (see :func:`matched_planar`;
-        the side ramp's alone where :attr:`statistics` is false), in a new array the caller owns."""
+        """float32 (3, H, W) levels of ``current`` recoloured to ``subgoal`` (see :func:`matched_planar`), in
+        a new array the caller owns."""
         current, subgoal = as_frame(current), as_frame(subgoal)
         reference = subgoal.derived(LightReference, LightReference.of)
         shape = current.levels.shape
         if self._scratch is None or self._scratch.shape != shape:
             self._scratch = np.empty(shape, np.float32)
-        out = np.empty(shape, np.float32)
-        return matched_planar(current, reference, self.side_ramp, out, self._scratch, self.statistics)
+        return matched_planar(current, reference, self.side_ramp, np.empty(shape, np.float32), self._scratch)
 
     def predict(self, current: Frame | np.ndarray, subgoal: Frame | np.ndarray) -> np.ndarray:
         subgoal = as_frame(subgoal)

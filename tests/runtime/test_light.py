@@ -7,7 +7,7 @@ import pytest
 from texture_views import lit, view
 
 from vtr.runtime.light import LightMatchedPolicy, channel_stats, match_statistics
-from vtr.runtime.preprocess import PREPROCESSINGS, STANDARDISED
+from vtr.runtime.preprocess import PREPROCESSINGS
 
 
 @pytest.mark.parametrize("gain, offset", [(0.7, 0.0), (1.3, 0.0), ((1.2, 1.0, 0.75), 0.0), (0.8, 25.0)])
@@ -78,35 +78,11 @@ def test_an_onnx_policy_gets_the_recoloured_image_as_its_tensor_with_the_uint8_p
         taught = lit(view(20 * k), 0.6, 40)
         ramp = np.linspace(0.5, 1.2, 64, dtype=np.float32)[None, :, None]
         current = lit(view(20 * k + 3), np.asarray(gain, np.float32) * ramp, offset)
-        ramped = remove_side_ramp(current, taught)
-        # a model that standardises its input gets the ramp removed, and its own standardisation for the rest
-        standardised = preprocessing == STANDARDISED
-        expected = policy.predict(ramped if standardised else match_statistics(ramped, taught), taught)
+        expected = policy.predict(match_statistics(remove_side_ramp(current, taught), taught), taught)
         assert np.array_equal(wrapped.predict(current, taught), expected)  # bit for bit, no uint8 round trip
-        assert wrapped.statistics is not standardised
-        full = LightMatchedPolicy(Recorder())  # no model metadata: the statistics are matched
         assert np.array_equal(
-            full.match(current, taught), match_statistics(ramped, taught).transpose(2, 0, 1)
+            LightMatchedPolicy(Recorder()).match(current, taught), wrapped.match(current, taught)
         )
-        if not standardised:
-            assert np.array_equal(full.match(current, taught), wrapped.match(current, taught))
-
-
-@pytest.mark.parametrize("gain, offset", [(0.7, 10.0), ((1.2, 1.0, 0.75), -20.0), (0.5, 0.0)])
-def test_a_standardised_input_loses_only_rounding_without_the_statistics_step(gain, offset):
-    """What leaving the statistics to a STANDARDISED model's own standardisation changes in its input: the
-    matching step's rounding to whole levels (and clipping, none here), a few hundredths of a standard
-    deviation at most, against the whole light change the statistics undo."""
-    from vtr.runtime.preprocess import to_nchw
-
-    taught = lit(view(40), 0.6, 40)
-    current = lit(view(43), np.asarray(gain, np.float32), offset)
-    matched = to_nchw(match_statistics(current, taught), STANDARDISED)
-    left = to_nchw(current, STANDARDISED)
-    assert np.abs(matched - left).max() < 0.05
-    assert np.abs(matched - left).mean() < 0.02
-    # unit scaling keeps the light change: there the step is needed
-    assert np.abs(to_nchw(match_statistics(current, taught)) - to_nchw(current)).mean() > 0.02
 
 
 def test_channel_statistics_are_exact_sums():
