@@ -32,7 +32,7 @@ STAGES: tuple[tuple[str, str, str], ...] = (
     ("judge.features.planar_levels", "frame", "planar"),  # once per frame (Frame.levels), wherever first
     ("judge.features.pool", "matching", "pool"),  # once per frame (pooled_sums), wherever first
     ("judge.features.tiles", "matcher", "_tiles"),
-    ("judge.features.normalise", "matcher", "_normalised"),
+    ("judge.features.normalise", "matcher", "_centre"),  # the tile moments (Matcher.moments), once per frame
     ("judge.distance", "matcher", "distance"),
     ("judge.localise", "localiser", "update"),
     ("judge.localise.distances", "matcher", "distances"),
