@@ -131,12 +131,18 @@ def taught_offset(poses: np.ndarray | None, position: float) -> tuple[int, Offse
         return max(0, min(int(math.floor(position)), n - 1)), (0.0, 0.0, 0.0)
     k = max(0, min(int(math.floor(position)), n - 2))
     t = min(max(position - k, 0.0), 1.0)
-    (x0, y0, a0), (x1, y1, a1) = poses[k], poses[k + 1]
-    if not all(map(math.isfinite, (x0, y0, a0, x1, y1, a1))):
+    if not all(map(math.isfinite, (*poses[k], *poses[k + 1]))):
         return k, (0.0, 0.0, 0.0)
+    return k, relative_pose(poses[k], poses[k + 1], t)
+
+
+def relative_pose(origin: np.ndarray, pose: np.ndarray, t: float = 1.0) -> Offset:
+    """``pose`` (x, y, yaw) seen from ``origin`` (ahead, left, turned left), or the share ``t`` of the way
+    there (a straight blend of position and turn)."""
+    (x0, y0, a0), (x1, y1, a1) = origin, pose
     dx, dy = t * (x1 - x0), t * (y1 - y0)
     c, s = math.cos(a0), math.sin(a0)
-    return k, (c * dx + s * dy, -s * dx + c * dy, t * math.remainder(a1 - a0, math.tau))
+    return c * dx + s * dy, -s * dx + c * dy, t * math.remainder(a1 - a0, math.tau)
 
 
 class FloorTiles:

@@ -37,6 +37,7 @@ The repeat loop reports every command (:meth:`Follower.commanded`), which moves 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -62,6 +63,8 @@ SIDE_TURN_MAX = 0.5
 #: estimate can be wrong by centimetres (just after a turn in place, the taught floor warped to a pose the
 #: localiser has a little off), and a pursuit acts on it at any pace.
 SIDE_VIEWS = 3
+#: A view's floor registration, asked when needed and made once (``Follower._floor_side_at``).
+FloorSide = Callable[[], "SideEstimate | None"]
 
 
 class Follower:
@@ -217,7 +220,8 @@ class Follower:
         if at_end and (final_error <= threshold or settled):
             self._finished = True
             return Decision(Action.FINISHED, len(self), final_error)
-        blocked = self._blocked(image, est)
+        floor_side = self._floor_side_at(image, est.position)  # one registration a view, asked lazily
+        blocked = self._blocked(image, est, floor_side)
         if blocked is not None:
             return blocked
         lost = self._lost(est)
@@ -245,10 +249,10 @@ class Follower:
             note=f"at {est.position:.2f} (confidence {est.confidence:.2f})",
             v_limit=0.0 if hold else math.inf,
             prior=prior,
-            turn=self._side_turn(image, est.position, gap, driving=not hold and last > 0),
+            turn=self._side_turn(floor_side, gap, driving=not hold and last > 0),
         )
 
-    def _side_turn(self, image: Frame, position: float, gap: int, driving: bool) -> float:
+    def _side_turn(self, floor_side: FloorSide | None, gap: int, driving: bool) -> float:
         """The turn (rad/s) toward the taught path that the floor's side offset asks for: a pure pursuit of the
         path point ``side_lookahead`` ahead, ``side_gain`` x atan(dy / side_lookahead) (see ControllerConfig),
         at most SIDE_TURN_MAX, ``dy`` the median of the last SIDE_VIEWS views' estimates; none until that many
@@ -256,8 +260,8 @@ class Follower:
         offset on the spot) or the floor does not tell (``runtime.side_offset``)."""
         speed = min(float(self.commands[gap, 0]), self._speed)  # the pace the robot is driving at
         run, self.beside = self._side_run, None
-        if driving and self.side is not None and speed > FORWARD_SPEED:
-            self.beside = self.side.estimate(image, position)
+        if driving and self.side is not None and floor_side is not None and speed > FORWARD_SPEED:
+            self.beside = floor_side()
         if self.beside is None:
             run.clear()
             return 0.0
@@ -269,14 +273,19 @@ class Follower:
         turn = -self.cfg.side_gain * math.atan(dy / self.cfg.side_lookahead)
         return max(-SIDE_TURN_MAX, min(SIDE_TURN_MAX, turn))
 
-    def _blocked(self, image: np.ndarray, est: Estimate) -> Decision | None:
+    def _blocked(self, image: Frame, est: Estimate, floor_side: FloorSide | None) -> Decision | None:
         """BLOCKED while the obstruction detector sees the way ahead blocked (None: go on)."""
         if self.obstruction is None:
             return None
         moved, self._moved = self._moved, False
-        verdict = self.obstructed = self.obstruction.update(
-            image, est.position, moved, self._beside(image, est)
-        )
+        side: SideFn | None = None
+        if floor_side is not None:
+
+            def side() -> tuple[float, float] | None:
+                found = floor_side()
+                return None if found is None else (found.dy, found.psi)
+
+        verdict = self.obstructed = self.obstruction.update(image, est.position, moved, side)
         if not verdict.blocked:
             return None
         self._lost_count, self._lost_best = 0, math.inf  # what spoils the match is in the way, not elsewhere
@@ -289,18 +298,21 @@ class Follower:
             f"{verdict.growing_steps} steps",
         )
 
-    def _beside(self, image: Frame, est: Estimate) -> SideFn | None:
-        """The robot's offset (dy, psi) beside the taught pose at the estimate, as the floor shows it, for
-        the obstruction detector to ask (None: no floor registration)."""
-        side = self._floor_side
-        if side is None:
+    def _floor_side_at(self, image: Frame, position: float) -> FloorSide | None:
+        """Where the floor of ``image`` puts the robot beside the taught pose at ``position``, computed when
+        first asked and then kept for the view: the obstruction detector and the side turn both ask it (None:
+        no floor registration)."""
+        registration = self._floor_side
+        if registration is None:
             return None
+        found: list[SideEstimate | None] = []
 
-        def ask() -> tuple[float, float] | None:
-            found = side.estimate(image, est.position)
-            return None if found is None else (found.dy, found.psi)
+        def at() -> SideEstimate | None:
+            if not found:
+                found.append(registration.estimate(image, position))
+            return found[0]
 
-        return ask
+        return at
 
     def bound_at(self, position: float) -> float:
         """The lost bound at ``position`` (subgoal units): the larger of its two subgoals' bounds, each the

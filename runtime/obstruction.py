@@ -57,6 +57,7 @@ from vtr.runtime.floor_view import (
     near_path,
     path_ahead,
     path_weights,
+    relative_pose,
     taught_offset,
     tile_floor_points,
 )
@@ -176,10 +177,7 @@ class ObstructionDetector:
         for j in (k - 2, k - 1, k + 1, k + 2):
             if self.poses is None or not 0 <= j < len(self.poses):
                 continue
-            (xj, yj, aj), (xk, yk, ak) = self.poses[j], self.poses[k]
-            c, s = math.cos(aj), math.sin(aj)
-            dx, dy = xk - xj, yk - yj
-            at = (c * dx + s * dy, -s * dx + c * dy, math.remainder(ak - aj, math.tau))
+            at = relative_pose(self.poses[j], self.poses[k])
             if math.hypot(at[0], at[1]) >= FLOOR_BASE_M:
                 warped = floor.features(floor.warp(floor.pool(self.subgoals[j]), at))
                 d = self.matcher.tile_distances(self._feats[k], warped)[0]

@@ -12,6 +12,7 @@ from floor_fakes import box_at, floor_view, straight_route
 from vtr.runtime.contracts import ROBOT_RADIUS, Observation
 from vtr.runtime.controller import Action, ControllerConfig
 from vtr.runtime.follower import Follower
+from vtr.runtime.frame import as_frame
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
 from vtr.runtime.route import Route
 
@@ -156,13 +157,12 @@ def test_the_wait_runs_on_the_robots_clock_and_on_the_wall_clock_only_where_that
 @pytest.mark.parametrize("side_gain", [None, 0.0])
 def test_the_detector_warps_the_floor_to_where_the_floor_puts_the_robot_beside_the_path(side_gain):
     """The follower hands the detector the floor registration's (dy, psi), with or without the side turn."""
-    from types import SimpleNamespace
-
     cfg = None if side_gain is None else ControllerConfig(side_gain=side_gain)
     follower = Follower.for_route(floor_route(), cfg)
-    ask = follower._beside(floor_view(0.3, 0.08, -0.1), SimpleNamespace(position=3.0))
+    ask = follower._floor_side_at(as_frame(floor_view(0.3, 0.08, -0.1)), 3.0)
     assert ask is not None
-    dy, psi = ask()
+    found = ask()
+    dy, psi = found.dy, found.psi
     assert dy == pytest.approx(0.08, abs=0.01) and psi == pytest.approx(-0.1, abs=0.02)
     assert (
         Follower.for_route(floor_route(), ControllerConfig(obstruction=False, side_gain=0.0))._floor_side

@@ -142,8 +142,13 @@ def test_the_side_turn_waits_for_views_in_a_row_and_one_wrong_view_does_not_turn
     commands[:-1, 0] = 0.25
     cfg = ControllerConfig(zero_bias=0.0, obstruction=False)
     follower = Follower(views, cfg, commands, poses, poses, camera=CAM)
-    follower.side, follower._speed = Told([0.0, 0.0, 0.08, 0.0, 0.02, 0.02]), 0.25  # type: ignore[assignment]
-    turns = [follower._side_turn(views[2], 2.0, 2, driving=True) for _ in range(6)]
+    told = Told([0.0, 0.0, 0.08, 0.0, 0.02, 0.02])
+    follower.side = follower._floor_side = told  # type: ignore[assignment]
+    follower._speed = 0.25
+    turns = [follower._side_turn(follower._floor_side_at(views[2], 2.0), 2, driving=True) for _ in range(6)]
     assert turns[:4] == [0.0] * 4  # two views, then the one 8 cm off among two on the path
     assert turns[5] == pytest.approx(-cfg.side_gain * math.atan(0.02 / cfg.side_lookahead))
-    assert follower._side_turn(views[2], 2.0, 2, driving=False) == 0.0 and follower._side_run == []
+    assert (
+        follower._side_turn(follower._floor_side_at(views[2], 2.0), 2, driving=False) == 0.0
+        and follower._side_run == []
+    )
