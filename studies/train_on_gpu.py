@@ -16,8 +16,10 @@ is finished is packed into OUT when the budget ends:
    VelocityNet fine-tuned across cameras through the fine-tuned ViewNet.
 
 OUT receives `log.txt`, `summary.json` (every command, its wall time and exit code, the reports) and
-`runs.tar` (each run's model.pt, report.json and metrics.jsonl; no optimiser state, no ViewNet weights
-except the camera fine-tune's). Closed-loop evaluation happens afterwards on the CPU
+`part_00`, `part_01`, ... (`cat part_* | tar xz`: each run's model.pt, report.json and metrics.jsonl; no
+optimiser state, no ViewNet weights except the camera fine-tune's). In session 5's lease the script wrote one
+37 MB `runs.tar`, which the lease does not send back (16 MiB a file); a second command on the warm machine
+packed the same files into parts, as the script now does itself. Closed-loop evaluation happens afterwards on the CPU
 (`vtr eval ... --model`), not here: it needs no GPU.
 
     python -m studies.train_on_gpu --out $OUT --work /tmp/w --budget-s 480          # on the device
@@ -28,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import shlex
 import subprocess
 import sys
@@ -44,6 +45,7 @@ SEEDS = (0, 1, 2, 3, 4)
 IMPERFECT_SEEDS = (0, 1)
 BATCH = 64
 STAGE_A, STAGE_B = 1000, 1375  # 2,375 x 64 = the recipe's 9,500 x 16 samples; lr 1e-3 then 3e-4 as the recipe
+PART_BYTES = 15 * 2**20  # the lease sends back files of at most 16 MiB
 CAMERA_FT_STEPS = 1500  # ViewNet and VelocityNet fine-tunes across cameras (batch 64)
 
 
@@ -106,6 +108,16 @@ def run_parallel(s: Session, jobs: dict[str, list[list[str]]], phase: str) -> No
                 start(name)
 
 
+def split_file(path: Path, out: Path, part_bytes: int) -> list[Path]:
+    """`path` cut into out/part_00, part_01, ... of at most `part_bytes` (join: `cat part_* > runs.tgz`)."""
+    parts = []
+    with open(path, "rb") as src:
+        while chunk := src.read(part_bytes):
+            parts.append(out / f"part_{len(parts):02d}")
+            parts[-1].write_bytes(chunk)
+    return parts
+
+
 def minutes(s: Session, share: float) -> str:
     """A stage's --max-minutes: its share of what is left (a stage cut short validates and saves as if done)."""
     return f"{max(0.2, share * s.left() / 60.0):.2f}"
@@ -120,7 +132,9 @@ def common(s: Session) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m studies.train_on_gpu", description=__doc__.split("\n")[0])
-    ap.add_argument("--out", required=True, help="folder for log.txt, summary.json, runs.tar")
+    ap.add_argument(
+        "--out", required=True, help="folder for log.txt, summary.json and the packed runs (part_*)"
+    )
     ap.add_argument("--work", required=True, help="scratch folder (data, runs)")
     ap.add_argument(
         "--budget-s", type=float, default=480.0, help="wall-clock budget of the whole script (default 480)"
@@ -364,9 +378,10 @@ def main(argv: list[str] | None = None) -> int:
         ]
     ]
     run_parallel(s, jobs, "velocitynet")
-    # pack: what finished, small files only
+    # pack: what finished, small files only, in parts the lease sends back (at most 16 MiB a file)
     keep = ("model.pt", "report.json", "metrics.jsonl")
-    with tarfile.open(s.out / "runs.tar", "w") as tar:
+    packed = s.work / "runs.tgz"
+    with tarfile.open(packed, "w:gz", compresslevel=1) as tar:
         for run in sorted(runs.glob("*")) if runs.exists() else []:
             for name in keep:
                 f = run / name
@@ -376,7 +391,8 @@ def main(argv: list[str] | None = None) -> int:
         logs = w / "logs"
         for f in sorted(logs.glob("*.log")) if logs.exists() else []:
             tar.add(f, arcname=f"logs/{f.name}")
-    s.log(f"packed {os.path.getsize(s.out / 'runs.tar') / 1e6:.1f} MB; {len(s.records)} records")
+    parts = split_file(packed, s.out, PART_BYTES)
+    s.log(f"packed {packed.stat().st_size / 1e6:.1f} MB in {len(parts)} parts; {len(s.records)} records")
     s.save()
     return 0
 
