@@ -186,6 +186,11 @@ def main(argv: list[str] | None = None) -> int:
     tab = sub.add_parser("table", help="the markdown table from the evaluation and offline JSON files")
     tab.add_argument("--runs", default=D, help=f"the study's scratch folder (default {D})")
     tab.add_argument("--out", default=None, help="write the table here (default: stdout)")
+    gpu = sub.add_parser(
+        "table-seeds", help="the GPU lease's table: per seed, then pooled (studies/train_on_gpu)"
+    )
+    gpu.add_argument("eval_dir", help="folder of {data}_{loss}_s{seed}.json from `vtr eval --json`")
+    gpu.add_argument("runs_dir", help="folder of the runs (report.json, metrics.jsonl)")
     args = parser.parse_args(argv)
     if args.cmd == "commands":
         print(commands_text())
@@ -197,7 +202,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"mpc_vs_bc: {err}", file=sys.stderr)
             return 2
         return 0
-    from studies.mpc_vs_bc_table import render
+    from studies.mpc_vs_bc_table import render, render_seeds
+
+    if args.cmd == "table-seeds":
+        print(render_seeds(Path(args.eval_dir), Path(args.runs_dir)), end="")
+        return 0
 
     text = render(Path(args.runs), commands_text())
     if args.out:

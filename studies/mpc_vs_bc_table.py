@@ -140,3 +140,61 @@ def render(root: Path, commands: str) -> str:
             "",
         ]
     return "\n".join(out)
+
+
+def render_seeds(eval_dir: Path, runs_dir: Path) -> str:
+    """The GPU lease's runs (studies/train_on_gpu.py): per model and seed, then MPC against BC pooled over the
+    seeds, paired by (training seed, route, noise seed). Files: eval_dir/{data}_{loss}_s{seed}.json and
+    runs_dir/{data}_{loss}_s{seed}/report.json + metrics.jsonl (steps reached)."""
+    rows, stats = [], {}
+    for path in sorted(eval_dir.glob("*_s[0-9].json")):
+        label = path.stem
+        data, loss, seed = label.rsplit("_", 2)
+        doc = _load(path)
+        if doc is None or loss not in ("mpc", "bc"):
+            continue
+        s = stats[label] = summarise(doc)
+        rep = _load(runs_dir / label / "report.json") or {}
+        steps = []
+        for stage in (f"{label}_a", label):
+            lines = (runs_dir / stage / "metrics.jsonl").read_text().splitlines()
+            steps.append(max(json.loads(x).get("step", 0) for x in lines))
+        rows.append(
+            f"| {data} | {'MPC (w1 0.8, w2 0.3)' if loss == 'mpc' else 'BC (w1 0)'} | {seed[1:]} | "
+            f"{steps[0]} + {steps[1]} | {_fmt(rep.get('ratio_to_baseline'), '.3f')} | "
+            f"{s['completed']}/{s['n']} | {_fmt(s['err_completed_mm'], '.1f')} | {_fmt(s['pace'], '.2f')} |"
+        )
+    out = [
+        "| data | loss | seed | steps reached (batch 64: lr 1e-3 + 3e-4) | offline: first command x mean-command "
+        "| completed on the route | mean error, completed (mm) | steps per taught step |",
+        "|---|---|---|---|---|---|---|---|",
+        *rows,
+        "",
+        "| data | MPC completed | BC completed | paired runs | only MPC | only BC | sign test p | mean error where "
+        "both completed, MPC / BC (mm) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for data in sorted({k.rsplit("_", 2)[0] for k in stats}):
+        a, b, ea, eb = {}, {}, {}, {}
+        for label, s in stats.items():
+            d, loss, seed = label.rsplit("_", 2)
+            if d != data:
+                continue
+            runs, errs = (a, ea) if loss == "mpc" else (b, eb)
+            runs.update({(seed, *k): v for k, v in s["by_run"].items()})
+            errs.update({(seed, *k): v for k, v in s["err_by_run"].items()})
+        keys = sorted(set(a) & set(b))
+        a_only = sum(a[k] and not b[k] for k in keys)
+        b_only = sum(b[k] and not a[k] for k in keys)
+        both = [k for k in keys if a[k] and b[k]]
+        err = "-"
+        if both:
+            err = (
+                f"{1e3 * sum(ea[k] for k in both) / len(both):.1f} / {1e3 * sum(eb[k] for k in both) / len(both):.1f}"
+                f" (MPC lower in {sum(ea[k] < eb[k] for k in both)} of {len(both)})"
+            )
+        out.append(
+            f"| {data} | {sum(a[k] for k in keys)}/{len(keys)} | {sum(b[k] for k in keys)}/{len(keys)} | {len(keys)} "
+            f"| {a_only} | {b_only} | {sign_test(a_only, b_only):.2f} | {err} |"
+        )
+    return "\n".join(out) + "\n"

@@ -65,3 +65,40 @@ def test_the_table_counts_completions_and_pairs_mpc_with_bc(tmp_path: Path) -> N
         "| clean_mpc_s0_s300 vs clean_bc_s0_s300 | 2 | 1 | 0 | 1.00 | 10.0 / 10.0 (MPC lower in 0 of 1) |"
         in text
     )
+
+
+def test_the_seeds_table_pools_mpc_against_bc_paired_by_seed_route_and_noise(tmp_path: Path) -> None:
+    from studies.mpc_vs_bc_table import render_seeds
+
+    def doc(done: list[bool]) -> dict:
+        runs = [
+            {
+                "ran": True,
+                "completed": c,
+                "status": "finished" if c else "lost",
+                "position_error_m": 0.01,
+                "steps_per_taught_step": 1.0,
+                "route": f"r{i}",
+                "seed": 0,
+            }
+            for i, c in enumerate(done)
+        ]
+        return {"runs": runs}
+
+    ev, rd = tmp_path / "eval", tmp_path / "runs"
+    ev.mkdir()
+    outcomes = {
+        "clean_mpc_s0": [True, True],
+        "clean_bc_s0": [True, False],
+        "clean_mpc_s1": [True, False],
+        "clean_bc_s1": [False, False],
+    }
+    for label, done in outcomes.items():
+        (ev / f"{label}.json").write_text(json.dumps(doc(done)))
+        for stage in (f"{label}_a", label):
+            (rd / stage).mkdir(parents=True)
+            (rd / stage / "metrics.jsonl").write_text('{"step": 25}\n{"step": 50}\n')
+    text = render_seeds(ev, rd)
+    assert "| clean | MPC (w1 0.8, w2 0.3) | 0 | 50 + 50 |" in text
+    # pooled over the two seeds: MPC 3 of 4, BC 1 of 4; MPC alone completed 2 paired runs, BC none
+    assert "| clean | 3/4 | 1/4 | 4 | 2 | 0 | 0.50 |" in text
