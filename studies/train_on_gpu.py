@@ -142,6 +142,29 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tiny", action="store_true", help="dry run: tiny preset, few frames and steps (CPU)")
     ap.add_argument("--device", default="cuda", help="training device (default cuda)")
     ap.add_argument("--workers", type=int, default=16, help="collect workers (default 16)")
+    ap.add_argument(
+        "--phases",
+        default="viewnet,probe,velocitynet,cams",
+        help="what runs besides collecting the clean data (default viewnet,probe,velocitynet,cams)",
+    )
+    ap.add_argument(
+        "--clean-seeds", type=int, nargs="*", default=list(SEEDS), help="MPC/BC seeds on clean data"
+    )
+    ap.add_argument(
+        "--imperfect-seeds",
+        type=int,
+        nargs="*",
+        default=list(IMPERFECT_SEEDS),
+        help="MPC/BC seeds on the imperfect log",
+    )
+    ap.add_argument(
+        "--steps",
+        type=int,
+        nargs=2,
+        default=[STAGE_A, STAGE_B],
+        metavar=("A", "B"),
+        help=f"VelocityNet steps at lr 1e-3, then at 3e-4 (default {STAGE_A} {STAGE_B})",
+    )
     args = ap.parse_args(argv)
     s = Session(Path(args.out), Path(args.work), args.budget_s, args.tiny, args.device)
     s.out.mkdir(parents=True, exist_ok=True)
@@ -157,60 +180,60 @@ def main(argv: list[str] | None = None) -> int:
     # 1. collect
     clean, cams = w / "data" / "clean", w / "data" / "cams"
     houses_clean, houses_cams = ("2", "2") if tiny else ("8", "40")
-    run_parallel(
-        s,
-        {
-            "collect_clean": [
-                [
-                    *PY,
-                    "collect",
-                    "--houses",
-                    houses_clean,
-                    "--frames-per-house",
-                    n(2000),
-                    "--include-house",
-                    "house",
-                    "--include-house-frames",
-                    n(6000),
-                    "--out",
-                    str(clean),
-                    "--workers",
-                    str(max(1, args.workers // 2)),
-                    "--seed",
-                    "0",
-                    "--no-progress",
-                    *size,
-                ]
-            ],
-            "collect_cams": [
-                [
-                    *PY,
-                    "collect",
-                    "--houses",
-                    houses_cams,
-                    "--frames-per-house",
-                    n(1000),
-                    "--include-house",
-                    "house",
-                    "--include-house-frames",
-                    n(5000),
-                    "--out",
-                    str(cams),
-                    "--workers",
-                    str(max(1, args.workers // 2)),
-                    "--seed",
-                    "1",
-                    "--no-progress",
-                    "--fov-range",
-                    "60:120",
-                    "--height-range",
-                    "0.15:0.6",
-                    *size,
-                ]
-            ],
-        },
-        "collect",
-    )
+    phases = set(args.phases.split(","))
+    collect = {
+        "collect_clean": [
+            [
+                *PY,
+                "collect",
+                "--houses",
+                houses_clean,
+                "--frames-per-house",
+                n(2000),
+                "--include-house",
+                "house",
+                "--include-house-frames",
+                n(6000),
+                "--out",
+                str(clean),
+                "--workers",
+                str(max(1, args.workers // 2)),
+                "--seed",
+                "0",
+                "--no-progress",
+                *size,
+            ]
+        ],
+        "collect_cams": [
+            [
+                *PY,
+                "collect",
+                "--houses",
+                houses_cams,
+                "--frames-per-house",
+                n(1000),
+                "--include-house",
+                "house",
+                "--include-house-frames",
+                n(5000),
+                "--out",
+                str(cams),
+                "--workers",
+                str(max(1, args.workers // 2)),
+                "--seed",
+                "1",
+                "--no-progress",
+                "--fov-range",
+                "60:120",
+                "--height-range",
+                "0.15:0.6",
+                *size,
+            ]
+        ],
+    }
+    if "cams" not in phases:
+        del collect["collect_cams"]
+    run_parallel(s, collect, "collect")
     imperfect = w / "data" / "imperfect"
     if clean.exists() and not imperfect.exists():
         s.records.append(
@@ -277,6 +300,10 @@ def main(argv: list[str] | None = None) -> int:
                 *common(s),
             ]
         ]
+    if "cams" not in phases:
+        del jobs["viewnet_cams"]
+    if "viewnet" not in phases:
+        jobs = {k: v for k, v in jobs.items() if not k.startswith("viewnet_s")}
     run_parallel(s, jobs, "viewnet")
     viewnet_for = "models/viewnet.pt" if not tiny else str(runs / "viewnet_s0" / "model.pt")
     # 3b. probe: one process alone, steps per second by batch size (metrics.jsonl's step_time_s)
@@ -303,13 +330,17 @@ def main(argv: list[str] | None = None) -> int:
                 "1",
             ]
         ]
-    for name, chain in probes.items():  # one at a time: alone on the GPU
+    for name, chain in probes.items() if "probe" in phases else ():  # one at a time: alone on the GPU
         run_parallel(s, {name: chain}, "probe")
     # 4. VelocityNet: MPC vs BC at the recipe's samples; the camera fine-tune
     batch = "4" if tiny else str(BATCH)
     left_min = s.left() / 60.0
+    share_a = 0.95 * args.steps[0] / sum(args.steps)  # each stage's share of the time left, by its steps
     jobs = {}
-    for data, seeds in (("clean", SEEDS), ("imperfect", IMPERFECT_SEEDS)):
+    pairs = (
+        (("clean", args.clean_seeds), ("imperfect", args.imperfect_seeds)) if "velocitynet" in phases else ()
+    )
+    for data, seeds in pairs:
         for seed in seeds:
             for loss, flags in (("mpc", []), ("bc", ["--w1", "0"])):
                 name = f"{data}_{loss}_s{seed}"
@@ -333,11 +364,11 @@ def main(argv: list[str] | None = None) -> int:
                         "--out",
                         str(a),
                         "--steps",
-                        n(STAGE_A),
+                        n(args.steps[0]),
                         "--lr",
                         "1e-3",
                         "--max-minutes",
-                        f"{max(0.2, 0.4 * left_min - 0.3):.2f}",
+                        f"{max(0.2, share_a * left_min - 0.3):.2f}",
                     ],
                     [
                         *base,
@@ -346,37 +377,38 @@ def main(argv: list[str] | None = None) -> int:
                         "--init",
                         str(a / "model.pt"),
                         "--steps",
-                        n(STAGE_B),
+                        n(args.steps[1]),
                         "--lr",
                         "3e-4",
                         "--max-minutes",
-                        f"{max(0.2, 0.55 * left_min - 0.3):.2f}",
+                        f"{max(0.2, (0.95 - share_a) * left_min - 0.3):.2f}",
                     ],
                 ]
     cam_init = [] if tiny else ["--init", "models/velocitynet.pt"]
-    jobs["velocitynet_cams"] = [
-        [
-            *vel,
-            "--viewnet",
-            str(runs / "viewnet_cams" / "model.pt"),
-            "--data",
-            str(cams),
-            "--out",
-            str(runs / "velocitynet_cams"),
-            *cam_init,
-            "--steps",
-            n(CAMERA_FT_STEPS),
-            "--batch-size",
-            batch,
-            "--lr",
-            "3e-4",
-            "--seed",
-            "0",
-            *common(s),
-            "--max-minutes",
-            f"{max(0.2, 0.95 * left_min - 0.5):.2f}",
+    if "cams" in phases:
+        jobs["velocitynet_cams"] = [
+            [
+                *vel,
+                "--viewnet",
+                str(runs / "viewnet_cams" / "model.pt"),
+                "--data",
+                str(cams),
+                "--out",
+                str(runs / "velocitynet_cams"),
+                *cam_init,
+                "--steps",
+                n(CAMERA_FT_STEPS),
+                "--batch-size",
+                batch,
+                "--lr",
+                "3e-4",
+                "--seed",
+                "0",
+                *common(s),
+                "--max-minutes",
+                f"{max(0.2, 0.95 * left_min - 0.5):.2f}",
+            ]
         ]
-    ]
     run_parallel(s, jobs, "velocitynet")
     # pack: what finished, small files only, in parts the lease sends back (at most 16 MiB a file)
     keep = ("model.pt", "report.json", "metrics.jsonl")
