@@ -162,11 +162,13 @@ class SideOffset:
         quality = np.partition(table, s_max, axis=0)[s_max] - table[best, r]
         ok = (best > 0) & (best < 2 * s_max) & (quality > self.cfg.distinct) & (mid < self.cfg.match)
         for _ in range(2):  # fit, drop the rows off the line (not floor: furniture, a wall), fit again
-            if np.count_nonzero(ok) < self.min_rows:
+            kept = np.count_nonzero(ok)
+            if kept < self.min_rows:
                 return None
-            wts = quality * ok
-            line = _weighted_line(self._design, shift, wts)
+            line = _weighted_line(self._design, shift, quality * ok)
             ok &= np.abs(self._design @ line - shift) <= self.cfg.outlier_px
+            if np.count_nonzero(ok) == kept:  # no row dropped: a second fit would be this one
+                break
         if np.count_nonzero(ok) < self.min_rows:
             return None
         psi, dy = line[0] / self.focal, line[1] / self.focal
