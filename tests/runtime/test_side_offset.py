@@ -201,8 +201,13 @@ def test_the_trimmed_estimate_gives_the_reference_bits():
     views = [
         (floor_view(0.3, dy, math.radians(yaw), seed=seed), position)
         for dy, yaw, seed, position in [
-            (0.10, 0.0, 0, 3.0), (-0.10, 5.0, 0, 3.0), (0.05, -10.0, 0, 3.4), (0.0, 4.0, 0, 3.0),
-            (0.04, 0.0, 0, 3.5), (0.05, 0.0, 7, 3.0), (0.12, 12.0, 0, 2.7),
+            (0.10, 0.0, 0, 3.0),
+            (-0.10, 5.0, 0, 3.0),
+            (0.05, -10.0, 0, 3.4),
+            (0.0, 4.0, 0, 3.0),
+            (0.04, 0.0, 0, 3.5),
+            (0.05, 0.0, 7, 3.0),
+            (0.12, 12.0, 0, 2.7),
         ]
     ]
     views += [(box_at(floor_view(0.3, 0.06), distance), 3.0) for distance in (0.5, 0.8, 1.0)]
