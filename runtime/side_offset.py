@@ -154,13 +154,13 @@ class SideOffset:
         lo, mid, hi = table[at + self._around, r]  # one gather for the best shift and its two neighbours
         curve = lo - 2 * mid + hi
         curved = curve > 1e-9
-        frac = np.zeros_like(curve)
+        frac = np.zeros(curve.shape, curve.dtype)
         np.divide(0.5 * (lo - hi), curve, out=frac, where=curved)
         shift = at - s_max + np.minimum(np.maximum(frac, -0.5), 0.5)
         # the median of an odd number of shifts is the middle one of a partition (np.median's own way, less
         # its ~60 us of Python); the best score is the table's at the best shift
         quality = np.partition(table, s_max, axis=0)[s_max] - table[best, r]
-        ok = (best > 0) & (best < 2 * s_max) & (quality > self.cfg.distinct) & (mid < self.cfg.match)
+        ok = (best == at) & (quality > self.cfg.distinct) & (mid < self.cfg.match)  # best not at an end
         for _ in range(2):  # fit, drop the rows off the line (not floor: furniture, a wall), fit again
             kept = np.count_nonzero(ok)
             if kept < self.min_rows:
