@@ -13,6 +13,7 @@ channel), after pooling; the warp takes the nearest pooled pixel.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -131,12 +132,13 @@ def taught_offset(poses: np.ndarray | None, position: float) -> tuple[int, Offse
         return max(0, min(int(math.floor(position)), n - 1)), (0.0, 0.0, 0.0)
     k = max(0, min(int(math.floor(position)), n - 2))
     t = min(max(position - k, 0.0), 1.0)
-    if not all(map(math.isfinite, (*poses[k], *poses[k + 1]))):
+    here, there = poses[k].tolist(), poses[k + 1].tolist()  # Python floats: the same arithmetic, faster
+    if not all(map(math.isfinite, (*here, *there))):
         return k, (0.0, 0.0, 0.0)
-    return k, relative_pose(poses[k], poses[k + 1], t)
+    return k, relative_pose(here, there, t)
 
 
-def relative_pose(origin: np.ndarray, pose: np.ndarray, t: float = 1.0) -> Offset:
+def relative_pose(origin: Sequence[float], pose: Sequence[float], t: float = 1.0) -> Offset:
     """``pose`` (x, y, yaw) seen from ``origin`` (ahead, left, turned left), or the share ``t`` of the way
     there (a straight blend of position and turn)."""
     (x0, y0, a0), (x1, y1, a1) = origin, pose

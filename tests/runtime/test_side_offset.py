@@ -8,7 +8,7 @@ import warnings
 
 import numpy as np
 import pytest
-from floor_fakes import CAM, floor_view, straight_route
+from floor_fakes import CAM, box_at, floor_view, straight_route
 
 from vtr.runtime.contracts import Observation
 from vtr.runtime.controller import ControllerConfig
@@ -152,3 +152,67 @@ def test_the_side_turn_waits_for_views_in_a_row_and_one_wrong_view_does_not_turn
         follower._side_turn(follower._floor_side_at(views[2], 2.0), 2, driving=False) == 0.0
         and follower._side_run == []
     )
+
+
+def reference_estimate(side: SideOffset, view: np.ndarray, position: float) -> SideEstimate | None:
+    """The side estimate as written before it was trimmed for speed (sliding windows, np.median, both line
+    fits always): :meth:`SideOffset.estimate` must give the same bits."""
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    from vtr.runtime.floor_view import taught_offset
+    from vtr.runtime.side_offset import _weighted_line
+
+    def normalised(rows: np.ndarray) -> np.ndarray:
+        b = rows - np.add.reduce(rows, axis=2, keepdims=True) / rows.shape[2]
+        spread = np.sqrt(np.add.reduce(b * b, axis=2, keepdims=True) / rows.shape[2])
+        spread += side.matcher.cfg.std_floor * side.matcher.cfg.downsample**2
+        return b / spread
+
+    k, offset = taught_offset(side.poses, position)
+    cur = normalised(side.floor.pool(view)[:, side.rows])
+    ref = normalised(side._taught_rows(side._band(k), offset))
+    s_max = side.shifts
+    middle = cur[:, :, s_max : cur.shape[2] - s_max]
+    windows = sliding_window_view(ref, middle.shape[2], axis=2)
+    table = np.abs(windows - middle[:, :, None, :]).sum(axis=(0, 3))[:, ::-1].T / (3 * middle.shape[2])
+    best = table.argmin(axis=0)
+    at = np.clip(best, 1, 2 * s_max - 1)
+    r = np.arange(len(side.rows))
+    lo, mid, hi = table[at - 1, r], table[at, r], table[at + 1, r]
+    curve = lo - 2 * mid + hi
+    frac = np.where(curve > 1e-9, 0.5 * (lo - hi) / np.where(curve > 1e-9, curve, 1.0), 0.0)
+    shift = at - s_max + np.clip(frac, -0.5, 0.5)
+    quality = np.median(table, axis=0) - table.min(axis=0)
+    ok = (best > 0) & (best < 2 * s_max) & (quality > side.cfg.distinct) & (mid < side.cfg.match)
+    for _ in range(2):
+        if np.count_nonzero(ok) < side.min_rows:
+            return None
+        line = _weighted_line(side._design, shift, quality * ok)
+        ok &= np.abs(side._design @ line - shift) <= side.cfg.outlier_px
+    if np.count_nonzero(ok) < side.min_rows:
+        return None
+    return SideEstimate(float(line[1] / side.focal), float(line[0] / side.focal), int(np.count_nonzero(ok)))
+
+
+def test_the_trimmed_estimate_gives_the_reference_bits():
+    # the estimate is the step's costliest judgement; its numpy calls were cut (strided windows, a partition
+    # for the median, one line fit where no row drops out), none of its arithmetic
+    side = side_offset()
+    views = [
+        (floor_view(0.3, dy, math.radians(yaw), seed=seed), position)
+        for dy, yaw, seed, position in [
+            (0.10, 0.0, 0, 3.0),
+            (-0.10, 5.0, 0, 3.0),
+            (0.05, -10.0, 0, 3.4),
+            (0.0, 4.0, 0, 3.0),
+            (0.04, 0.0, 0, 3.5),
+            (0.05, 0.0, 7, 3.0),
+            (0.12, 12.0, 0, 2.7),
+        ]
+    ]
+    views += [(box_at(floor_view(0.3, 0.06), distance), 3.0) for distance in (0.5, 0.8, 1.0)]
+    found = [side.estimate(view, position) for view, position in views]
+    assert found == [reference_estimate(side, view, position) for view, position in views]
+    told = [est for est in found if est is not None]
+    assert len(told) < len(found)  # a view the floor does not tell, too
+    assert {est.rows for est in told} != {len(side.rows)}  # and one whose rows off the line were dropped
