@@ -1,4 +1,4 @@
-"""`python -m vtr.benchmarks.latency_stages MODEL` (from the checkout's root): the taught step's stages with
+"""`python -m studies.step_stages MODEL` (from the checkout's root): the taught step's stages with
 p50 and p99 of the step thread's CPU time (``studies.step_profile`` prints medians only).
 
 The step is ``vtr bench latency``'s ``whole_step_taught`` (the sample route with its taught poses: the
