@@ -18,7 +18,11 @@ Each image:
 5. lost: for ``lost_steps`` images in a row no subgoal near the estimate matches the view (the best
    distance is over the lost bound there: the route's, or ``lost_factor`` times the taught gaps next to the
    estimate where those are wider, ``thresholds.lost_bounds``) and the match is not improving: LOST, with
-   the evidence;
+   the evidence; or the estimate has not progressed (``PROGRESS_GAPS`` past the furthest it reached) for
+   ``stall_images`` images (``STALL_WINDOWS`` times the images the teach took for the localiser's window)
+   while the view matched no subgoal under its threshold: LOST, with the evidence (a robot that neither gets
+   on along the route nor finds the view it steers to: the lost bound alone let such runs go on to the
+   step limit where the taught views differ much, as at a route's end);
 6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
    ahead, rounded up to a subgoal), with the taught command at the estimated position as feed-forward
    (``Decision.prior``, blended by the repeat loop; it fades out over the last control step of taught
@@ -189,6 +193,7 @@ class Follower:
     def relocalise(self) -> None:
         """Search the whole route on the next image (after a robot restart)."""
         self.localiser.start_at(None)
+        self._reach, self._since = -math.inf, 0  # progress counts from where the views place it now
         if self.obstruction is not None:
             self.obstruction.reset()
 
