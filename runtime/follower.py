@@ -72,8 +72,10 @@ SIDE_VIEWS = 3
 PROGRESS_GAPS = 0.25
 #: Lost without progress: the images a robot may go without its estimate progressing while the view matches
 #: no subgoal of the window under its threshold, in units of the images the teach took for the localiser's
-#: whole window of subgoals (set from dev routes, ``benchmarks/results/ending_s5.md``).
-STALL_WINDOWS = 4.0
+#: whole window of subgoals (8: 128 images on a route taught a subgoal every 2 steps). On dev routes runs
+#: that finished went at most 15 images so, one 108 (moved furniture, closing in on the end); runs that
+#: never would finish 220 and 414, until the step limit (``benchmarks/results/ending_s5.md``).
+STALL_WINDOWS = 8.0
 #: A view's floor registration, asked when needed and made once (``Follower._floor_side_at``).
 FloorSide = Callable[[], "SideEstimate | None"]
 

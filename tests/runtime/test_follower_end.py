@@ -110,7 +110,7 @@ def test_the_stall_evidence_names_where_and_how_well_it_matched():
 
 def test_a_robot_that_keeps_progressing_with_a_poor_match_is_not_lost():
     """Along a long corridor whose every view differs from the teach's (noise on the camera), a robot driven
-    at the taught pace progresses and is never lost, for more than twice ``stall_images``."""
+    at the taught pace progresses and is never lost, for more than ``stall_images``."""
     xs = np.arange(0.0, 4.0 + 1e-9, 0.05)
     poses = np.stack([xs, np.zeros_like(xs), np.zeros_like(xs)], axis=1)
     commands = np.zeros((len(xs), 2))
@@ -125,7 +125,7 @@ def test_a_robot_that_keeps_progressing_with_a_poor_match_is_not_lost():
         actions.append(follower.judge(np.clip(noisy, 0, 255).astype(np.uint8)).decision.action)
         follower.commanded(0.25, 0.0, 0.1)
         x += 0.025
-    assert len(actions) > 2 * follower.stall_images
+    assert len(actions) > follower.stall_images
     assert set(actions) == {Action.COMMAND}
     est = follower.estimate
     assert est is not None and est.best_error > follower.thresholds[est.best]  # the match stayed poor
