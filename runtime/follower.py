@@ -74,7 +74,7 @@ PROGRESS_GAPS = 0.25
 #: no subgoal of the window under its threshold, in units of the images the teach took for the localiser's
 #: whole window of subgoals (8: 128 images on a route taught a subgoal every 2 steps). On dev routes runs
 #: that finished went at most 15 images so, one 108 (moved furniture, closing in on the end); runs that
-#: never would finish 220 and 414, until the step limit (``benchmarks/results/ending_s5.md``).
+#: never would finish 220-734, until the step limit (``benchmarks/results/ending_s5.md``).
 STALL_WINDOWS = 8.0
 #: A view's floor registration, asked when needed and made once (``Follower._floor_side_at``).
 FloorSide = Callable[[], "SideEstimate | None"]
@@ -367,7 +367,9 @@ class Follower:
         subgoal of the window under its threshold: a robot that neither gets on along the route nor finds the
         view it is steering to (moved furniture near the end: dev runs hunted back and forth 2 cm from the end,
         or stood 33 cm past it with the estimate half a gap short, until the step limit). A view matching a
-        subgoal places the robot there afresh."""
+        subgoal places the robot there afresh. ``lost_steps`` <= 0 (no lost verdict at all) turns it off too."""
+        if self.cfg.lost_steps <= 0:
+            return None
         matched = est.best_error <= float(self.thresholds[est.best])
         if matched or est.position >= self._reach + PROGRESS_GAPS:
             self._reach, self._since = est.position, 0

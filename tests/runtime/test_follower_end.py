@@ -30,9 +30,9 @@ def wall_route(spacing_m: float = 0.05) -> Route:
     return Route(images=images, poses=poses, commands=commands, name="wall", dt=0.1)
 
 
-def _near_end() -> Follower:
+def _near_end(lost_steps: int = 3) -> Follower:
     """A follower whose estimate followed a robot driven at the taught pace to the last-but-one subgoal."""
-    follower = Follower.for_route(wall_route(), ControllerConfig(zero_bias=0.0, lost_steps=3))
+    follower = Follower.for_route(wall_route(), ControllerConfig(zero_bias=0.0, lost_steps=lost_steps))
     x = 0.0
     while x < END - 0.05 + 1e-9:
         assert follower.judge(wall_view(x)).decision.action is Action.COMMAND
@@ -129,3 +129,9 @@ def test_a_robot_that_keeps_progressing_with_a_poor_match_is_not_lost():
     assert set(actions) == {Action.COMMAND}
     est = follower.estimate
     assert est is not None and est.best_error > follower.thresholds[est.best]  # the match stayed poor
+
+
+def test_no_lost_verdict_at_all_turns_the_stall_off_too():
+    """``lost_steps`` = 0 (ablations: never lost) covers the stall's verdict as well."""
+    follower = _near_end(lost_steps=0)
+    assert Action.LOST not in _standing(follower, changed_end(), follower.stall_images + 2)
