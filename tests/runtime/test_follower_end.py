@@ -30,9 +30,9 @@ def wall_route(spacing_m: float = 0.05) -> Route:
     return Route(images=images, poses=poses, commands=commands, name="wall", dt=0.1)
 
 
-def _near_end() -> Follower:
+def _near_end(lost_steps: int = 3) -> Follower:
     """A follower whose estimate followed a robot driven at the taught pace to the last-but-one subgoal."""
-    follower = Follower.for_route(wall_route(), ControllerConfig(zero_bias=0.0, lost_steps=3))
+    follower = Follower.for_route(wall_route(), ControllerConfig(zero_bias=0.0, lost_steps=lost_steps))
     x = 0.0
     while x < END - 0.05 + 1e-9:
         assert follower.judge(wall_view(x)).decision.action is Action.COMMAND
@@ -71,3 +71,67 @@ def test_a_view_unlike_every_subgoal_at_the_end_is_still_lost():
     follower = _near_end()
     dark = np.zeros_like(wall_view(0.0))  # the camera covered
     assert _standing(follower, dark)[-1] is Action.LOST
+
+
+def changed_end(share: float = 0.4) -> np.ndarray:
+    """The view at the route's end with the left ``share`` of it changed (furniture moved there): every
+    subgoal near the end is farther from it than its threshold, none as far as the lost bound."""
+    view = wall_view(END).copy()
+    cols = int(view.shape[1] * share)
+    view[:, :cols] = wall_view(0.0)[:, :cols]
+    return view
+
+
+def test_a_robot_that_makes_no_progress_with_a_poor_match_ends_lost_with_the_evidence():
+    """Moved furniture at a route's end (dev gen_122 and gen_111): the view matched no subgoal there and the
+    estimate went nowhere; the lost bound, wide at the end, never held, and the run went on to the step limit
+    (400-500 images). Without progress for ``stall_images`` images it ends lost, with the evidence."""
+    follower = _near_end()
+    actions = _standing(follower, changed_end(), follower.stall_images + 2)
+    est = follower.estimate
+    assert est is not None and est.best_error < follower.bound_at(est.position)  # the bound alone never held
+    assert est.best_error > follower.thresholds[est.best]
+    assert Action.LOST in actions and Action.FINISHED not in actions
+    assert actions.index(Action.LOST) == follower.stall_images - 1  # not sooner: the robot had its time
+    assert follower.status is Action.LOST
+
+
+def test_the_stall_evidence_names_where_and_how_well_it_matched():
+    follower = _near_end()
+    for _ in range(follower.stall_images + 2):
+        verdict = follower.judge(changed_end())
+        if verdict.decision.action is Action.LOST:
+            break
+        follower.commanded(0.0, 0.0, 0.1)
+    note = verdict.decision.note
+    assert verdict.decision.action is Action.LOST
+    assert "no progress past" in note and "best match" in note and "confidence" in note
+
+
+def test_a_robot_that_keeps_progressing_with_a_poor_match_is_not_lost():
+    """Along a long corridor whose every view differs from the teach's (noise on the camera), a robot driven
+    at the taught pace progresses and is never lost, for more than ``stall_images``."""
+    xs = np.arange(0.0, 4.0 + 1e-9, 0.05)
+    poses = np.stack([xs, np.zeros_like(xs), np.zeros_like(xs)], axis=1)
+    commands = np.zeros((len(xs), 2))
+    commands[:-1, 0] = 0.25
+    images = np.stack([render(x / 4) for x in xs])  # views that change slowly: 4 m of corridor
+    route = Route(images=images, poses=poses, commands=commands, name="long", dt=0.1)
+    follower = Follower.for_route(route, ControllerConfig(zero_bias=0.0))
+    rng = np.random.default_rng(0)
+    x, actions = 0.0, []
+    while x < 3.8:
+        noisy = render(x / 4).astype(np.float64) + rng.normal(0.0, 3.0, images.shape[1:])
+        actions.append(follower.judge(np.clip(noisy, 0, 255).astype(np.uint8)).decision.action)
+        follower.commanded(0.25, 0.0, 0.1)
+        x += 0.025
+    assert len(actions) > follower.stall_images
+    assert set(actions) == {Action.COMMAND}
+    est = follower.estimate
+    assert est is not None and est.best_error > follower.thresholds[est.best]  # the match stayed poor
+
+
+def test_no_lost_verdict_at_all_turns_the_stall_off_too():
+    """``lost_steps`` = 0 (ablations: never lost) covers the stall's verdict as well."""
+    follower = _near_end(lost_steps=0)
+    assert Action.LOST not in _standing(follower, changed_end(), follower.stall_images + 2)
