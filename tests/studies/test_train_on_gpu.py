@@ -23,7 +23,9 @@ def test_chains_run_in_order_and_a_failure_stops_its_chain(tmp_path: Path) -> No
     def write(text: str) -> list[str]:
         return [py, "-c", f"open({str(mark)!r}, 'a').write({text!r})"]
 
-    run_parallel(s, {"a": [write("1"), write("2")], "b": [[py, "-c", "raise SystemExit(3)"], write("x")]}, "t")
+    run_parallel(
+        s, {"a": [write("1"), write("2")], "b": [[py, "-c", "raise SystemExit(3)"], write("x")]}, "t"
+    )
     assert mark.read_text() == "12"  # b's second link never ran
     rcs = {(r["job"], r["rc"]) for r in s.records}
     assert rcs == {("a", 0), ("b", 3)}
