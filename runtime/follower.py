@@ -21,13 +21,11 @@ Each image:
    the evidence; or the estimate has not progressed (``PROGRESS_GAPS`` past the furthest it reached) for
    ``stall_images`` images (``STALL_WINDOWS`` times the images the teach took for the localiser's window)
    while the view matched no subgoal under its threshold: LOST, with the evidence (a robot that neither gets
-   on along the route nor finds the view it steers to: the lost bound alone let such runs go on to the
-   step limit where the taught views differ much, as at a route's end);
+   on nor finds the view it steers to, which the lost bound alone let crawl on where taught views differ);
 6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
    ahead, rounded up to a subgoal), with the taught command at the estimated position as feed-forward
-   (``Decision.prior``, blended by the repeat loop; it fades out over the last control step of taught
-   motion the belief expects before the end, ``RouteLocaliser.left_to_end``, so that it never drives the
-   robot past the end) and no translation where the teach turned in place;
+   (``Decision.prior``, blended by the repeat loop; faded out over the last control step of taught motion
+   before the end, ``RouteLocaliser.left_to_end``) and no translation where the teach turned in place;
    where the teach drove forward, a turn back toward the taught path (``Decision.turn``, added by the
    repeat loop) from the side offset the floor shows (``runtime.side_offset``: a pure pursuit of the path
    point ``side_lookahead`` ahead, at most ``SIDE_TURN_MAX``). VelocityNet lines the view up with the
@@ -52,8 +50,9 @@ from vtr.runtime.decisions import Action, Decision, Verdict
 from vtr.runtime.floor_view import Camera
 from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
-from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionDetector, ObstructionVerdict, SideFn, moving
-from vtr.runtime.side_offset import SideEstimate, SideOffset
+from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionVerdict, SideFn, moving
+from vtr.runtime.route_sensing import obstruction_detector, route_camera, side_offset
+from vtr.runtime.side_offset import SideEstimate
 from vtr.runtime.thresholds import check_subgoals, lost_bounds, route_views
 
 if TYPE_CHECKING:
@@ -386,43 +385,6 @@ class Follower:
         )
 
 
-def route_camera(camera: dict[str, object]) -> Camera:
-    """The pinhole camera a route's ``camera`` meta describes (its field of view and height where known, the
-    shipped camera's where not; the image size comes from the views)."""
-    base = Camera()
-
-    def known(key: str, default: float) -> float:
-        value = camera.get(key)
-        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-        return float(value) if ok and value > 0 else default  # type: ignore[operator, arg-type]
-
-    return Camera(base.height, base.width, known("fov_deg", base.fov_deg), known("height_m", base.height_m))
-
-
-def obstruction_detector(
-    subgoals: np.ndarray, poses: np.ndarray | None, camera: Camera | None = None
-) -> ObstructionDetector | None:
-    """The camera-only obstruction detector of a route's views and taught poses (travel poses), or None
-    where it cannot work: no poses to warp the floor by, or views too small for a tile to see the floor
-    ahead."""
-    if poses is None or not np.isfinite(poses).all() or subgoals.dtype != np.uint8:
-        return None
-    try:
-        return ObstructionDetector(subgoals, poses, camera=camera)
-    except ValueError:  # no tile of these views sees the path region (or they are no multiple of a tile)
-        return None
-
-
-def side_offset(subgoals: np.ndarray, poses: np.ndarray | None, camera: Camera | None) -> SideOffset | None:
-    """The floor registration of a route's views at its taught (travel) poses, or None where it cannot work."""
-    if poses is None or not np.isfinite(poses).all() or subgoals.dtype != np.uint8:
-        return None
-    try:
-        return SideOffset(subgoals, poses, camera or Camera())
-    except ValueError:  # views too small to see enough floor rows
-        return None
-
-
 #: Either controller: the route localiser's (default) or the threshold rules' (``switching="rules"``).
 RouteController = Controller | Follower
 
@@ -435,4 +397,4 @@ def controller_for_route(route: Route, cfg: ControllerConfig | None = None) -> R
     )
 
 
-__all__ = ["Follower", "RouteController", "controller_for_route", "obstruction_detector", "route_camera"]
+__all__ = ["Follower", "RouteController", "controller_for_route"]
