@@ -9,7 +9,10 @@ blocked half of the time. The robot is a little off that pose (a few centimetres
 tile of the view is compared with the warped view's tile shifted by up to ``shift_rows`` x ``shift_cols``
 pooled pixels, and with the taught views of subgoals ``k`` and ``k + 1`` as they are, as the patch matcher
 compares (normalised per channel, so light drops out): a tile is *unmatched* when none of them is within
-``tile_threshold``. A robot further off (10 cm beside the path, turned 10 degrees: the floor 0.3 m ahead
+``tile_threshold``. Normalised, a plain tile matches any plain tile: one plain in the view is matched only
+where its colour, against the view's floor (which drops a colour cast and a light darker on one side), is
+also within ``colour_threshold`` of a taught view's (a plain box face on a plain floor cell of another
+colour). A robot further off (10 cm beside the path, turned 10 degrees: the floor 0.3 m ahead
 moves 10 pooled pixels) gets one more try, where the floor registration (runtime.side_offset, through
 ``update``'s ``side``) places it beside the taught pose: the floor warped to there lines up again, what
 stands on it still does not. Floor the taught view never saw from that pose (past its edge) is no
@@ -248,7 +251,58 @@ class ObstructionDetector:
     def _distances(
         self, view: Frame, position: float, active: np.ndarray, exhaustive: bool = False
     ) -> np.ndarray:
-        """:meth:`scores` for the tiles ``active`` (indices into ``floor.tiles``), 0 for the others."""
+        """:meth:`scores` for the tiles ``active`` (indices into ``floor.tiles``), 0 for the others: the
+        texture's distance (:meth:`_texture`), and where a plain tile of the view matched by texture, its
+        colour (:meth:`_colour`)."""
+        tried: list[Offset] = []
+        d = self._texture(view, position, active, exhaustive, tried)
+        if len(active):
+            self._colour(view, position, active, d, tried)
+        return d
+
+    def _band(self, k: int) -> np.ndarray:
+        """Taught view ``k``'s pooled band (the last few kept)."""
+        band = self._bands.get(k)
+        if band is None:
+            if len(self._bands) >= 4:
+                self._bands.clear()
+            band = self._bands[k] = self.floor.pool(self.subgoals[k])
+        return band
+
+    def _colour(
+        self, view: Frame, position: float, active: np.ndarray, d: np.ndarray, tried: list[Offset]
+    ) -> None:
+        """Unmatch, in ``d``, the tiles of ``active`` that are plain in the view (every channel's spread under
+        the matcher's floor), matched by texture, and whose colour (:meth:`FloorTiles.colours`) is within
+        ``colour_threshold`` of no taught view they were compared with (subgoals ``k`` and ``k + 1`` as they
+        are, and the warps ``tried``, each shifted; the taught pose's warp when none was). A plain patch
+        matches any plain patch once normalised: a plain box face stood on a plain floor cell of another
+        colour matched it (dev gen_107: half the box's tiles, the stop 0.30 m from it and then a false
+        clear)."""
+        cfg, floor = self.cfg, self.floor
+        tiles = floor.tiles[active]
+        spread = self.matcher.moments(view)[1][tiles].reshape(len(tiles), -1)
+        plain = (spread < self.matcher.floored(np.zeros(1, np.float32))[0]).all(axis=1)
+        which = np.flatnonzero(plain & (d[active] <= cfg.tile_threshold) & ~self._unseen[active])
+        if not len(which):
+            return
+        own = floor.colours(floor.pool(view), active[which])  # (n, 3)
+        k, offset = taught_offset(self.poses, position)
+        nearest = np.full(len(which), np.inf, dtype=np.float32)
+        taught = [floor.colours(self._band(j), active[which]) for j in (k, k + 1) if j < len(self.subgoals)]
+        for at in tried or [offset]:
+            taught.extend(floor.colours(floor.warp(self._band(k), at), active[which], shifted=True))
+        for colours in taught:
+            nearest = np.minimum(nearest, np.abs(colours - own).sum(axis=-1))
+        off = nearest > cfg.colour_threshold
+        # unmatched, by as much more than the threshold as the colour is off
+        d[active[which[off]]] = cfg.tile_threshold * nearest[off] / cfg.colour_threshold
+
+    def _texture(
+        self, view: Frame, position: float, active: np.ndarray, exhaustive: bool, tried: list[Offset]
+    ) -> np.ndarray:
+        """Each tile's texture distance (the patch features'), for the tiles ``active``, 0 for the others; the
+        warps of taught view ``k`` it compared with are appended to ``tried``."""
         floor, thr = self.floor, -1.0 if exhaustive else self.cfg.tile_threshold
         d = np.zeros(len(floor.tiles), dtype=np.float32)
         self._unseen = np.zeros(len(floor.tiles), dtype=bool)  # tiles the teach never saw from there
@@ -260,11 +314,7 @@ class ObstructionDetector:
         todo = np.flatnonzero(d[active] > thr)  # positions in active
         if not len(todo):
             return d
-        band = self._bands.get(k)
-        if band is None:
-            if len(self._bands) >= 4:
-                self._bands.clear()
-            band = self._bands[k] = floor.pool(self.subgoals[k])
+        band = self._band(k)
         warps = [offset]
         side = self._side() if self._side is not None else None
         if side is not None:  # the robot is beside the taught pose: the floor as it looks from there
@@ -275,6 +325,7 @@ class ObstructionDetector:
         c, s = math.cos(turn), math.sin(turn)
         warps += [(ahead + c * d, left + s * d, turn) for d in (self.cfg.along_m, -self.cfg.along_m) if d]
         for at in warps:
+            tried.append(at)
             warped = floor.warp(band, at)
             for shifted in (False, True):
                 views = floor.features(warped, active[todo], shifted)
