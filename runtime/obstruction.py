@@ -65,7 +65,7 @@ from vtr.runtime.floor_view import (
     tile_floor_points,
 )
 from vtr.runtime.frame import Frame, as_frame
-from vtr.runtime.matching import MatchConfig, Matcher
+from vtr.runtime.matching import MatchConfig, Matcher, pooled_sums
 from vtr.runtime.obstruction_decision import Growth, ObstructionConfig, ObstructionVerdict
 
 #: Commands faster than this (m/s) count as driving forward, or turning faster than this (rad/s) as turning:
@@ -158,7 +158,13 @@ class ObstructionDetector:
         )
         #: The path region's weight per tile (``floor.tiles``) in the last view judged.
         self.weights = self._straight
-        self._feats = np.stack([self.floor.features(self.floor.pool(image)) for image in subgoals])
+        feats, colours = [], []
+        for image in subgoals:
+            band = self.floor.pool(image)
+            feats.append(self.floor.features(band))
+            colours.append(self.floor.colours(band))
+        self._feats = np.stack(feats)
+        self._colours = np.stack(colours)  # (L, tiles, 3): each taught tile's colour (FloorTiles.colours)
         self._bands: dict[int, np.ndarray] = {}  # pooled taught bands of the last few subgoals
         self._evidence: dict[int, np.ndarray] = {}  # floor_evidence per subgoal, made when first asked
         self.growth = Growth(cfg)
@@ -280,23 +286,24 @@ class ObstructionDetector:
         colour matched it (dev gen_107: half the box's tiles, the stop 0.30 m from it and then a false
         clear)."""
         cfg, floor = self.cfg, self.floor
-        tiles = floor.tiles[active]
-        spread = self.matcher.moments(view)[1][tiles].reshape(len(tiles), -1)
-        plain = (spread < self.matcher.floored(np.zeros(1, np.float32))[0]).all(axis=1)
-        which = np.flatnonzero(plain & (d[active] <= cfg.tile_threshold) & ~self._unseen[active])
+        ds = self.matcher.cfg.downsample
+        spread = self.matcher.moments(view)[1][floor.tiles[active]].reshape(len(active), -1)
+        plain = (spread < self.matcher.cfg.std_floor * ds * ds).all(axis=1)
+        which = active[plain & (d[active] <= cfg.tile_threshold) & ~self._unseen[active]]
         if not len(which):
             return
-        own = floor.colours(floor.pool(view), active[which])  # (n, 3)
+        own = floor.colours(pooled_sums(view, ds)[:, floor.top :], which)  # the frame's shared sums: (n, 3)
         k, offset = taught_offset(self.poses, position)
-        nearest = np.full(len(which), np.inf, dtype=np.float32)
-        taught = [floor.colours(self._band(j), active[which]) for j in (k, k + 1) if j < len(self.subgoals)]
-        for at in tried or [offset]:
-            taught.extend(floor.colours(floor.warp(self._band(k), at), active[which], shifted=True))
-        for colours in taught:
-            nearest = np.minimum(nearest, np.abs(colours - own).sum(axis=-1))
+        nearest = np.abs(self._colours[k : k + 2, which] - own).sum(axis=-1).min(axis=0)
+        for at in tried or [offset]:  # the warps only for the tiles whose colour the views as they are miss
+            todo = np.flatnonzero(nearest > cfg.colour_threshold)
+            if not len(todo):
+                break
+            warped = floor.colours(floor.warp(self._band(k), at), which[todo], shifted=True)
+            nearest[todo] = np.minimum(nearest[todo], np.abs(warped - own[todo]).sum(axis=-1).min(axis=0))
         off = nearest > cfg.colour_threshold
         # unmatched, by as much more than the threshold as the colour is off
-        d[active[which[off]]] = cfg.tile_threshold * nearest[off] / cfg.colour_threshold
+        d[which[off]] = cfg.tile_threshold * nearest[off] / cfg.colour_threshold
 
     def _texture(
         self, view: Frame, position: float, active: np.ndarray, exhaustive: bool, tried: list[Offset]
