@@ -260,7 +260,7 @@ class ObstructionDetector:
         """:meth:`scores` for the tiles ``active`` (indices into ``floor.tiles``), 0 for the others: the
         texture's distance (:meth:`_texture`), and where a plain tile of the view matched by texture, its
         colour (:meth:`_colour`)."""
-        tried: list[Offset] = []
+        tried: list[np.ndarray] = []
         d = self._texture(view, position, active, exhaustive, tried)
         if len(active):
             self._colour(view, position, active, d, tried)
@@ -276,12 +276,12 @@ class ObstructionDetector:
         return band
 
     def _colour(
-        self, view: Frame, position: float, active: np.ndarray, d: np.ndarray, tried: list[Offset]
+        self, view: Frame, position: float, active: np.ndarray, d: np.ndarray, tried: list[np.ndarray]
     ) -> None:
         """Unmatch, in ``d``, the tiles of ``active`` that are plain in the view (every channel's spread under
         the matcher's floor), matched by texture, and whose colour (:meth:`FloorTiles.colours`) is within
         ``colour_threshold`` of no taught view they were compared with (subgoals ``k`` and ``k + 1`` as they
-        are, and the warps ``tried``, each shifted; the taught pose's warp when none was). A plain patch
+        are, and the warped bands ``tried``, each shifted; the taught pose's warp when none was). A plain patch
         matches any plain patch once normalised: a plain box face stood on a plain floor cell of another
         colour matched it (dev gen_107: half the box's tiles, the stop 0.30 m from it and then a false
         clear)."""
@@ -295,21 +295,22 @@ class ObstructionDetector:
         own = floor.colours(pooled_sums(view, ds)[:, floor.top :], which)  # the frame's shared sums: (n, 3)
         k, offset = taught_offset(self.poses, position)
         nearest = np.abs(self._colours[k : k + 2, which] - own).sum(axis=-1).min(axis=0)
-        for at in tried or [offset]:  # the warps only for the tiles whose colour the views as they are miss
+        for i in range(max(len(tried), 1)):  # the warps only for the tiles the views as they are miss
             todo = np.flatnonzero(nearest > cfg.colour_threshold)
             if not len(todo):
                 break
-            warped = floor.colours(floor.warp(self._band(k), at), which[todo], shifted=True)
+            band = tried[i] if tried else floor.warp(self._band(k), offset)
+            warped = floor.colours(band, which[todo], shifted=True)
             nearest[todo] = np.minimum(nearest[todo], np.abs(warped - own[todo]).sum(axis=-1).min(axis=0))
         off = nearest > cfg.colour_threshold
         # unmatched, by as much more than the threshold as the colour is off
         d[which[off]] = cfg.tile_threshold * nearest[off] / cfg.colour_threshold
 
     def _texture(
-        self, view: Frame, position: float, active: np.ndarray, exhaustive: bool, tried: list[Offset]
+        self, view: Frame, position: float, active: np.ndarray, exhaustive: bool, tried: list[np.ndarray]
     ) -> np.ndarray:
         """Each tile's texture distance (the patch features'), for the tiles ``active``, 0 for the others; the
-        warps of taught view ``k`` it compared with are appended to ``tried``."""
+        warped bands of taught view ``k`` it compared with are appended to ``tried``."""
         floor, thr = self.floor, -1.0 if exhaustive else self.cfg.tile_threshold
         d = np.zeros(len(floor.tiles), dtype=np.float32)
         self._unseen = np.zeros(len(floor.tiles), dtype=bool)  # tiles the teach never saw from there
@@ -332,8 +333,8 @@ class ObstructionDetector:
         c, s = math.cos(turn), math.sin(turn)
         warps += [(ahead + c * d, left + s * d, turn) for d in (self.cfg.along_m, -self.cfg.along_m) if d]
         for at in warps:
-            tried.append(at)
             warped = floor.warp(band, at)
+            tried.append(warped)
             for shifted in (False, True):
                 views = floor.features(warped, active[todo], shifted)
                 best = self.matcher.tile_distances(own[todo], views).min(axis=0)
