@@ -205,6 +205,20 @@ class FloorTiles:
         out = self.matcher.normalised(band.ravel().take(index))
         return out if shifted else out[0]
 
+    def colours(self, band: np.ndarray, which: np.ndarray | None = None, shifted: bool = False) -> np.ndarray:
+        """(tiles, 3) chromaticity of a pooled band's tiles (``which`` as for :meth:`features`; ``shifted``:
+        (shifts, tiles, 3), every shifted window of each): each tile's mean per channel over the band's
+        floor rows' mean per channel (a colour cast or a gain drops out), then over their sum (a light that
+        darkens one side, the same in every channel, drops out too). What the patch features normalise away:
+        a plain tile's colour."""
+        index = self._index if shifted else self._index[self.centre : self.centre + 1]
+        if which is not None:
+            index = index[:, which]
+        means = band.ravel().take(index).mean(axis=-1)  # (shifts, tiles, 3)
+        means /= np.maximum(band[:, self._sky :].mean(axis=(1, 2)), np.float32(1e-3))
+        means /= np.maximum(means.sum(axis=-1, keepdims=True), np.float32(1e-6))
+        return means if shifted else means[0]
+
     def frame_features(self, frame: Frame, which: np.ndarray) -> np.ndarray:
         """:meth:`features` of a frame's pooled band (``which``, unshifted), the same bits, from the tiles'
         centred values and spreads the localiser's matcher made for the frame (``Matcher.moments``)."""

@@ -9,7 +9,10 @@ blocked half of the time. The robot is a little off that pose (a few centimetres
 tile of the view is compared with the warped view's tile shifted by up to ``shift_rows`` x ``shift_cols``
 pooled pixels, and with the taught views of subgoals ``k`` and ``k + 1`` as they are, as the patch matcher
 compares (normalised per channel, so light drops out): a tile is *unmatched* when none of them is within
-``tile_threshold``. A robot further off (10 cm beside the path, turned 10 degrees: the floor 0.3 m ahead
+``tile_threshold``. Normalised, a plain tile matches any plain tile: one plain in the view is matched only
+where its colour, against the view's floor (which drops a colour cast and a light darker on one side), is
+also within ``colour_threshold`` of a taught view's (a plain box face on a plain floor cell of another
+colour). A robot further off (10 cm beside the path, turned 10 degrees: the floor 0.3 m ahead
 moves 10 pooled pixels) gets one more try, where the floor registration (runtime.side_offset, through
 ``update``'s ``side``) places it beside the taught pose: the floor warped to there lines up again, what
 stands on it still does not. Floor the taught view never saw from that pose (past its edge) is no
@@ -62,7 +65,7 @@ from vtr.runtime.floor_view import (
     tile_floor_points,
 )
 from vtr.runtime.frame import Frame, as_frame
-from vtr.runtime.matching import MatchConfig, Matcher
+from vtr.runtime.matching import MatchConfig, Matcher, pooled_sums
 from vtr.runtime.obstruction_decision import Growth, ObstructionConfig, ObstructionVerdict
 
 #: Commands faster than this (m/s) count as driving forward, or turning faster than this (rad/s) as turning:
@@ -155,7 +158,13 @@ class ObstructionDetector:
         )
         #: The path region's weight per tile (``floor.tiles``) in the last view judged.
         self.weights = self._straight
-        self._feats = np.stack([self.floor.features(self.floor.pool(image)) for image in subgoals])
+        feats, colours = [], []
+        for image in subgoals:
+            band = self.floor.pool(image)
+            feats.append(self.floor.features(band))
+            colours.append(self.floor.colours(band))
+        self._feats = np.stack(feats)
+        self._colours = np.stack(colours)  # (L, tiles, 3): each taught tile's colour (FloorTiles.colours)
         self._bands: dict[int, np.ndarray] = {}  # pooled taught bands of the last few subgoals
         self._evidence: dict[int, np.ndarray] = {}  # floor_evidence per subgoal, made when first asked
         self.growth = Growth(cfg)
@@ -248,7 +257,60 @@ class ObstructionDetector:
     def _distances(
         self, view: Frame, position: float, active: np.ndarray, exhaustive: bool = False
     ) -> np.ndarray:
-        """:meth:`scores` for the tiles ``active`` (indices into ``floor.tiles``), 0 for the others."""
+        """:meth:`scores` for the tiles ``active`` (indices into ``floor.tiles``), 0 for the others: the
+        texture's distance (:meth:`_texture`), and where a plain tile of the view matched by texture, its
+        colour (:meth:`_colour`)."""
+        tried: list[np.ndarray] = []
+        d = self._texture(view, position, active, exhaustive, tried)
+        if len(active):
+            self._colour(view, position, active, d, tried)
+        return d
+
+    def _band(self, k: int) -> np.ndarray:
+        """Taught view ``k``'s pooled band (the last few kept)."""
+        band = self._bands.get(k)
+        if band is None:
+            if len(self._bands) >= 4:
+                self._bands.clear()
+            band = self._bands[k] = self.floor.pool(self.subgoals[k])
+        return band
+
+    def _colour(
+        self, view: Frame, position: float, active: np.ndarray, d: np.ndarray, tried: list[np.ndarray]
+    ) -> None:
+        """Unmatch, in ``d``, the tiles of ``active`` that are plain in the view (every channel's spread under
+        the matcher's floor), matched by texture, and whose colour (:meth:`FloorTiles.colours`) is within
+        ``colour_threshold`` of no taught view they were compared with (subgoals ``k`` and ``k + 1`` as they
+        are, and the warped bands ``tried``, each shifted; the taught pose's warp when none was). A plain patch
+        matches any plain patch once normalised: a plain box face stood on a plain floor cell of another
+        colour matched it (dev gen_107: half the box's tiles, the stop 0.30 m from it and then a false
+        clear)."""
+        cfg, floor = self.cfg, self.floor
+        ds = self.matcher.cfg.downsample
+        spread = self.matcher.moments(view)[1][floor.tiles[active]].reshape(len(active), -1)
+        plain = (spread < self.matcher.cfg.std_floor * ds * ds).all(axis=1)
+        which = active[plain & (d[active] <= cfg.tile_threshold) & ~self._unseen[active]]
+        if not len(which):
+            return
+        own = floor.colours(pooled_sums(view, ds)[:, floor.top :], which)  # the frame's shared sums: (n, 3)
+        k, offset = taught_offset(self.poses, position)
+        nearest = np.abs(self._colours[k : k + 2, which] - own).sum(axis=-1).min(axis=0)
+        for i in range(max(len(tried), 1)):  # the warps only for the tiles the views as they are miss
+            todo = np.flatnonzero(nearest > cfg.colour_threshold)
+            if not len(todo):
+                break
+            band = tried[i] if tried else floor.warp(self._band(k), offset)
+            warped = floor.colours(band, which[todo], shifted=True)
+            nearest[todo] = np.minimum(nearest[todo], np.abs(warped - own[todo]).sum(axis=-1).min(axis=0))
+        off = nearest > cfg.colour_threshold
+        # unmatched, by as much more than the threshold as the colour is off
+        d[which[off]] = cfg.tile_threshold * nearest[off] / cfg.colour_threshold
+
+    def _texture(
+        self, view: Frame, position: float, active: np.ndarray, exhaustive: bool, tried: list[np.ndarray]
+    ) -> np.ndarray:
+        """Each tile's texture distance (the patch features'), for the tiles ``active``, 0 for the others; the
+        warped bands of taught view ``k`` it compared with are appended to ``tried``."""
         floor, thr = self.floor, -1.0 if exhaustive else self.cfg.tile_threshold
         d = np.zeros(len(floor.tiles), dtype=np.float32)
         self._unseen = np.zeros(len(floor.tiles), dtype=bool)  # tiles the teach never saw from there
@@ -260,11 +322,7 @@ class ObstructionDetector:
         todo = np.flatnonzero(d[active] > thr)  # positions in active
         if not len(todo):
             return d
-        band = self._bands.get(k)
-        if band is None:
-            if len(self._bands) >= 4:
-                self._bands.clear()
-            band = self._bands[k] = floor.pool(self.subgoals[k])
+        band = self._band(k)
         warps = [offset]
         side = self._side() if self._side is not None else None
         if side is not None:  # the robot is beside the taught pose: the floor as it looks from there
@@ -276,6 +334,7 @@ class ObstructionDetector:
         warps += [(ahead + c * d, left + s * d, turn) for d in (self.cfg.along_m, -self.cfg.along_m) if d]
         for at in warps:
             warped = floor.warp(band, at)
+            tried.append(warped)
             for shifted in (False, True):
                 views = floor.features(warped, active[todo], shifted)
                 best = self.matcher.tile_distances(own[todo], views).min(axis=0)

@@ -31,6 +31,11 @@ class ObstructionConfig:
     half_width_m: float = 0.2
     near_m: float = 0.3
     far_m: float = 1.5
+    #: The most a plain tile's colour (chromaticity against the view's floor, runtime.floor_view's
+    #: ``FloorTiles.colours``; L1) may differ from the taught view's for it to match: texture is normalised
+    #: away on a plain tile (dev gen_107: a blue box face on a magenta floor cell, 0.32; the floor it
+    #: matched elsewhere in the view, 0.03-0.11).
+    colour_threshold: float = 0.2
     #: The least floor of the path in view, as a share of what a straight path shows, for a view to count:
     #: a path turning out of view (a taught turn in place ahead) leaves a few tiles, too few to judge by.
     min_region: float = 0.3
@@ -65,7 +70,7 @@ class ObstructionConfig:
     def __post_init__(self) -> None:
         if not (isinstance(self.along_m, (int, float)) and 0.0 <= self.along_m <= 1.0):
             raise ValueError(f"ObstructionConfig.along_m must be in [0, 1] m, got {self.along_m!r}")
-        for name in ("tile_threshold", "std_floor", "half_width_m", "near_m", "far_m"):
+        for name in ("tile_threshold", "std_floor", "half_width_m", "near_m", "far_m", "colour_threshold"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"ObstructionConfig.{name} must be a finite number > 0, got {value!r}")

@@ -364,3 +364,27 @@ def test_a_robot_placed_a_subgoal_or_two_off_along_the_route_sees_the_floor_matc
     det = ObstructionDetector(views, poses)
     assert fixed.update(view, 20.0, moved=False).fraction > det.cfg.onset_fraction + 0.1
     assert det.update(view, 20.0, moved=False).fraction <= det.cfg.clear_fraction
+
+
+@pytest.mark.parametrize("gain", [None, (1.2, 1.0, 0.75), "left_darker"])
+def test_a_plain_face_on_a_plain_floor_cell_of_another_colour_is_unmatched_in_any_light(gain):
+    """Normalised per channel, a plain patch matches any plain patch: a plain blue box face standing on a large
+    plain magenta floor cell matched it tile for tile (dev gen_107: the stop 0.30 m from the box, then a false
+    clear and contact). Its colour against the view's floor tells them apart, in a colour cast or a light
+    darker on one side too, and the same cell seen again still matches."""
+    views, poses = route()
+    views = views.copy()
+    views[3:5, 72:, 24:104] = (170, 60, 160)  # the floor ahead, one plain cell in the taught views
+    det = ObstructionDetector(views, poses)
+    box = views[3].copy()
+    box[40:112, 40:88] = (60, 90, 200)  # a plain face on that cell, 0.4 m ahead
+    scale = np.linspace(0.45, 1.0, 128)[None, :, None] if gain == "left_darker" else np.array(gain or 1.0)
+
+    def lit(image: np.ndarray) -> np.ndarray:
+        return np.clip(image * scale, 0, 255).astype(np.uint8)
+
+    scores = det.scores(lit(box), 3.0).reshape(-1)
+    face = [k for k, t in enumerate(det.floor.tiles) if t // 8 in (5, 6) and t % 8 in (3, 4)]  # inside it
+    assert (scores[face] > det.cfg.tile_threshold).all()
+    assert det.share(lit(box), 3.0) > 0.5
+    assert det.share(lit(views[3]), 3.0) == 0.0
