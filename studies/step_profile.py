@@ -77,12 +77,12 @@ def _owners(rep: Any) -> dict[str, Any]:
     }
 
 
-def profile_stages(
+def stage_samples(
     rep: Any, steps: int, warmup: int, clock: Callable[[], int] = time.perf_counter_ns
-) -> dict[str, dict[str, float]]:
-    """Median us per step of each stage (and of the whole step) over ``steps`` steps of ``rep``; ``clock``:
-    wall time, or ``time.thread_time_ns`` for the CPU time of the step's thread (what a busy machine's waits
-    for a core leave out)."""
+) -> tuple[dict[str, np.ndarray], dict[str, int]]:
+    """Us per step of each stage (and of the whole step) over ``steps`` steps of ``rep``, in ``STAGES``'
+    order, and the calls each stage made over them; ``clock``: wall time, or ``time.thread_time_ns`` for the
+    CPU time of the step's thread (what a busy machine's waits for a core leave out)."""
     owners = _owners(rep)
     per_step: dict[str, int] = {}
     calls: dict[str, int] = {}
@@ -130,14 +130,24 @@ def profile_stages(
             else:
                 setattr(target, attr, old)
     order = ["step", "step.own"] + [label for label, _, _ in STAGES]
-    # a stage absent from some steps counts 0 there: the medians are per step, not per call
-    return {
-        k: {
-            "median_us": float(np.median(samples[k] + [0] * (steps - len(samples[k])))) / 1e3,
-            "calls_per_step": calls.get(k, steps) / steps,
-        }
-        for k in order
+    # a stage absent from some steps counts 0 there: the figures are per step, not per call
+    per_stage = {
+        k: np.array(samples[k] + [0] * (steps - len(samples[k])), dtype=np.float64) / 1e3
+        for k in dict.fromkeys(order)
         if k in samples
+    }
+    return per_stage, calls
+
+
+def profile_stages(
+    rep: Any, steps: int, warmup: int, clock: Callable[[], int] = time.perf_counter_ns
+) -> dict[str, dict[str, float]]:
+    """Median us per step of each stage (and of the whole step) over ``steps`` steps of ``rep`` (``clock``:
+    as ``stage_samples``)."""
+    per_stage, calls = stage_samples(rep, steps, warmup, clock)
+    return {
+        k: {"median_us": float(np.median(v)), "calls_per_step": calls.get(k, steps) / steps}
+        for k, v in per_stage.items()
     }
 
 
