@@ -173,7 +173,8 @@ class ObstructionDetector:
 
     def floor_evidence(self, k: int) -> np.ndarray:
         """(tiles,) whether each tile of taught view ``k`` can show the floor changed: it has texture (a plain
-        patch matches any plain patch, a re-coloured floor's too) and it is floor, not a wall or furniture
+        patch matches any plain patch by texture, and only its colour could tell a change, but the floor-plane
+        check below cannot tell a plain floor from a plain wall) and it is floor, not a wall or furniture
         (which a re-laid floor leaves as they were): every taught view ``FLOOR_BASE_M`` to two subgoals away,
         warped by the floor plane to view ``k``, matches it where it saw it (what stands up moves across the
         view otherwise). Without taught poses, or no such view near, every textured tile. Made when first
