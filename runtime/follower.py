@@ -18,10 +18,10 @@ Each image:
 5. lost: for ``lost_steps`` images in a row no subgoal near the estimate matches the view (the best
    distance is over the lost bound there: the route's, or ``lost_factor`` times the taught gaps next to the
    estimate where those are wider, ``thresholds.lost_bounds``) and the match is not improving: LOST, with
-   the evidence; or the estimate has not progressed (``PROGRESS_GAPS`` past the furthest it reached) for
-   ``stall_images`` images (``STALL_WINDOWS`` times the images the teach took for the localiser's window)
-   while the view matched no subgoal under its threshold: LOST, with the evidence (a robot that neither gets
-   on nor finds the view it steers to, which the lost bound alone let crawl on where taught views differ);
+   the evidence; or the estimate has not progressed while the view matched no subgoal under its threshold,
+   for too many images or over more commanded travel than the taught route covers across the localiser's
+   window (``runtime.progress_watch``): LOST, with the evidence (a robot that neither gets on nor finds the
+   view it steers to, which the lost bound alone let crawl on where taught views differ, or drive on blind);
 6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
    ahead, rounded up to a subgoal), with the taught command at the estimated position as feed-forward
    (``Decision.prior``, blended by the repeat loop; faded out over the last control step of taught motion
@@ -51,6 +51,7 @@ from vtr.runtime.floor_view import Camera
 from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
 from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionVerdict, SideFn, moving
+from vtr.runtime.progress_watch import ProgressWatch
 from vtr.runtime.route_sensing import obstruction_detector, route_camera, side_offset
 from vtr.runtime.side_offset import SideEstimate
 from vtr.runtime.thresholds import check_subgoals, lost_bounds, route_views
@@ -66,15 +67,6 @@ SIDE_TURN_MAX = 0.5
 #: estimate can be wrong by centimetres (just after a turn in place, the taught floor warped to a pose the
 #: localiser has a little off), and a pursuit acts on it at any pace.
 SIDE_VIEWS = 3
-#: The estimate has progressed when it moves this far (gaps) past the furthest it reached: one cell of the
-#: localiser's grid moves by noise alone.
-PROGRESS_GAPS = 0.25
-#: Lost without progress: the images a robot may go without its estimate progressing while the view matches
-#: no subgoal of the window under its threshold, in units of the images the teach took for the localiser's
-#: whole window of subgoals (8: 128 images on a route taught a subgoal every 2 steps). On dev routes runs
-#: that finished went at most 15 images so, one 108 (moved furniture, closing in on the end); runs that
-#: never would finish 220-734, until the step limit (``benchmarks/results/ending_s5.md``).
-STALL_WINDOWS = 8.0
 #: A view's floor registration, asked when needed and made once (``Follower._floor_side_at``).
 FloorSide = Callable[[], "SideEstimate | None"]
 
@@ -137,12 +129,9 @@ class Follower:
         self.localised_to: int | None = None
         self._lost_count = 0
         self._lost_best = math.inf
-        #: the furthest the estimate reached (subgoal units), and the images judged since it progressed past it
-        #: with no subgoal matching the view (``_stalled``)
-        self._reach = -math.inf
-        self._since = 0
         window = self.cfg.localiser.window_behind + self.cfg.localiser.window_ahead
-        self.stall_images = max(1, int(round(STALL_WINDOWS * window * self._steps)))
+        #: images and commanded travel since the last evidence of where the robot is (``_stalled``)
+        self.progress = ProgressWatch(window * self._steps, self.cfg.localiser.turn_length_m)
         self._idle = 0
         self._finished = False
 
@@ -189,12 +178,13 @@ class Follower:
         self._idle = self._idle + 1 if abs(v) < IDLE_SPEED and abs(w) < IDLE_TURN else 0
         self._speed = v
         self._moved = self._moved or moving(v, w)
+        self.progress.commanded(v, w, dt)
         self.localiser.predict(v, w, dt)
 
     def relocalise(self) -> None:
         """Search the whole route on the next image (after a robot restart)."""
         self.localiser.start_at(None)
-        self._reach, self._since = -math.inf, 0  # progress counts from where the views place it now
+        self.progress.reset()  # counted from where the views place it now
         if self.obstruction is not None:
             self.obstruction.reset()
 
@@ -308,7 +298,8 @@ class Follower:
         if not verdict.blocked:
             return None
         # what spoils the match is in the way, not elsewhere; and a robot held still makes no progress
-        self._lost_count, self._lost_best, self._since = 0, math.inf, 0
+        self._lost_count, self._lost_best = 0, math.inf
+        self.progress.reset()
         return Decision(
             Action.BLOCKED,
             self.index,
@@ -362,26 +353,20 @@ class Follower:
         )
 
     def _stalled(self, est: Estimate) -> Decision | None:
-        """LOST when the estimate has not progressed for ``stall_images`` images while the view matched no
-        subgoal of the window under its threshold: a robot that neither gets on along the route nor finds the
-        view it is steering to (moved furniture near the end: dev runs hunted back and forth 2 cm from the end,
-        or stood 33 cm past it with the estimate half a gap short, until the step limit). A view matching a
-        subgoal places the robot there afresh. ``lost_steps`` <= 0 (no lost verdict at all) turns it off too."""
+        """LOST when the estimate has made no progress, and no view matched a subgoal under its threshold, for
+        too long (``runtime.progress_watch``). ``lost_steps`` <= 0 (no lost verdict at all) turns it off."""
         if self.cfg.lost_steps <= 0:
             return None
         matched = est.best_error <= float(self.thresholds[est.best])
-        if matched or est.position >= self._reach + PROGRESS_GAPS:
-            self._reach, self._since = est.position, 0
-            return None
-        self._since += 1
-        if self._since < self.stall_images:
+        spent = self.progress.judge(est.position, matched, self.localiser.window_travel(est.position))
+        if spent is None:
             return None
         return self._stop(
             Action.LOST,
             est.best_error,
-            f"lost near subgoal {int(round(est.position))}: no progress past {self._reach:.2f} for "
-            f"{self._since} images, best match {est.best_error:.3f} at subgoal {est.best} (threshold "
-            f"{float(self.thresholds[est.best]):.3f}), confidence {est.confidence:.2f}",
+            f"lost near subgoal {int(round(est.position))}: {spent}, best match {est.best_error:.3f} at "
+            f"subgoal {est.best} (threshold {float(self.thresholds[est.best]):.3f}), confidence "
+            f"{est.confidence:.2f}",
         )
 
 

@@ -221,6 +221,16 @@ class RouteLocaliser:
         m = self.cfg.mixing
         self.belief = (1 - m) * self.belief + m / len(self.belief)
 
+    def window_travel(self, position: float) -> float:
+        """The taught travel (m, a turn counted at ``turn_length_m`` a radian) across the window of subgoals
+        the views at ``position`` are compared with: how far a robot can get along the route and still be
+        found by them."""
+        if self.n < 2:
+            return math.inf
+        gaps = self._window_at(int(round(position)))
+        k0, k1 = gaps.start, min(gaps.stop - 1, self.n - 1)
+        return float(np.sqrt(self._motion_sq[k0:k1]).sum())
+
     def left_to_end(self, steps: float) -> float:
         """The belief's expectation of the taught motion left before the end, in control steps (``steps`` per
         gap), each position's counted up to one: 1 well before the end, 0 with all the belief at the end. (The

@@ -85,20 +85,22 @@ def changed_end(share: float = 0.4) -> np.ndarray:
 def test_a_robot_that_makes_no_progress_with_a_poor_match_ends_lost_with_the_evidence():
     """Moved furniture at a route's end (dev gen_122 and gen_111): the view matched no subgoal there and the
     estimate went nowhere; the lost bound, wide at the end, never held, and the run went on to the step limit
-    (400-500 images). Without progress for ``stall_images`` images it ends lost, with the evidence."""
+    (400-500 images). Without progress for ``progress.stall_images`` images it ends lost, with the evidence."""
     follower = _near_end()
-    actions = _standing(follower, changed_end(), follower.stall_images + 2)
+    actions = _standing(follower, changed_end(), follower.progress.stall_images + 2)
     est = follower.estimate
     assert est is not None and est.best_error < follower.bound_at(est.position)  # the bound alone never held
     assert est.best_error > follower.thresholds[est.best]
     assert Action.LOST in actions and Action.FINISHED not in actions
-    assert actions.index(Action.LOST) == follower.stall_images - 1  # not sooner: the robot had its time
+    assert (
+        actions.index(Action.LOST) == follower.progress.stall_images - 1
+    )  # not sooner: the robot had its time
     assert follower.status is Action.LOST
 
 
 def test_the_stall_evidence_names_where_and_how_well_it_matched():
     follower = _near_end()
-    for _ in range(follower.stall_images + 2):
+    for _ in range(follower.progress.stall_images + 2):
         verdict = follower.judge(changed_end())
         if verdict.decision.action is Action.LOST:
             break
@@ -125,7 +127,7 @@ def test_a_robot_that_keeps_progressing_with_a_poor_match_is_not_lost():
         actions.append(follower.judge(np.clip(noisy, 0, 255).astype(np.uint8)).decision.action)
         follower.commanded(0.25, 0.0, 0.1)
         x += 0.025
-    assert len(actions) > follower.stall_images
+    assert len(actions) > follower.progress.stall_images
     assert set(actions) == {Action.COMMAND}
     est = follower.estimate
     assert est is not None and est.best_error > follower.thresholds[est.best]  # the match stayed poor
@@ -134,4 +136,24 @@ def test_a_robot_that_keeps_progressing_with_a_poor_match_is_not_lost():
 def test_no_lost_verdict_at_all_turns_the_stall_off_too():
     """``lost_steps`` = 0 (ablations: never lost) covers the stall's verdict as well."""
     follower = _near_end(lost_steps=0)
-    assert Action.LOST not in _standing(follower, changed_end(), follower.stall_images + 2)
+    assert Action.LOST not in _standing(follower, changed_end(), follower.progress.stall_images + 2)
+
+
+def test_a_robot_driven_on_without_progress_or_match_ends_lost_after_the_window_s_travel():
+    """Held-out set 14, gen_1514: with the view matching nothing near the end and the estimate held there, a
+    policy kept driving at 0.25 m/s, 1.9 m into a wall, before ``stall_images`` ran out. Commanded travel past
+    the taught travel across the localiser's window ends it, long before the image count would."""
+    follower = _near_end()
+    window_m = follower.localiser.window_travel(follower.estimate.position)
+    actions = []
+    for _ in range(follower.progress.stall_images):
+        verdict = follower.judge(changed_end())
+        actions.append(verdict.decision.action)
+        if verdict.decision.action is Action.LOST:
+            break
+        follower.commanded(0.25, 0.0, 0.1)
+    assert actions[-1] is Action.LOST and set(actions[:-1]) <= {Action.COMMAND}
+    driven = 0.025 * (len(actions) - 1)
+    assert abs(driven - window_m) <= 0.05  # lost once the travel passed the window's (a step either way)
+    assert len(actions) < follower.progress.stall_images // 2
+    assert "m of commanded travel" in verdict.decision.note

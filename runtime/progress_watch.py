@@ -1,0 +1,61 @@
+"""Whether a repeat still has evidence of where it is along the route: the estimate progressing, or a view
+matching a subgoal. Without either for too long the follower ends the run LOST (``runtime.follower``).
+
+Too long is measured two ways, one state: images end a crawl (moved furniture near the end: dev runs hunted
+back and forth 2 cm from the end, or stood 33 cm past it with the estimate half a gap short, until the step
+limit); commanded travel ends a drive: past the taught travel across the localiser's window, a robot that had
+moved along the route would have left every view the localiser compares with (held-out set 14, gen_1514: a
+fine-tuned model drove 1.9 m at 0.25 m/s from near the route's end into a wall, its view 2.5-3x the threshold
+off, the estimate held at 46 of 49).
+"""
+
+from __future__ import annotations
+
+import math
+
+#: The estimate has progressed when it moves this far (gaps) past the furthest it reached: one cell of the
+#: localiser's grid moves by noise alone.
+PROGRESS_GAPS = 0.25
+#: The images a robot may go without evidence, in units of the images the teach took for the localiser's
+#: whole window of subgoals (8: 128 images on a route taught a subgoal every 2 steps). On dev routes runs that
+#: finished went at most 15 images so, one 108 (moved furniture, closing in on the end); runs that never would
+#: finish 220-734, until the step limit (``benchmarks/results/ending_s5.md``).
+STALL_WINDOWS = 8.0
+
+
+class ProgressWatch:
+    """Counts images and commanded travel since the last evidence of where the robot is."""
+
+    def __init__(self, window_images: float, turn_length_m: float) -> None:
+        """``window_images``: the images the teach took for the localiser's window; ``turn_length_m``: the
+        travel a radian of turning counts as (the localiser's)."""
+        self.stall_images = max(1, int(round(STALL_WINDOWS * window_images)))
+        self.turn_length_m = turn_length_m
+        self.reset()
+
+    def reset(self) -> None:
+        """Count afresh (a new start, the robot held for something in the way)."""
+        self.reach, self.since, self.travel = -math.inf, 0, 0.0
+
+    def commanded(self, v: float, w: float, dt: float) -> None:
+        self.travel += (abs(v) + self.turn_length_m * abs(w)) * dt
+
+    def judge(self, position: float, matched: bool, window_m: float) -> str | None:
+        """One view: ``position`` the estimate, ``matched`` whether a subgoal matched the view, ``window_m``
+        the taught travel across the localiser's window there. None while evidence is recent enough, else
+        what was spent without it."""
+        if matched or position >= self.reach + PROGRESS_GAPS:
+            self.reach, self.since, self.travel = position, 0, 0.0
+            return None
+        self.since += 1
+        if self.since >= self.stall_images:
+            return f"no progress past {self.reach:.2f} for {self.since} images"
+        if self.travel > window_m:
+            return (
+                f"no progress past {self.reach:.2f} for {self.travel:.2f} m of commanded travel (the window "
+                f"spans {window_m:.2f} m)"
+            )
+        return None
+
+
+__all__ = ["PROGRESS_GAPS", "STALL_WINDOWS", "ProgressWatch"]
