@@ -19,7 +19,7 @@ Each image:
    distance is over the lost bound there: the route's, or ``lost_factor`` times the taught gaps next to the
    estimate where those are wider, ``thresholds.lost_bounds``) and the match is not improving: LOST, with
    the evidence; or the estimate has not progressed while the view matched no subgoal under its threshold,
-   for too many images or over more commanded travel than the taught route covers across the localiser's
+   for too many images or while driven further than the taught route covers across the localiser's
    window (``runtime.progress_watch``): LOST, with the evidence (a robot that neither gets on nor finds the
    view it steers to, which the lost bound alone let crawl on where taught views differ, or drive on blind);
 6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
@@ -130,8 +130,8 @@ class Follower:
         self._lost_count = 0
         self._lost_best = math.inf
         window = self.cfg.localiser.window_behind + self.cfg.localiser.window_ahead
-        #: images and commanded travel since the last evidence of where the robot is (``_stalled``)
-        self.progress = ProgressWatch(window * self._steps, self.cfg.localiser.turn_length_m)
+        #: images and commanded translation since the last evidence of where the robot is (``_stalled``)
+        self.progress = ProgressWatch(window * self._steps)
         self._idle = 0
         self._finished = False
 
@@ -178,7 +178,7 @@ class Follower:
         self._idle = self._idle + 1 if abs(v) < IDLE_SPEED and abs(w) < IDLE_TURN else 0
         self._speed = v
         self._moved = self._moved or moving(v, w)
-        self.progress.commanded(v, w, dt)
+        self.progress.commanded(v, dt)
         self.localiser.predict(v, w, dt)
 
     def relocalise(self) -> None:

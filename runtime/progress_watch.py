@@ -3,10 +3,12 @@ matching a subgoal. Without either for too long the follower ends the run LOST (
 
 Too long is measured two ways, one state: images end a crawl (moved furniture near the end: dev runs hunted
 back and forth 2 cm from the end, or stood 33 cm past it with the estimate half a gap short, until the step
-limit); commanded travel ends a drive: past the taught travel across the localiser's window, a robot that had
-moved along the route would have left every view the localiser compares with (held-out set 14, gen_1514: a
+limit); commanded translation ends a drive: past the taught travel across the localiser's window, a robot that
+had moved along the route would have left every view the localiser compares with (held-out set 14, gen_1514: a
 fine-tuned model drove 1.9 m at 0.25 m/s from near the route's end into a wall, its view 2.5-3x the threshold
-off, the estimate held at 46 of 49).
+off, the estimate held at 46 of 49). Turning in place does not count: it sweeps no new floor, and robots that
+turned a full circle looking for the view found it and finished (dev gen_109, gen_113: 0.0-0.02 m driven in
+100 images without evidence; the dev runs that touched something drove 1.1-1.2 windows' travel blind).
 """
 
 from __future__ import annotations
@@ -24,21 +26,20 @@ STALL_WINDOWS = 8.0
 
 
 class ProgressWatch:
-    """Counts images and commanded travel since the last evidence of where the robot is."""
+    """Counts images and commanded translation since the last evidence of where the robot is."""
 
-    def __init__(self, window_images: float, turn_length_m: float) -> None:
-        """``window_images``: the images the teach took for the localiser's window; ``turn_length_m``: the
-        travel a radian of turning counts as (the localiser's)."""
+    def __init__(self, window_images: float) -> None:
+        """``window_images``: the images the teach took for the localiser's window."""
         self.stall_images = max(1, int(round(STALL_WINDOWS * window_images)))
-        self.turn_length_m = turn_length_m
         self.reset()
 
     def reset(self) -> None:
         """Count afresh (a new start, the robot held for something in the way)."""
         self.reach, self.since, self.travel = -math.inf, 0, 0.0
 
-    def commanded(self, v: float, w: float, dt: float) -> None:
-        self.travel += (abs(v) + self.turn_length_m * abs(w)) * dt
+    def commanded(self, v: float, dt: float) -> None:
+        """The robot was commanded ``v`` (m/s, either way) for ``dt`` seconds."""
+        self.travel += abs(v) * dt
 
     def judge(self, position: float, matched: bool, window_m: float) -> str | None:
         """One view: ``position`` the estimate, ``matched`` whether a subgoal matched the view, ``window_m``
@@ -52,8 +53,8 @@ class ProgressWatch:
             return f"no progress past {self.reach:.2f} for {self.since} images"
         if self.travel > window_m:
             return (
-                f"no progress past {self.reach:.2f} for {self.travel:.2f} m of commanded travel (the window "
-                f"spans {window_m:.2f} m)"
+                f"no progress past {self.reach:.2f} over {self.travel:.2f} m driven (the window spans "
+                f"{window_m:.2f} m)"
             )
         return None
 

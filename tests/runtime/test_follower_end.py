@@ -141,7 +141,7 @@ def test_no_lost_verdict_at_all_turns_the_stall_off_too():
 
 def test_a_robot_driven_on_without_progress_or_match_ends_lost_after_the_window_s_travel():
     """Held-out set 14, gen_1514: with the view matching nothing near the end and the estimate held there, a
-    policy kept driving at 0.25 m/s, 1.9 m into a wall, before ``stall_images`` ran out. Commanded travel past
+    policy kept driving at 0.25 m/s, 1.9 m into a wall, before ``stall_images`` ran out. Driving past
     the taught travel across the localiser's window ends it, long before the image count would."""
     follower = _near_end()
     window_m = follower.localiser.window_travel(follower.estimate.position)
@@ -156,4 +156,15 @@ def test_a_robot_driven_on_without_progress_or_match_ends_lost_after_the_window_
     driven = 0.025 * (len(actions) - 1)
     assert abs(driven - window_m) <= 0.05  # lost once the travel passed the window's (a step either way)
     assert len(actions) < follower.progress.stall_images // 2
-    assert "m of commanded travel" in verdict.decision.note
+    assert "m driven" in verdict.decision.note
+
+
+def test_a_robot_turning_in_place_to_find_the_view_is_not_lost_by_travel():
+    """Dev gen_109 and gen_113: robots that turned a full circle without evidence found the view and finished.
+    Turning sweeps no new floor: only the image count ends it."""
+    follower = _near_end()
+    actions = []
+    for _ in range(follower.progress.stall_images + 2):
+        actions.append(follower.judge(changed_end()).decision.action)
+        follower.commanded(0.0, 1.0, 0.1)
+    assert actions.index(Action.LOST) == follower.progress.stall_images - 1
