@@ -22,11 +22,10 @@ report.json, metrics.jsonl and its log). Export and closed-loop evaluation happe
 from __future__ import annotations
 
 import argparse
-import tarfile
 from pathlib import Path
 
 from studies.mpc_vs_bc import STD
-from studies.train_on_gpu import PART_BYTES, PY, Session, common, run_parallel, split_file
+from studies.train_on_gpu import PY, Session, common, pack, run_parallel
 
 #: name -> the flags that make the candidate (all share the rest).
 CANDIDATES: dict[str, list[str]] = {
@@ -122,17 +121,7 @@ def main(argv: list[str] | None = None) -> int:
         if name in args.candidates.split(",")
     }
     run_parallel(s, jobs, "velocitynet")
-    packed = s.work / "runs.tgz"
-    with tarfile.open(packed, "w:gz", compresslevel=1) as tar:
-        for name in jobs:
-            for f in ("model.pt", "report.json", "metrics.jsonl"):
-                if (runs / name / f).is_file():
-                    tar.add(runs / name / f, arcname=f"{name}/{f}")
-        for f in sorted((s.work / "logs").glob("*.log")):
-            tar.add(f, arcname=f"logs/{f.name}")
-    parts = split_file(packed, s.out, PART_BYTES)
-    s.log(f"packed {packed.stat().st_size / 1e6:.1f} MB in {len(parts)} parts; {len(s.records)} records")
-    s.save()
+    pack(s, [runs / name / f for name in jobs for f in ("model.pt", "report.json", "metrics.jsonl")])
     return 0
 
 

@@ -118,6 +118,21 @@ def split_file(path: Path, out: Path, part_bytes: int) -> list[Path]:
     return parts
 
 
+def pack(s: Session, files: list[Path]) -> None:
+    """``files`` (each kept as ``run/name``, those missing left out) and the job logs into one tar.gz, split into
+    OUT's parts the lease sends back (at most 16 MiB a file)."""
+    packed = s.work / "runs.tgz"
+    with tarfile.open(packed, "w:gz", compresslevel=1) as tar:
+        for f in files:
+            if f.is_file():
+                tar.add(f, arcname=f"{f.parent.name}/{f.name}")
+        for f in sorted((s.work / "logs").glob("*.log")):
+            tar.add(f, arcname=f"logs/{f.name}")
+    parts = split_file(packed, s.out, PART_BYTES)
+    s.log(f"packed {packed.stat().st_size / 1e6:.1f} MB in {len(parts)} parts; {len(s.records)} records")
+    s.save()
+
+
 def minutes(s: Session, share: float) -> str:
     """A stage's --max-minutes: its share of what is left (a stage cut short validates and saves as if done)."""
     return f"{max(0.2, share * s.left() / 60.0):.2f}"
@@ -410,22 +425,17 @@ def main(argv: list[str] | None = None) -> int:
             ]
         ]
     run_parallel(s, jobs, "velocitynet")
-    # pack: what finished, small files only, in parts the lease sends back (at most 16 MiB a file)
+    # pack: what finished, small files only (no ViewNet weights but the camera fine-tune's)
     keep = ("model.pt", "report.json", "metrics.jsonl")
-    packed = s.work / "runs.tgz"
-    with tarfile.open(packed, "w:gz", compresslevel=1) as tar:
-        for run in sorted(runs.glob("*")) if runs.exists() else []:
-            for name in keep:
-                f = run / name
-                big_viewnet = run.name.startswith("viewnet_s") and name == "model.pt"
-                if f.is_file() and not big_viewnet:
-                    tar.add(f, arcname=f"{run.name}/{name}")
-        logs = w / "logs"
-        for f in sorted(logs.glob("*.log")) if logs.exists() else []:
-            tar.add(f, arcname=f"logs/{f.name}")
-    parts = split_file(packed, s.out, PART_BYTES)
-    s.log(f"packed {packed.stat().st_size / 1e6:.1f} MB in {len(parts)} parts; {len(s.records)} records")
-    s.save()
+    pack(
+        s,
+        [
+            run / f
+            for run in sorted(runs.glob("*"))
+            for f in keep
+            if not (run.name.startswith("viewnet_s") and f == "model.pt")
+        ],
+    )
     return 0
 
 
