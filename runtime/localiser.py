@@ -152,6 +152,8 @@ class RouteLocaliser:
         rho = self.cfg.turn_length_m
         self._motion = np.asarray(motion, dtype=np.float64).reshape(-1, 2) * (1.0, rho)
         self._motion_sq = np.einsum("ij,ij->i", self._motion, self._motion)
+        # the taught travel from the first subgoal to each (m, turns at ``rho`` a radian): window_travel's sums
+        self._travelled = np.concatenate([[0.0], np.cumsum(np.sqrt(self._motion_sq))])
         # the teach's own distances, subgoal k to k + o for every offset o of the widest window
         self._span = self.cfg.window_behind + self.cfg.window_ahead + 1
         self._band = self._self_distances(self._span)
@@ -227,9 +229,8 @@ class RouteLocaliser:
         found by them."""
         if self.n < 2:
             return math.inf
-        gaps = self._window_at(int(round(position)))
-        k0, k1 = gaps.start, min(gaps.stop - 1, self.n - 1)
-        return float(np.sqrt(self._motion_sq[k0:k1]).sum())
+        window = self._window_at(int(round(position)))
+        return float(self._travelled[window.stop - 1] - self._travelled[window.start])
 
     def left_to_end(self, steps: float) -> float:
         """The belief's expectation of the taught motion left before the end, in control steps (``steps`` per

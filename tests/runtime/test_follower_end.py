@@ -92,9 +92,8 @@ def test_a_robot_that_makes_no_progress_with_a_poor_match_ends_lost_with_the_evi
     assert est is not None and est.best_error < follower.bound_at(est.position)  # the bound alone never held
     assert est.best_error > follower.thresholds[est.best]
     assert Action.LOST in actions and Action.FINISHED not in actions
-    assert (
-        actions.index(Action.LOST) == follower.progress.stall_images - 1
-    )  # not sooner: the robot had its time
+    # not sooner: the robot had its time
+    assert actions.index(Action.LOST) == follower.progress.stall_images - 1
     assert follower.status is Action.LOST
 
 
