@@ -7,7 +7,12 @@ Each image:
 2. the localiser (``runtime.localiser``) weighs its belief by the view: where along the route the robot
    is (``position``, in subgoal units) and how sure (``confidence``, ``match``);
 3. the end: the estimate is at the last subgoal, the view is closest to it, and it matches it as well as
-   the teach's neighbouring views match each other (or the policy has stopped driving there): FINISHED;
+   the teach's neighbouring views match each other (or the policy has stopped driving there): FINISHED; and
+   where the view never matches it that well, the end by travel: once the robot has driven further than the
+   taught route had left when the views first placed it at the end (``runtime.progress_watch.EndWatch``; a
+   view past the end looks like one as far short of it, so the views cannot see it pass), FINISHED where the
+   view matches the last subgoal within the settled rule's bound, else LOST with the evidence (judged after
+   4 and 5);
 4. blocked: the camera sees the way ahead blocked (``runtime.obstruction``: the floor just ahead, warped from
    the taught view to the estimated pose, stops matching in a region that grew while the robot was
    commanded forward): BLOCKED with the evidence, for as long as the detector says so. It is not an end:
@@ -51,7 +56,7 @@ from vtr.runtime.floor_view import Camera
 from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
 from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionVerdict, SideFn, moving
-from vtr.runtime.progress_watch import ProgressWatch
+from vtr.runtime.progress_watch import EndWatch, ProgressWatch
 from vtr.runtime.route_sensing import obstruction_detector, route_camera, side_offset
 from vtr.runtime.side_offset import SideEstimate
 from vtr.runtime.thresholds import check_subgoals, lost_bounds, route_views
@@ -132,6 +137,8 @@ class Follower:
         window = self.cfg.localiser.window_behind + self.cfg.localiser.window_ahead
         #: images and commanded translation since the last evidence of where the robot is (``_stalled``)
         self.progress = ProgressWatch(window * self._steps)
+        #: commanded translation since the views placed the robot at the route's end (``_past_end``)
+        self.end = EndWatch(np.concatenate([[0.0], np.cumsum(np.abs(motion[:, 0]))]))
         self._idle = 0
         self._finished = False
 
@@ -179,12 +186,14 @@ class Follower:
         self._speed = v
         self._moved = self._moved or moving(v, w)
         self.progress.commanded(v, dt)
+        self.end.commanded(v, dt)
         self.localiser.predict(v, w, dt)
 
     def relocalise(self) -> None:
         """Search the whole route on the next image (after a robot restart)."""
         self.localiser.start_at(None)
         self.progress.reset()  # counted from where the views place it now
+        self.end.reset()
         if self.obstruction is not None:
             self.obstruction.reset()
 
@@ -236,6 +245,9 @@ class Follower:
         lost = self._lost(est) or self._stalled(est)
         if lost is not None:
             return lost
+        past = self._past_end(est, at_end, final_error, threshold)
+        if past is not None:
+            return past
         target = min(last, int(math.floor(est.position + self.cfg.lead)) + 1)
         gap = min(int(est.position), last - 1) if last > 0 else 0
         hold = self.holds_turn(gap + 1)  # the teach turned on the spot where the robot is
@@ -350,6 +362,25 @@ class Follower:
             est.best_error,
             f"lost near subgoal {int(round(est.position))}: best match {est.best_error:.3f} at subgoal "
             f"{est.best} (bound {bound:.3f}), confidence {est.confidence:.2f}",
+        )
+
+    def _past_end(self, est: Estimate, at_end: bool, final_error: float, threshold: float) -> Decision | None:
+        """The end by travel: once the robot has driven further than the taught route had left when the views
+        first placed it at the end (``runtime.progress_watch.EndWatch``), it is there or past it. FINISHED
+        where the view matches the last subgoal as the ``settled`` rule asks (within ``jump_factor``
+        thresholds), else LOST with the evidence; None while it has route left."""
+        spent = self.end.judge(est.position, at_end)
+        if spent is None:
+            return None
+        last = len(self) - 1
+        if final_error <= self.cfg.jump_factor * threshold:
+            self._finished = True
+            return Decision(Action.FINISHED, len(self), final_error, note=f"at the route's end: {spent}")
+        return self._stop(
+            Action.LOST,
+            final_error,
+            f"lost at the route's end: {spent}, the view {final_error:.3f} from subgoal {last}'s (threshold "
+            f"{threshold:.3f}), best match {est.best_error:.3f} at subgoal {est.best}",
         )
 
     def _stalled(self, est: Estimate) -> Decision | None:

@@ -167,3 +167,43 @@ def test_a_robot_turning_in_place_to_find_the_view_is_not_lost_by_travel():
         actions.append(follower.judge(changed_end()).decision.action)
         follower.commanded(0.0, 1.0, 0.1)
     assert actions.index(Action.LOST) == follower.progress.stall_images - 1
+
+
+def _drive_past_the_end(cfg: ControllerConfig, sigma: float = 100.0) -> tuple[Action, float, str]:
+    """A robot driven at 0.025 m a view along the wall route and on past its end, its camera noisy (``sigma``)
+    from the last gap on, so that no view there matches the last subgoal under its threshold: the follower's
+    end decision, where the robot was (m) and the note."""
+    follower = Follower.for_route(wall_route(), cfg)
+    rng = np.random.default_rng(0)
+    x = 0.0
+    while x < 1.5:
+        view = wall_view(x).astype(np.float64)
+        if x >= END - 0.05 - 1e-9:
+            view += rng.normal(0.0, sigma, view.shape)
+        decision = follower.judge(np.clip(view, 0, 255).astype(np.uint8)).decision
+        if decision.action is not Action.COMMAND:
+            return decision.action, x, decision.note
+        follower.commanded(0.25, 0.0, 0.1)
+        x += 0.025
+    return Action.COMMAND, x, ""
+
+
+def test_a_robot_never_drives_on_past_the_route_s_end():
+    """Held-out set 15, gen_1617 (9 conditions): the view never matched the last subgoal under its threshold,
+    the estimate stayed half a gap short (a view past the end looks like one as far short of it), and the
+    robot drove on 5-7 cm past the end before it stopped. Here, without the end's travel budget, the same
+    drive went 0.20 m past the end (lost by the window's travel). With it, the robot stops once it has driven
+    what the route had left when the views placed it at the end: within a gap of the end, FINISHED where the
+    view matches the last subgoal within the settled bound."""
+    action, x, note = _drive_past_the_end(ControllerConfig(zero_bias=0.0, lost_steps=3))
+    assert action is Action.FINISHED
+    assert END <= x <= END + 0.05 + 1e-9  # past the end, by at most one taught gap (0.05 m)
+    assert note.startswith("at the route's end: drove") and "of route left" in note
+
+
+def test_a_view_unlike_the_end_there_ends_lost_not_finished():
+    """The same drive where the end's view must match as well as the teach's neighbours (``jump_factor`` 1,
+    so the settled bound is the threshold itself): LOST at the end, with the evidence."""
+    action, x, note = _drive_past_the_end(ControllerConfig(zero_bias=0.0, lost_steps=3, jump_factor=1.0))
+    assert action is Action.LOST and x <= END + 0.05 + 1e-9
+    assert note.startswith("lost at the route's end") and "threshold" in note

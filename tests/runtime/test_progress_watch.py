@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
-from vtr.runtime.progress_watch import PROGRESS_GAPS, STALL_WINDOWS, ProgressWatch
+from vtr.runtime.progress_watch import PROGRESS_GAPS, STALL_WINDOWS, EndWatch, ProgressWatch
 
 
 def test_the_image_budget_is_the_window_s_images_times_stall_windows():
@@ -47,3 +48,37 @@ def test_a_small_move_back_and_forth_is_no_progress():
     for i in range(watch.stall_images - 1):
         assert watch.judge(3.0 + (PROGRESS_GAPS / 2) * (i % 2), matched=False, window_m=10.0) is None
     assert watch.judge(3.0, matched=False, window_m=10.0) is not None
+
+
+def _end_watch() -> EndWatch:
+    return EndWatch(np.array([0.0, 0.1, 0.2, 0.25, 0.3]))  # 5 subgoals, the last gaps 0.05 m
+
+
+def test_the_route_left_is_interpolated_between_subgoals():
+    watch = _end_watch()
+    assert watch.left_from(4.0) == pytest.approx(0.0)
+    assert watch.left_from(3.5) == pytest.approx(0.025)
+    assert watch.left_from(1.0) == pytest.approx(0.2)
+    assert watch.left_from(9.0) == pytest.approx(0.0) and watch.left_from(-1.0) == pytest.approx(0.3)
+
+
+def test_driving_further_than_the_route_had_left_at_the_end_runs_out():
+    watch = _end_watch()
+    watch.commanded(0.3, 1.0)  # before the end: not counted
+    assert watch.judge(3.2, at_end=False) is None and watch.start is None
+    assert watch.judge(3.0, at_end=True) is None  # 0.05 m of route left from here
+    watch.commanded(0.4, 0.1)
+    assert watch.judge(3.4, at_end=False) is None  # 0.04 m driven: still on the route
+    watch.commanded(-0.2, 0.1)  # backwards counts too
+    note = watch.judge(3.6, at_end=True)
+    assert note == "drove 0.06 m since the views placed it at the route's end (0.05 m of route left)"
+
+
+def test_turning_at_the_end_costs_nothing_and_a_view_back_along_the_route_counts_afresh():
+    watch = _end_watch()
+    watch.judge(3.5, at_end=True)
+    watch.commanded(0.0, 5.0)  # turning in place: no translation
+    assert watch.judge(3.5, at_end=True) is None
+    watch.commanded(0.2, 0.1)
+    assert watch.judge(2.5, at_end=False) is None and watch.start is None  # placed back: count afresh
+    assert watch.judge(3.5, at_end=True) is None
