@@ -57,7 +57,7 @@ from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
 from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionVerdict, SideFn, moving
 from vtr.runtime.progress_watch import EndWatch, ProgressWatch
-from vtr.runtime.route_sensing import obstruction_detector, route_camera, side_offset
+from vtr.runtime.route_sensing import obstruction_detector, floor_camera, side_offset
 from vtr.runtime.side_offset import SideEstimate
 from vtr.runtime.thresholds import check_subgoals, lost_bounds, route_views
 
@@ -154,7 +154,7 @@ class Follower:
             route.travel_poses(),
             steps,
             float(route.dt),
-            route_camera(route.camera),
+            floor_camera(route.camera),
         )
 
     def __len__(self) -> int:

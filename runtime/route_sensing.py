@@ -12,7 +12,7 @@ from vtr.runtime.obstruction import ObstructionDetector
 from vtr.runtime.side_offset import SideOffset
 
 
-def route_camera(camera: dict[str, object]) -> Camera:
+def floor_camera(camera: dict[str, object]) -> Camera:
     """The pinhole camera a route's ``camera`` meta describes (its field of view and height where known, the
     shipped camera's where not; the image size comes from the views)."""
     base = Camera()
@@ -49,4 +49,4 @@ def side_offset(subgoals: np.ndarray, poses: np.ndarray | None, camera: Camera |
         return None
 
 
-__all__ = ["obstruction_detector", "route_camera", "side_offset"]
+__all__ = ["obstruction_detector", "floor_camera", "side_offset"]
