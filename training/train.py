@@ -189,6 +189,7 @@ def _fit(
         raise
     bar.close()
     model.eval()
+    extra["steps_done"] = step  # the model's checkpoint says where training stopped (--max-minutes: before steps)
     return model
 
 
@@ -237,7 +238,7 @@ def train_viewnet(
     windows = Windows(data, 2, cfg, dist)
     extra = {
         "data": str(data_path),
-        "data_meta": data.meta,
+        "data_meta": {**data.meta, "frames": len(data)},  # export records what the model was trained on
         "val_episodes": windows.val_ids.tolist(),
         "train_config": to_dict(cfg),  # kept in model.pt too: export writes the recipe into the ONNX
     }
@@ -301,7 +302,7 @@ def train_velocitynet(
     windows = Windows(data, loss_cfg.horizon + 1, cfg, dist, alt=alt)
     extra = {
         "data": str(data_path),
-        "data_meta": data.meta,
+        "data_meta": {**data.meta, "frames": len(data)},  # export records what the model was trained on
         "val_episodes": windows.val_ids.tolist(),
         "viewnet": str(viewnet_path),
         "loss_config": to_dict(loss_cfg),

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from vtr.training.checkpoint import read_checkpoint
 from vtr.training.config import TrainConfig, get_preset
 from vtr.training.dataset import save_dataset, synthetic_dataset
 from vtr.training.train import train_viewnet
@@ -25,6 +26,10 @@ def test_a_spent_budget_stops_early_and_still_saves_the_model_and_report(tmp_pat
     assert max(r["step"] for r in rows) == 2  # nothing trained after it
     assert any(r["split"] == "val" and r["step"] == 2 for r in rows)
     assert (tmp_path / "v" / "model.pt").is_file() and (tmp_path / "v" / "report.json").is_file()
+    ckpt = read_checkpoint(tmp_path / "v" / "model.pt")
+    # the model says where it stopped and what it was trained on, not what was asked
+    assert ckpt["steps_done"] == 2 and ckpt["train_config"]["steps"] == 500
+    assert ckpt["data_meta"]["frames"] == 64
 
 
 def test_a_negative_or_nan_budget_is_refused() -> None:
