@@ -76,6 +76,7 @@ def run(cfg: DemoConfig) -> dict[str, Any]:
     import pymunk  # noqa: F401 - the simulator runs in a child process: say it is missing here, in one line
 
     from vtr.runtime.client import SimClient
+    from vtr.runtime.light import LightMatchedPolicy
     from vtr.runtime.policy import OnnxPolicy
     from vtr.runtime.repeater import Repeater, StepRecord
     from vtr.runtime.route_script import load_route_script
@@ -84,7 +85,8 @@ def run(cfg: DemoConfig) -> dict[str, Any]:
 
     say = _Say()
     model = find_model(cfg.model)
-    policy = OnnxPolicy(model, threads=cfg.threads)
+    # the policy as `vtr repeat` runs it by default: the current image recoloured to the subgoal's light first
+    policy = LightMatchedPolicy(OnnxPolicy(model, threads=cfg.threads))
     h, w = policy.image_shape
     script = load_route_script(_route_path(cfg.route))
     say(f"model {model} ({w}x{h} images, horizon {policy.meta.horizon}); route '{script.name}'")
