@@ -71,6 +71,16 @@ def model_dt(data_meta: dict[str, Any], given: float | None) -> float:
     return CONTROL_DT
 
 
+def _same_path(a: Any, b: Any) -> bool:
+    """Whether two dataset paths name the same file or folder (False where either is missing)."""
+    if not a or not b:
+        return False
+    try:
+        return Path(str(a)).resolve() == Path(str(b)).resolve()
+    except OSError:
+        return False
+
+
 def run(cfg: ExportConfig, data: Any = None) -> dict[str, Any]:
     """Export; ``data``: the dataset at ``cfg.data`` already loaded (``vtr train all`` loads it once)."""
     import numpy as np
@@ -98,7 +108,11 @@ def run(cfg: ExportConfig, data: Any = None) -> dict[str, Any]:
             data.images, data.episodes, count=cfg.calibration_pairs, seed=1, preprocessing=meta.preprocessing
         )
     parity_inputs = [real[0][:16], real[1][:16]] if real is not None else None
-    frames = len(data) if data is not None else data_meta.get("frames")
+    # the frames the model was trained on: its checkpoint says (training.train); an older one only when the
+    # data given for calibration is its training data (a calibration set is not what it learnt from)
+    frames = data_meta.get("frames")
+    if frames is None and data is not None and _same_path(cfg.data, ckpt.get("data")):
+        frames = len(data)
     props = provenance_props(*_with_run_configs(cfg.checkpoint, ckpt), frames=frames)
     result: dict[str, Any] = {
         "fp32": export_onnx(

@@ -59,6 +59,8 @@ def _stage(ckpt: Mapping[str, Any], init_ckpt: Mapping[str, Any] | None = None) 
         "model": ckpt.get("model_config"),
         "train": {k: train[k] for k in _TRAIN_FIELDS if k in train},
     }
+    if isinstance(ckpt.get("steps_done"), int):  # where training stopped (--max-minutes: before ``steps``)
+        out["train"]["steps_done"] = ckpt["steps_done"]
     if ckpt.get("init"):
         out["init"] = "/".join(Path(str(ckpt["init"])).parts[-3:])  # no local absolute paths
         if init_ckpt is not None:

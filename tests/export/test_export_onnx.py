@@ -191,6 +191,9 @@ def test_export_cli_writes_fp32_int8_and_viewnet(tmp_path: Path, capsys: pytest.
     report = json.loads(printed.out)
     assert "records no dataset dt" in printed.err  # this checkpoint has no data_meta: said, not silent
     assert out.exists() and int8_path(out).exists() and (out.parent / "viewnet.onnx").exists()
+    # the 60 calibration frames are not what this checkpoint (which names no data) was trained on: not claimed
+    props = {p.key: p.value for p in onnx.load(out).metadata_props}
+    assert "frames" not in json.loads(props["vtr.data"])
     # ViewNet's ONNX says what it is and does not pass for a policy
     vprops = {p.key: p.value for p in onnx.load(out.parent / "viewnet.onnx").metadata_props}
     assert vprops["vtr.kind"] == "viewnet" and "vtr.horizon" not in vprops

@@ -43,3 +43,10 @@ def test_a_fine_tune_names_its_start_and_that_starts_settings() -> None:
     assert out["velocitynet"]["init"] == "a/velocitynet/model.pt"  # no local absolute paths
     assert out["velocitynet"]["init_stage"]["train"] == {"lr": 1e-3, "steps": 4000}
     assert out["viewnet"]["train"] == {"steps": 2000}
+
+
+def test_a_training_stopped_by_its_budget_says_where() -> None:
+    """--max-minutes stops before ``steps``: the metadata gives both (the floors model: 2,475 of 3,000)."""
+    ckpt = {"model_config": {}, "train_config": {"lr": 1e-4, "steps": 3000}, "steps_done": 2475}
+    recipe = json.loads(provenance_props(ckpt, None)[RECIPE_KEY])
+    assert recipe["velocitynet"]["train"] == {"lr": 1e-4, "steps": 3000, "steps_done": 2475}
