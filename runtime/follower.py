@@ -57,7 +57,7 @@ from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
 from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionVerdict, SideFn, moving
 from vtr.runtime.progress_watch import EndWatch, ProgressWatch
-from vtr.runtime.route_sensing import obstruction_detector, floor_camera, side_offset
+from vtr.runtime.route_sensing import floor_camera, obstruction_detector, side_offset
 from vtr.runtime.side_offset import SideEstimate
 from vtr.runtime.thresholds import check_subgoals, lost_bounds, route_views
 
@@ -369,7 +369,7 @@ class Follower:
         first placed it at the end (``runtime.progress_watch.EndWatch``), it is there or past it. FINISHED
         where the view matches the last subgoal as the ``settled`` rule asks (within ``jump_factor``
         thresholds), else LOST with the evidence; None while it has route left."""
-        spent = self.end.judge(est.position, at_end)
+        spent = self.end.judge(est.position, at_end, est.best_error <= float(self.thresholds[est.best]))
         if spent is None:
             return None
         last = len(self) - 1

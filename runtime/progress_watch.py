@@ -61,6 +61,11 @@ class ProgressWatch:
         return None
 
 
+#: The end's zone (gaps before the last subgoal): a view that matched a subgoal in it is the evidence that the
+#: robot came to the end along the route, which the end by travel needs (``EndWatch``).
+END_ZONE_GAPS = 2.0
+
+
 class EndWatch:
     """Commanded translation since the views first placed the robot at the route's end, against what the taught
     route had left from there: past it, the robot drives beyond the route's end, where nothing was taught.
@@ -69,7 +74,10 @@ class EndWatch:
     short of it, so the estimate stays short of the end while the robot drives on (held-out set 15, gen_1617:
     the estimate held at 113.4-113.6 of 114 while the robot went from 7 mm to 51 mm past the last taught pose
     with the view never under the last threshold). The commanded motion is the evidence the views cannot
-    give there."""
+    give there, once a view has matched a subgoal in the end's zone (``END_ZONE_GAPS``): a robot whose views
+    matched nothing near the end may be anywhere (dev gen_117, re-coloured floor: 0.32 m from the end, every
+    view 1.4-1.9 thresholds off, the estimate carried to the end by the commanded motion), and the follower's
+    other rules judge it as before."""
 
     def __init__(self, route_m: np.ndarray) -> None:
         """``route_m``: (L,) the taught translation (m) from the first subgoal to each."""
@@ -80,6 +88,7 @@ class EndWatch:
     def reset(self) -> None:
         self.start: float | None = None  # ``driven`` when the views first placed the robot at the end
         self.left = 0.0  # the taught translation left from there (m)
+        self.matched = False  # a view matched a subgoal in the end's zone
 
     def commanded(self, v: float, dt: float) -> None:
         """The robot was commanded ``v`` (m/s, either way) for ``dt`` seconds."""
@@ -95,16 +104,16 @@ class EndWatch:
         here = self.route_m[k] + frac * (self.route_m[k + 1] - self.route_m[k])
         return float(self.route_m[last] - here)
 
-    def judge(self, position: float, at_end: bool) -> str | None:
-        """One view: ``at_end`` whether the views place the robot at the end. None while the robot has driven
-        no further than the taught route had left when they first did, else what it drove."""
-        if (
-            position < len(self.route_m) - 2
-        ):  # placed back along the route: count afresh when at the end again
+    def judge(self, position: float, at_end: bool, matched: bool) -> str | None:
+        """One view: ``at_end`` whether the views place the robot at the end, ``matched`` whether the view matched
+        a subgoal under its threshold. None while the robot has driven no further than the taught route had
+        left when the views first placed it at the end (after a match in the end's zone), else what it drove."""
+        if position < len(self.route_m) - 1 - END_ZONE_GAPS:  # back along the route: count afresh at the end
             self.reset()
             return None
+        self.matched = self.matched or matched
         if self.start is None:
-            if not at_end:
+            if not (at_end and self.matched):
                 return None
             self.start, self.left = self.driven, self.left_from(position)
         beyond = self.driven - self.start
@@ -113,4 +122,4 @@ class EndWatch:
         return f"drove {beyond:.2f} m since the views placed it at the route's end ({self.left:.2f} m of route left)"
 
 
-__all__ = ["PROGRESS_GAPS", "STALL_WINDOWS", "EndWatch", "ProgressWatch"]
+__all__ = ["END_ZONE_GAPS", "PROGRESS_GAPS", "STALL_WINDOWS", "EndWatch", "ProgressWatch"]

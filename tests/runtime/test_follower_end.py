@@ -171,14 +171,15 @@ def test_a_robot_turning_in_place_to_find_the_view_is_not_lost_by_travel():
 
 def _drive_past_the_end(cfg: ControllerConfig, sigma: float = 100.0) -> tuple[Action, float, str]:
     """A robot driven at 0.025 m a view along the wall route and on past its end, its camera noisy (``sigma``)
-    from the last gap on, so that no view there matches the last subgoal under its threshold: the follower's
-    end decision, where the robot was (m) and the note."""
+    from half a gap before the end on, so that no view there matches the last subgoal under its threshold (the
+    one before, at the last-but-one subgoal, does): the follower's end decision, where the robot was (m) and
+    the note."""
     follower = Follower.for_route(wall_route(), cfg)
     rng = np.random.default_rng(0)
     x = 0.0
     while x < 1.5:
         view = wall_view(x).astype(np.float64)
-        if x >= END - 0.05 - 1e-9:
+        if x >= END - 0.025 - 1e-9:
             view += rng.normal(0.0, sigma, view.shape)
         decision = follower.judge(np.clip(view, 0, 255).astype(np.uint8)).decision
         if decision.action is not Action.COMMAND:
@@ -189,9 +190,9 @@ def _drive_past_the_end(cfg: ControllerConfig, sigma: float = 100.0) -> tuple[Ac
 
 
 def test_a_robot_never_drives_on_past_the_route_s_end():
-    """Held-out set 15, gen_1617 (9 conditions): the view never matched the last subgoal under its threshold,
-    the estimate stayed half a gap short (a view past the end looks like one as far short of it), and the
-    robot drove on 5-7 cm past the end before it stopped. Here, without the end's travel budget, the same
+    """Held-out set 15, gen_1617 (9 conditions): the views matched up to the last-but-one subgoal, then never
+    the last under its threshold; the estimate stayed half a gap short (a view past the end looks like one as
+    far short of it), and the robot drove on 5-7 cm past the end before it stopped. Here, without the end's travel budget, the same
     drive went 0.20 m past the end (lost by the window's travel). With it, the robot stops once it has driven
     what the route had left when the views placed it at the end: within a gap of the end, FINISHED where the
     view matches the last subgoal within the settled bound."""
@@ -207,3 +208,23 @@ def test_a_view_unlike_the_end_there_ends_lost_not_finished():
     action, x, note = _drive_past_the_end(ControllerConfig(zero_bias=0.0, lost_steps=3, jump_factor=1.0))
     assert action is Action.LOST and x <= END + 0.05 + 1e-9
     assert note.startswith("lost at the route's end") and "threshold" in note
+
+
+def test_a_robot_whose_views_matched_nothing_near_the_end_is_not_finished_by_travel():
+    """Dev gen_117 (re-coloured floor): the estimate reached the end on the commanded motion alone, 0.32 m from
+    it, every view 1.4-1.9 thresholds off; a first version of the end by travel declared it finished. Here
+    the camera is noisy from two gaps before the end: travel decides nothing, the other rules end it."""
+    follower = Follower.for_route(wall_route(), ControllerConfig(zero_bias=0.0, lost_steps=3))
+    rng = np.random.default_rng(0)
+    x, decision = 0.0, None
+    while x < 1.5:
+        view = wall_view(x).astype(np.float64)
+        if x >= END - 0.1 - 1e-9:
+            view += rng.normal(0.0, 100.0, view.shape)
+        decision = follower.judge(np.clip(view, 0, 255).astype(np.uint8)).decision
+        if decision.action is not Action.COMMAND:
+            break
+        follower.commanded(0.25, 0.0, 0.1)
+        x += 0.025
+    assert decision is not None and decision.action is not Action.FINISHED
+    assert "route's end" not in decision.note and follower.end.start is None

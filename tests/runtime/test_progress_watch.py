@@ -65,20 +65,36 @@ def test_the_route_left_is_interpolated_between_subgoals():
 def test_driving_further_than_the_route_had_left_at_the_end_runs_out():
     watch = _end_watch()
     watch.commanded(0.3, 1.0)  # before the end: not counted
-    assert watch.judge(3.2, at_end=False) is None and watch.start is None
-    assert watch.judge(3.0, at_end=True) is None  # 0.05 m of route left from here
+    assert (
+        watch.judge(2.6, at_end=False, matched=True) is None and watch.start is None
+    )  # a match near the end
+    assert watch.judge(3.0, at_end=True, matched=False) is None  # 0.05 m of route left from here
     watch.commanded(0.4, 0.1)
-    assert watch.judge(3.4, at_end=False) is None  # 0.04 m driven: still on the route
+    assert watch.judge(3.4, at_end=False, matched=False) is None  # 0.04 m driven: still on the route
     watch.commanded(-0.2, 0.1)  # backwards counts too
-    note = watch.judge(3.6, at_end=True)
+    note = watch.judge(3.6, at_end=True, matched=False)
     assert note == "drove 0.06 m since the views placed it at the route's end (0.05 m of route left)"
 
 
 def test_turning_at_the_end_costs_nothing_and_a_view_back_along_the_route_counts_afresh():
     watch = _end_watch()
-    watch.judge(3.5, at_end=True)
+    watch.judge(3.5, at_end=True, matched=True)
     watch.commanded(0.0, 5.0)  # turning in place: no translation
-    assert watch.judge(3.5, at_end=True) is None
+    assert watch.judge(3.5, at_end=True, matched=False) is None
     watch.commanded(0.2, 0.1)
-    assert watch.judge(2.5, at_end=False) is None and watch.start is None  # placed back: count afresh
-    assert watch.judge(3.5, at_end=True) is None
+    assert watch.judge(1.5, at_end=False, matched=False) is None and watch.start is None  # placed back
+    assert watch.judge(3.5, at_end=True, matched=False) is None  # counting afresh needs a match again
+    assert watch.start is None
+
+
+def test_without_a_match_near_the_end_travel_decides_nothing():
+    """Dev gen_117 (re-coloured floor): the estimate reached the end on the commanded motion alone, every view
+    1.4-1.9 thresholds off, 0.32 m from the end. Travel there is no evidence of the end."""
+    watch = _end_watch()
+    assert watch.judge(1.5, at_end=False, matched=True) is None  # a match, but before the end's zone
+    assert watch.judge(3.5, at_end=True, matched=False) is None
+    watch.commanded(1.0, 1.0)
+    assert watch.judge(3.6, at_end=True, matched=False) is None and watch.start is None
+    assert watch.judge(3.7, at_end=True, matched=True) is None  # now armed: 0.015 m of route left
+    watch.commanded(0.1, 0.2)
+    assert watch.judge(3.7, at_end=True, matched=False) is not None
