@@ -189,7 +189,9 @@ def _fit(
         raise
     bar.close()
     model.eval()
-    extra["steps_done"] = step  # the model's checkpoint says where training stopped (--max-minutes: before steps)
+    extra["steps_done"] = (
+        step  # the model's checkpoint says where training stopped (--max-minutes: before steps)
+    )
     return model
 
 
