@@ -9,10 +9,10 @@ Each image:
 3. the end: the estimate is at the last subgoal, the view is closest to it, and it matches it as well as
    the teach's neighbouring views match each other (or the policy has stopped driving there): FINISHED; and
    where the view never matches it that well, the end by travel: once the robot has driven further than the
-   taught route had left when the views first placed it at the end (``runtime.progress_watch.EndWatch``; a
-   view past the end looks like one as far short of it, so the views cannot see it pass), FINISHED where the
-   view matches the last subgoal within the settled rule's bound, else LOST with the evidence (judged after
-   4 and 5);
+   taught route had left when the views first placed it at the end, a view having matched a subgoal in the
+   last two gaps (``runtime.progress_watch.EndWatch``; a view past the end looks like one as far short of it,
+   so the views cannot see it pass), FINISHED where the view matches the last subgoal within the settled
+   rule's bound, else LOST with the evidence (judged after 4 and 5);
 4. blocked: the camera sees the way ahead blocked (``runtime.obstruction``: the floor just ahead, warped from
    the taught view to the estimated pose, stops matching in a region that grew while the robot was
    commanded forward): BLOCKED with the evidence, for as long as the detector says so. It is not an end:
