@@ -44,7 +44,6 @@ The repeat loop reports every command (:meth:`Follower.commanded`), which moves 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -57,7 +56,13 @@ from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
 from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionVerdict, SideFn, moving
 from vtr.runtime.progress_watch import EndWatch, ProgressWatch
-from vtr.runtime.route_sensing import floor_camera, obstruction_detector, side_offset
+from vtr.runtime.route_sensing import (
+    FloorSide,
+    floor_camera,
+    floor_side_of,
+    obstruction_detector,
+    side_offset,
+)
 from vtr.runtime.side_offset import SideEstimate
 from vtr.runtime.thresholds import check_subgoals, lost_bounds, route_views
 
@@ -72,8 +77,6 @@ SIDE_TURN_MAX = 0.5
 #: estimate can be wrong by centimetres (just after a turn in place, the taught floor warped to a pose the
 #: localiser has a little off), and a pursuit acts on it at any pace.
 SIDE_VIEWS = 3
-#: A view's floor registration, asked when needed and made once (``Follower._floor_side_at``).
-FloorSide = Callable[[], "SideEstimate | None"]
 
 
 class Follower:
@@ -137,8 +140,7 @@ class Follower:
         window = self.cfg.localiser.window_behind + self.cfg.localiser.window_ahead
         #: images and commanded translation since the last evidence of where the robot is (``_stalled``)
         self.progress = ProgressWatch(window * self._steps)
-        #: commanded translation since the views placed the robot at the route's end (``_past_end``)
-        self.end = EndWatch(np.concatenate([[0.0], np.cumsum(np.abs(motion[:, 0]))]))
+        self.end = EndWatch(np.concatenate([[0.0], np.cumsum(np.abs(motion[:, 0]))]))  # the end by travel
         self._idle = 0
         self._finished = False
 
@@ -238,7 +240,7 @@ class Follower:
         if at_end and (final_error <= threshold or settled):
             self._finished = True
             return Decision(Action.FINISHED, len(self), final_error)
-        floor_side = self._floor_side_at(image, est.position)  # one registration a view, asked lazily
+        floor_side = floor_side_of(self._floor_side, image, est.position)  # one registration a view, lazily
         blocked = self._blocked(image, est, floor_side)
         if blocked is not None:
             return blocked
@@ -321,22 +323,6 @@ class Follower:
             f"{verdict.growing_steps} steps",
         )
 
-    def _floor_side_at(self, image: Frame, position: float) -> FloorSide | None:
-        """Where the floor of ``image`` puts the robot beside the taught pose at ``position``, computed when
-        first asked and then kept for the view: the obstruction detector and the side turn both ask it (None:
-        no floor registration)."""
-        registration = self._floor_side
-        if registration is None:
-            return None
-        found: list[SideEstimate | None] = []
-
-        def at() -> SideEstimate | None:
-            if not found:
-                found.append(registration.estimate(image, position))
-            return found[0]
-
-        return at
-
     def bound_at(self, position: float) -> float:
         """The lost bound at ``position`` (subgoal units): the larger of its two subgoals' bounds, each the
         route's, or ``lost_factor`` times the wider taught gap next to it (where the teach's neighbouring
@@ -365,10 +351,8 @@ class Follower:
         )
 
     def _past_end(self, est: Estimate, at_end: bool, final_error: float, threshold: float) -> Decision | None:
-        """The end by travel: once the robot has driven further than the taught route had left when the views
-        first placed it at the end (``runtime.progress_watch.EndWatch``), it is there or past it. FINISHED
-        where the view matches the last subgoal as the ``settled`` rule asks (within ``jump_factor``
-        thresholds), else LOST with the evidence; None while it has route left."""
+        """The end by travel (``EndWatch``): FINISHED where the view matches the last subgoal within the settled
+        rule's bound, else LOST with the evidence; None while the robot has route left."""
         spent = self.end.judge(est.position, at_end, est.best_error <= float(self.thresholds[est.best]))
         if spent is None:
             return None

@@ -103,14 +103,19 @@ def read_run(path: str | os.PathLike[str]) -> RecordedRun:
                     steps.append(data)
                 continue
             row = rows.setdefault(ns, {})
-            if conn.topic == "/vtr/cmd_vel":
-                row["cmd"] = _finite((msg.twist.linear.x, msg.twist.angular.z), where)
-            elif conn.topic == "/vtr/pose":
-                q = msg.pose.orientation
-                yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
-                row["pose"] = _finite((msg.pose.position.x, msg.pose.position.y, yaw), where)
-            else:
-                row["error"] = msg.data
+            try:
+                if conn.topic == "/vtr/cmd_vel":
+                    row["cmd"] = _finite((msg.twist.linear.x, msg.twist.angular.z), where)
+                elif conn.topic == "/vtr/pose":
+                    q = msg.pose.orientation
+                    yaw = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+                    row["pose"] = _finite((msg.pose.position.x, msg.pose.position.y, yaw), where)
+                else:
+                    row["error"] = msg.data
+            except AttributeError as exc:  # a damaged schema of the right name: a message without its fields
+                raise BagFileError(
+                    f"{where}: a {shown(conn.msgtype)} without the fields a vtr run writes ({exc.name} missing)"
+                ) from None
         warnings = list(bag.warnings)
     times = sorted(t for t, r in rows.items() if "cmd" in r)
     t0 = times[0] if times else 0

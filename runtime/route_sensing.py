@@ -4,12 +4,17 @@ detector and the floor registration (side offset), each None where the route can
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 
 from vtr.runtime.floor_view import Camera
+from vtr.runtime.frame import Frame
 from vtr.runtime.obstruction import ObstructionDetector
-from vtr.runtime.side_offset import SideOffset
+from vtr.runtime.side_offset import SideEstimate, SideOffset
+
+#: A view's floor registration, asked when needed and made once (:func:`floor_side_of`).
+FloorSide = Callable[[], "SideEstimate | None"]
 
 
 def floor_camera(camera: dict[str, object]) -> Camera:
@@ -49,4 +54,20 @@ def side_offset(subgoals: np.ndarray, poses: np.ndarray | None, camera: Camera |
         return None
 
 
-__all__ = ["obstruction_detector", "floor_camera", "side_offset"]
+def floor_side_of(registration: SideOffset | None, image: Frame, position: float) -> FloorSide | None:
+    """Where the floor of ``image`` puts the robot beside the taught pose at ``position``, computed when first
+    asked and then kept for the view: the obstruction detector and the side turn both ask it (None: no floor
+    registration)."""
+    if registration is None:
+        return None
+    found: list[SideEstimate | None] = []
+
+    def at() -> SideEstimate | None:
+        if not found:
+            found.append(registration.estimate(image, position))
+        return found[0]
+
+    return at
+
+
+__all__ = ["FloorSide", "floor_camera", "floor_side_of", "obstruction_detector", "side_offset"]

@@ -15,6 +15,7 @@ from vtr.runtime.follower import Follower
 from vtr.runtime.frame import as_frame
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
 from vtr.runtime.route import Route
+from vtr.runtime.route_sensing import floor_side_of
 
 #: The box's half side (m): the robot touches it with its centre this plus its radius from the box's.
 HALF_BOX = 0.125
@@ -159,7 +160,7 @@ def test_the_detector_warps_the_floor_to_where_the_floor_puts_the_robot_beside_t
     """The follower hands the detector the floor registration's (dy, psi), with or without the side turn."""
     cfg = None if side_gain is None else ControllerConfig(side_gain=side_gain)
     follower = Follower.for_route(floor_route(), cfg)
-    ask = follower._floor_side_at(as_frame(floor_view(0.3, 0.08, -0.1)), 3.0)
+    ask = floor_side_of(follower._floor_side, as_frame(floor_view(0.3, 0.08, -0.1)), 3.0)
     assert ask is not None
     found = ask()
     dy, psi = found.dy, found.psi

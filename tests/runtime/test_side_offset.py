@@ -15,6 +15,7 @@ from vtr.runtime.controller import ControllerConfig
 from vtr.runtime.follower import Follower
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
 from vtr.runtime.route import Route
+from vtr.runtime.route_sensing import floor_side_of
 from vtr.runtime.route_sensing import side_offset as side_offset_of
 from vtr.runtime.side_offset import SideEstimate, SideOffset
 
@@ -145,11 +146,14 @@ def test_the_side_turn_waits_for_views_in_a_row_and_one_wrong_view_does_not_turn
     told = Told([0.0, 0.0, 0.08, 0.0, 0.02, 0.02])
     follower.side = follower._floor_side = told  # type: ignore[assignment]
     follower._speed = 0.25
-    turns = [follower._side_turn(follower._floor_side_at(views[2], 2.0), 2, driving=True) for _ in range(6)]
+    turns = [
+        follower._side_turn(floor_side_of(follower._floor_side, views[2], 2.0), 2, driving=True)
+        for _ in range(6)
+    ]
     assert turns[:4] == [0.0] * 4  # two views, then the one 8 cm off among two on the path
     assert turns[5] == pytest.approx(-cfg.side_gain * math.atan(0.02 / cfg.side_lookahead))
     assert (
-        follower._side_turn(follower._floor_side_at(views[2], 2.0), 2, driving=False) == 0.0
+        follower._side_turn(floor_side_of(follower._floor_side, views[2], 2.0), 2, driving=False) == 0.0
         and follower._side_run == []
     )
 
