@@ -7,12 +7,9 @@ Each image:
 2. the localiser (``runtime.localiser``) weighs its belief by the view: where along the route the robot
    is (``position``, in subgoal units) and how sure (``confidence``, ``match``);
 3. the end: the estimate is at the last subgoal, the view is closest to it, and it matches it as well as
-   the teach's neighbouring views match each other (or the policy has stopped driving there): FINISHED; and
-   where the view never matches it that well, the end by travel: once the robot has driven further than the
-   taught route had left when the views first placed it at the end, a view having matched a subgoal in the
-   last two gaps (``runtime.progress_watch.EndWatch``; a view past the end looks like one as far short of it,
-   so the views cannot see it pass), FINISHED where the view matches the last subgoal within the settled
-   rule's bound, else LOST with the evidence (judged after 4 and 5);
+   the teach's neighbouring views match each other (or the policy has stopped driving there): FINISHED; or,
+   after 4 and 5, by travel (``runtime.progress_watch.EndWatch``: the views cannot see the robot pass the
+   end): driven past what the route had left, within the settled bound FINISHED, else LOST with the evidence;
 4. blocked: the camera sees the way ahead blocked (``runtime.obstruction``: the floor just ahead, warped from
    the taught view to the estimated pose, stops matching in a region that grew while the robot was
    commanded forward): BLOCKED with the evidence, for as long as the detector says so. It is not an end:
@@ -233,10 +230,11 @@ class Follower:
         last = len(self) - 1
         final_error = est.error_to(last)
         at_end = est.position >= last - self.cfg.finish_span and est.best == last
-        # the view must match the last subgoal: as the teach's neighbouring views match each other, or, where
-        # the policy has stopped driving next to it, within ``jump_factor`` of that
+        # the view must match the last subgoal as the teach's neighbours match each other, or, where the policy
+        # has stopped next to it, within ``jump_factor`` of that
         threshold = float(self.thresholds[last])
-        settled = self._idle >= 2 and final_error <= self.cfg.jump_factor * threshold
+        close = final_error <= self.cfg.jump_factor * threshold  # the settled bound, the end by travel's too
+        settled = self._idle >= 2 and close
         if at_end and (final_error <= threshold or settled):
             self._finished = True
             return Decision(Action.FINISHED, len(self), final_error)
@@ -244,10 +242,11 @@ class Follower:
         blocked = self._blocked(image, est, floor_side)
         if blocked is not None:
             return blocked
-        lost = self._lost(est) or self._stalled(est)
+        matched = est.best_error <= float(self.thresholds[est.best])  # a view under its subgoal's threshold
+        lost = self._lost(est) or self._stalled(est, matched)
         if lost is not None:
             return lost
-        past = self._past_end(est, at_end, final_error, threshold)
+        past = self._past_end(est, at_end, matched, close, final_error)
         if past is not None:
             return past
         target = min(last, int(math.floor(est.position + self.cfg.lead)) + 1)
@@ -350,29 +349,30 @@ class Follower:
             f"{est.best} (bound {bound:.3f}), confidence {est.confidence:.2f}",
         )
 
-    def _past_end(self, est: Estimate, at_end: bool, final_error: float, threshold: float) -> Decision | None:
+    def _past_end(
+        self, est: Estimate, at_end: bool, matched: bool, close: bool, error: float
+    ) -> Decision | None:
         """The end by travel (``EndWatch``): FINISHED where the view matches the last subgoal within the settled
-        rule's bound, else LOST with the evidence; None while the robot has route left."""
-        spent = self.end.judge(est.position, at_end, est.best_error <= float(self.thresholds[est.best]))
-        if spent is None:
+        bound (``close``), else LOST with the evidence; None while the robot has route left."""
+        if (spent := self.end.judge(est.position, at_end, matched)) is None:
             return None
         last = len(self) - 1
-        if final_error <= self.cfg.jump_factor * threshold:
+        threshold = float(self.thresholds[last])
+        if close:
             self._finished = True
-            return Decision(Action.FINISHED, len(self), final_error, note=f"at the route's end: {spent}")
+            return Decision(Action.FINISHED, len(self), error, note=f"at the route's end: {spent}")
         return self._stop(
             Action.LOST,
-            final_error,
-            f"lost at the route's end: {spent}, the view {final_error:.3f} from subgoal {last}'s (threshold "
+            error,
+            f"lost at the route's end: {spent}, the view {error:.3f} from subgoal {last}'s (threshold "
             f"{threshold:.3f}), best match {est.best_error:.3f} at subgoal {est.best}",
         )
 
-    def _stalled(self, est: Estimate) -> Decision | None:
+    def _stalled(self, est: Estimate, matched: bool) -> Decision | None:
         """LOST when the estimate has made no progress, and no view matched a subgoal under its threshold, for
         too long (``runtime.progress_watch``). ``lost_steps`` <= 0 (no lost verdict at all) turns it off."""
         if self.cfg.lost_steps <= 0:
             return None
-        matched = est.best_error <= float(self.thresholds[est.best])
         spent = self.progress.judge(est.position, matched, self.localiser.window_travel(est.position))
         if spent is None:
             return None
