@@ -6,8 +6,8 @@ Each image:
 1. a reported contact ends the run (COLLIDED);
 2. the localiser (``runtime.localiser``) weighs its belief by the view: where along the route the robot
    is (``position``, in subgoal units) and how sure (``confidence``, ``match``);
-3. the end: the estimate is at the last subgoal, the view is closest to it, and it matches it as well as
-   the teach's neighbouring views match each other (or the policy has stopped driving there): FINISHED; or,
+3. the end: the estimate is at the last subgoal and the view matches it as well as the teach's neighbouring
+   views match each other (or, the view closest to it, the policy has stopped driving there): FINISHED; or,
    after 4 and 5, by travel (``runtime.progress_watch.EndWatch``: the views cannot see the robot pass the
    end): driven past what the route had left, within the settled bound FINISHED, else LOST with the evidence;
 4. blocked: the camera sees the way ahead blocked (``runtime.obstruction``: the floor just ahead, warped from
@@ -20,10 +20,10 @@ Each image:
 5. lost: for ``lost_steps`` images in a row no subgoal near the estimate matches the view (the best
    distance is over the lost bound there: the route's, or ``lost_factor`` times the taught gaps next to the
    estimate where those are wider, ``thresholds.lost_bounds``) and the match is not improving: LOST, with
-   the evidence; or the estimate has not progressed while the view matched no subgoal under its threshold,
-   for too many images or while driven further than the taught route covers across the localiser's
-   window (``runtime.progress_watch``): LOST, with the evidence (a robot that neither gets on nor finds the
-   view it steers to, which the lost bound alone let crawl on where taught views differ, or drive on blind);
+   the evidence; or the estimate has not progressed for too many images while the view matched no subgoal
+   under its threshold, or, matched or not, while driven further than the taught route covers across the
+   localiser's window (``runtime.progress_watch``): LOST, with the evidence (a robot that does not get on,
+   which the lost bound alone let crawl on where taught views differ, or drive on blind);
 6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
    ahead, rounded up to a subgoal), with the taught command at the estimated position as feed-forward
    (``Decision.prior``, blended by the repeat loop; faded out over the last control step of taught motion
@@ -146,15 +146,9 @@ class Follower:
         """The follower of a taught route (its subgoals, commands, poses and spacing)."""
         steps = float(route.steps_between or 2)
         return cls(
-            route.images,
-            cfg,
-            route.commands,
-            route.poses,
-            route.travel_poses(),
-            steps,
-            float(route.dt),
+            route.images, cfg, route.commands, route.poses, route.travel_poses(), steps, float(route.dt),
             floor_camera(route.camera),
-        )
+        )  # fmt: skip
 
     def __len__(self) -> int:
         return int(self.subgoals.shape[0])
@@ -229,13 +223,15 @@ class Follower:
             self.localised_to = int(round(est.position))
         last = len(self) - 1
         final_error = est.error_to(last)
-        at_end = est.position >= last - self.cfg.finish_span and est.best == last
-        # the view must match the last subgoal as the teach's neighbours match each other, or, where the policy
-        # has stopped next to it, within ``jump_factor`` of that
+        k = self.cfg.localiser.cells_per_gap  # the estimate's cell: the filter resolves no finer
+        near_end = round(est.position * k) >= round((last - self.cfg.finish_span) * k)
+        at_end = near_end and est.best == last
+        # the view matches the last subgoal as the teach's neighbours match each other, or, the policy stopped
+        # there with no other subgoal closer, within ``jump_factor`` of that
         threshold = float(self.thresholds[last])
         close = final_error <= self.cfg.jump_factor * threshold  # the settled bound, the end by travel's too
         settled = self._idle >= 2 and close
-        if at_end and (final_error <= threshold or settled):
+        if near_end and final_error <= threshold or at_end and settled:
             self._finished = True
             return Decision(Action.FINISHED, len(self), final_error)
         floor_side = floor_side_of(self._floor_side, image, est.position)  # one registration a view, lazily

@@ -1,9 +1,10 @@
-"""Whether a repeat still has evidence of where it is along the route: the estimate progressing, or a view
-matching a subgoal. Without either for too long the follower ends the run LOST (``runtime.follower``).
+"""Whether a repeat still has evidence of where it is along the route and of getting on along it: the estimate
+progressing, or, for a robot that stands, a view matching a subgoal. Without them for too long the follower
+ends the run LOST (``runtime.follower``).
 
-Too long is measured two ways, one state: images end a crawl (moved furniture near the end: dev runs hunted
+Too long is measured two ways, one state: images without progress or a match end a crawl (moved furniture near the end: dev runs hunted
 back and forth 2 cm from the end, or stood 33 cm past it with the estimate half a gap short, until the step
-limit); commanded translation ends a drive: past the taught travel across the localiser's window, a robot that
+limit); commanded translation without progress (a match or not) ends a drive: past the taught travel across the localiser's window, a robot that
 had moved along the route would have left every view the localiser compares with (held-out set 14, gen_1514: a
 fine-tuned model drove 1.9 m at 0.25 m/s from near the route's end into a wall, its view 2.5-3x the threshold
 off, the estimate held at 46 of 49). Turning in place does not count: it sweeps no new floor, and robots that
@@ -47,10 +48,16 @@ class ProgressWatch:
         """One view: ``position`` the estimate, ``matched`` whether a subgoal matched the view, ``window_m``
         the taught travel across the localiser's window there. None while evidence is recent enough, else
         what was spent without it."""
-        if matched or position >= self.reach + PROGRESS_GAPS:
+        if position >= self.reach + PROGRESS_GAPS:
             self.reach, self.since, self.travel = position, 0, 0.0
             return None
-        self.since += 1
+        # A matching view says where the robot is: it may stand there, not drive on without getting on (the
+        # example room's arc with the floor model: past the end the view matched the last-but-one subgoal at
+        # every image and the robot crept on 10 cm past the end).
+        if matched:
+            self.reach, self.since = min(self.reach, position), 0
+        else:
+            self.since += 1
         if self.since >= self.stall_images:
             return f"no progress past {self.reach:.2f} for {self.since} images"
         if self.travel > window_m:

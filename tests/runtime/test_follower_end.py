@@ -228,3 +228,39 @@ def test_a_robot_whose_views_matched_nothing_near_the_end_is_not_finished_by_tra
         x += 0.025
     assert decision is not None and decision.action is not Action.FINISHED
     assert "route's end" not in decision.note and follower.end.start is None
+
+
+def _held_past(view_x: float, v: float, images: int = 300) -> tuple[Follower, Action, str, int]:
+    """A robot driven at the taught pace to the last-but-one subgoal, then on at ``v`` while its view stays
+    the one at ``view_x`` (past the end a view looks like one short of it: the example room's arc with the
+    floor model): the follower's decision, its note and how many images it took."""
+    follower = _near_end()
+    for i in range(images):
+        decision = follower.judge(wall_view(view_x)).decision
+        if decision.action is not Action.COMMAND:
+            return follower, decision.action, decision.note, i
+        follower.commanded(v, 0.0, 0.1)
+    return follower, Action.COMMAND, "", images
+
+
+def test_a_view_matching_the_last_subgoal_at_the_end_finishes_though_another_matches_better():
+    """The example room's 4 s arc with the floor model (cons03): the estimate at 19.5 of 20, the view under the
+    last subgoal's threshold (9.3 against 10.1) but closer still to subgoal 19's, and the finish needed the
+    last to be the closest: the robot crept on to 10 cm past the end until the step limit. The localiser,
+    which weighs the view against the whole window, says where the robot is; the last subgoal's match
+    confirms it."""
+    follower, action, _, images = _held_past(0.37, 0.1)
+    est = follower.estimate
+    assert est is not None and est.best == len(follower) - 2  # the last-but-one subgoal matches best ...
+    assert est.error_to(len(follower) - 1) <= follower.thresholds[-1]  # ... the last under its threshold
+    assert action is Action.FINISHED and images == 0
+
+
+def test_a_robot_driven_on_while_its_view_matches_a_subgoal_without_progress_ends_lost():
+    """The same drive with the view closer to the last-but-one subgoal than the last's threshold allows: a
+    matching view used to count as evidence afresh at every image, and the robot drove on without end (300
+    images, 7.5 m here). A match lets the robot stand; driving on needs progress."""
+    follower, action, note, images = _held_past(0.365, 0.25)
+    window_m = follower.localiser.window_travel(follower.estimate.position)
+    assert action is Action.LOST and "m driven" in note
+    assert abs(0.025 * images - window_m) <= 0.05  # once the travel passed the window's

@@ -91,7 +91,9 @@ def test_the_fast_step_path_equals_the_straightforward_one(tmp_path, preprocessi
     model = make_standin_velocitynet(tmp_path / "m.onnx", meta=meta, widths=(4, 8, 8))
     images = np.stack([view(TAUGHT_EVERY * k) for k in range(12)])
     n = len(images)
-    route = Route(images=images, poses=np.zeros((n, 3)), commands=np.full((n, 2), 0.1), name="t", dt=meta.dt)
+    poses = np.zeros((n, 3))  # the taught travel the commands give: 0.1 m/s for TAUGHT_EVERY steps a gap
+    poses[:, 0] = 0.1 * meta.dt * TAUGHT_EVERY * np.arange(n)
+    route = Route(images=images, poses=poses, commands=np.full((n, 2), 0.1), name="t", dt=meta.dt)
     fast, plain = _run(model, route, True, light), _run(model, route, False, light)
     assert fast == plain
     assert fast[-1].endswith("<RepeatStatus.FINISHED: 'finished'>)") and len(fast) > 20  # followed, switching
