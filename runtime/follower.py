@@ -223,9 +223,9 @@ class Follower:
             self.localised_to = int(round(est.position))
         last = len(self) - 1
         final_error = est.error_to(last)
-        k = self.cfg.localiser.cells_per_gap  # the estimate's cell: the filter resolves no finer
+        at_end = est.position >= last - self.cfg.finish_span and est.best == last  # the end by travel's too
+        k = self.cfg.localiser.cells_per_gap  # the estimate's cell (the filter resolves no finer) at the end
         near_end = round(est.position * k) >= round((last - self.cfg.finish_span) * k)
-        at_end = near_end and est.best == last
         # the view matches the last subgoal as the teach's neighbours match each other, or, the policy stopped
         # there with no other subgoal closer, within ``jump_factor`` of that
         threshold = float(self.thresholds[last])
