@@ -114,14 +114,14 @@ def test_training_with_the_swap_runs_and_records_it(looks: Path, tmp_path: Path)
     assert json.loads((out / "report.json").read_text())["mse_first_command"] > 0
 
 
-def test_the_floors_recipe_collects_two_appearances_and_swaps_in_its_last_stage() -> None:
+def test_the_shipped_recipe_collects_two_appearances_and_swaps_in_its_last_stage() -> None:
     from types import SimpleNamespace
 
     from vtr.pipeline import _houses_config, _train_cfg
     from vtr.training import recipe as recipes
     from vtr.training.config import get_preset
 
-    r = recipes.load("floors")
+    r = recipes.load("shipped")
     preset = get_preset(r.preset)
     assert _houses_config(r, preset).collect.appearances == 4
     how = SimpleNamespace(device=None, workers=None, amp=None, data_on_device=None, max_minutes=None)

@@ -94,26 +94,35 @@ def test_tiny_recipe_end_to_end_resumes_an_interrupted_stage_and_installs_only_w
     )
 
 
-def test_the_shipped_recipe_is_the_one_in_training_readme(capsys: pytest.CaptureFixture[str]) -> None:
-    r = recipes.load("shipped")
-    assert r.preset == "default" and r.data == "data/houses40" and r.int8
-    assert r.collect["houses"] == 40 and r.collect["frames_per_house"] == 2000
-    assert r.collect["include_house"] == ["house"] and r.collect["include_house_frames"] == 10000
-    steps = [(s.name, s.init, s.options["steps"], s.options.get("lr")) for s in r.velocitynet]
-    assert steps == [
+def test_the_shipped_recipe_is_the_base_one_and_its_floors_stage(capsys: pytest.CaptureFixture[str]) -> None:
+    base = recipes.load("base")
+    assert base.preset == "default" and base.data == "data/houses40" and base.int8
+    assert base.collect["houses"] == 40 and base.collect["frames_per_house"] == 2000
+    assert base.collect["include_house"] == ["house"] and base.collect["include_house_frames"] == 10000
+    steps = [(s.name, s.init, s.options["steps"], s.options.get("lr")) for s in base.velocitynet]
+    base_stages = [
         ("velocitynet", None, 4000, None),
         ("velocitynet_b", "velocitynet", 4000, 3e-4),
         ("velocitynet_c", "velocitynet_b", 1500, 3e-4),
     ]
+    assert steps == base_stages
+    shipped = recipes.load("shipped")  # the default: the base recipe on data in 4 appearances, + floors
+    assert {k: v for k, v in shipped.collect.items() if k != "appearances"} == base.collect
+    assert shipped.collect["appearances"] == 4
+    steps = [(s.name, s.init, s.options["steps"], s.options.get("lr")) for s in shipped.velocitynet]
+    assert steps == [*base_stages, ("velocitynet_floors", "velocitynet_c", 2475, 1e-4)]
+    floors = shipped.velocitynet[-1].options
+    assert floors["batch_size"] == 64 and floors["appearance_swap"] == 0.5 and floors["w_consistency"] == 0.3
     assert (
         cli.main(["train", "all", "--dry-run", "--out", "/nonexistent/run", "--data", "/nonexistent/d"]) == 0
     )
     lines = capsys.readouterr().out.splitlines()
     assert (
         lines[0]
-        == "vtr train all [1/6] collect: to run: 90,000 frames in 41 houses into /nonexistent/d (0 recorded)"
+        == "vtr train all [1/7] collect: to run: 90,000 frames in 41 houses into /nonexistent/d (0 recorded)"
     )
-    assert "[5/6] velocitynet_c: to run: train 1500 steps from velocitynet_b" in lines[4]
+    assert "[5/7] velocitynet_c: to run: train 1500 steps from velocitynet_b" in lines[4]
+    assert "[6/7] velocitynet_floors: to run: train 2475 steps from velocitynet_c" in lines[5]
     assert not Path("/nonexistent").exists()
 
 
@@ -141,7 +150,7 @@ def test_a_bad_recipe_is_one_line_exit_2(
 
 def test_unknown_recipe_names_the_known_ones(capsys: pytest.CaptureFixture[str]) -> None:
     assert cli.main(["train", "all", "--recipe", "nope"]) == 2
-    assert "known: floors, paper-house, shipped, tiny-test" in capsys.readouterr().err
+    assert "known: base, paper-house, shipped, tiny-test" in capsys.readouterr().err
 
 
 def test_an_interrupted_collection_keeps_the_houses_it_finished(tmp_path: Path) -> None:
