@@ -144,11 +144,17 @@ class Follower:
     @classmethod
     def for_route(cls, route: Route, cfg: ControllerConfig | None = None) -> Follower:
         """The follower of a taught route (its subgoals, commands, poses and spacing)."""
-        steps = float(route.steps_between or 2)
+        steps, camera = float(route.steps_between or 2), floor_camera(route.camera)
         return cls(
-            route.images, cfg, route.commands, route.poses, route.travel_poses(), steps, float(route.dt),
-            floor_camera(route.camera),
-        )  # fmt: skip
+            route.images,
+            cfg,
+            route.commands,
+            route.poses,
+            route.travel_poses(),
+            steps,
+            float(route.dt),
+            camera,
+        )
 
     def __len__(self) -> int:
         return int(self.subgoals.shape[0])
@@ -165,10 +171,6 @@ class Follower:
     @property
     def subgoal(self) -> np.ndarray:
         return self.subgoals[min(self.index, len(self) - 1)]
-
-    @property
-    def stalled(self) -> bool:
-        return False
 
     def holds_turn(self, i: int) -> bool:
         return self.cfg.hold_turns and 0 <= i < len(self._held) and bool(self._held[i])
@@ -226,8 +228,8 @@ class Follower:
         at_end = est.position >= last - self.cfg.finish_span and est.best == last  # the end by travel's too
         k = self.cfg.localiser.cells_per_gap  # the estimate's cell (the filter resolves no finer) at the end
         near_end = round(est.position * k) >= round((last - self.cfg.finish_span) * k)
-        # the view matches the last subgoal as the teach's neighbours match each other, or, the policy stopped
-        # there with no other subgoal closer, within ``jump_factor`` of that
+        # FINISHED on evidence: the estimate at the end and the view under the last subgoal's threshold; or the
+        # last subgoal the closest view, the policy stopped there and the view within ``jump_factor`` thresholds
         threshold = float(self.thresholds[last])
         close = final_error <= self.cfg.jump_factor * threshold  # the settled bound, the end by travel's too
         settled = self._idle >= 2 and close

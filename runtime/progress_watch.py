@@ -2,14 +2,17 @@
 progressing, or, for a robot that stands, a view matching a subgoal. Without them for too long the follower
 ends the run LOST (``runtime.follower``).
 
-Too long is measured two ways, one state: images without progress or a match end a crawl (moved furniture near the end: dev runs hunted
-back and forth 2 cm from the end, or stood 33 cm past it with the estimate half a gap short, until the step
-limit); commanded translation without progress (a match or not) ends a drive: past the taught travel across the localiser's window, a robot that
-had moved along the route would have left every view the localiser compares with (held-out set 14, gen_1514: a
-fine-tuned model drove 1.9 m at 0.25 m/s from near the route's end into a wall, its view 2.5-3x the threshold
-off, the estimate held at 46 of 49). Turning in place does not count: it sweeps no new floor, and robots that
-turned a full circle looking for the view found it and finished (dev gen_109, gen_113: 0.0-0.02 m driven in
-100 images without evidence; the dev runs that touched something drove 1.1-1.2 windows' travel blind).
+Too long is measured two ways, one state: images without progress or a match end a crawl (moved furniture
+near the end: dev runs hunted back and forth 2 cm from the end, or stood 33 cm past it with the estimate half
+a gap short, until the step limit); commanded translation without progress, a view matching or not, ends a
+drive: past the taught travel across the localiser's window, a robot that had moved along the route would
+have left every view the localiser compares with (held-out set 14, gen_1514: a fine-tuned model drove 1.9 m
+at 0.25 m/s from near the route's end into a wall, its view 2.5-3x the threshold off, the estimate held at 46
+of 49; the example room's arc with the floor model crept on 10 cm past the end, its view matching the
+last-but-one subgoal at every image). Turning in place does not count: it sweeps no new floor, and robots
+that turned a full circle looking for the view found it and finished (dev gen_109, gen_113: 0.0-0.02 m
+driven in 100 images without evidence; the dev runs that touched something drove 1.1-1.2 windows' travel
+blind).
 """
 
 from __future__ import annotations
@@ -51,10 +54,7 @@ class ProgressWatch:
         if position >= self.reach + PROGRESS_GAPS:
             self.reach, self.since, self.travel = position, 0, 0.0
             return None
-        # A matching view says where the robot is: it may stand there, not drive on without getting on (the
-        # example room's arc with the floor model: past the end the view matched the last-but-one subgoal at
-        # every image and the robot crept on 10 cm past the end).
-        if matched:
+        if matched:  # the view says where the robot is: it may stand there, not drive on without progress
             self.reach, self.since = min(self.reach, position), 0
         else:
             self.since += 1
