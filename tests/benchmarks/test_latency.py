@@ -161,3 +161,18 @@ def test_the_taught_step_judges_the_floor_as_a_real_routes_does(tmp_path: Path) 
         seen[name + "_region"] = [int(regions is not None and regions.any())]
     assert seen["taught"] and seen["taught_region"] == [1]
     assert not seen["plain"] and seen["plain_region"] == [0]
+
+
+def test_the_taught_step_goes_on_for_as_many_steps_as_the_bench_times(tmp_path: Path) -> None:
+    """The bench's view never moves while every step drives on: the follower's no-progress watch ends such a
+    repeat after its window's taught travel (a robot should stop there), which ended `vtr bench latency`
+    with an error; the bench counts the watch afresh each call and the repeat goes on."""
+    from vtr.benchmarks.step_bench import BenchStep, sample_taught
+
+    meta = ModelMeta(image_height=128, image_width=128, horizon=2)
+    model = make_standin_velocitynet(tmp_path / "m.onnx", meta=meta, widths=(4, 8))
+    current, route, poses = sample_taught(128, 128)
+    step = BenchStep(model, 1, current, route, match_light=True, poses=poses)
+    for _ in range(150):
+        assert step().commanded
+    assert len(step.compute_ms) == 150
