@@ -68,8 +68,9 @@ if TYPE_CHECKING:
 
 #: Commands under these (m/s, rad/s) count as the policy standing still at the end of the route.
 IDLE_SPEED, IDLE_TURN = 0.01, 0.02
-#: The most the side correction turns (rad/s): VelocityNet keeps the rest of the turn range.
-SIDE_TURN_MAX = 0.5
+#: The most the side correction turns (rad/s): VelocityNet keeps the rest of the turn range, and holds a
+#: heading toward the path of this / 3.6 rad (16 deg; 0.5, 8 deg, left 10 cm starts 3 cm off after 1 m).
+SIDE_TURN_MAX = 1.0
 #: The side turn follows the median of this many floor estimates of views in a row while driving: one view's
 #: estimate can be wrong by centimetres (just after a turn in place, the taught floor warped to a pose the
 #: localiser has a little off), and a pursuit acts on it at any pace.
@@ -220,7 +221,7 @@ class Follower:
         if collided and self.cfg.stop_on_contact:
             return self._stop(Action.COLLIDED, math.nan, f"contact reported near subgoal {self.index}")
         wide = self.localiser.wide
-        est = self.estimate = self.localiser.update(self.matcher.features(image))
+        est = self.estimate = self.localiser.update(image)
         if wide:
             self.localised_to = int(round(est.position))
         last = len(self) - 1

@@ -50,11 +50,21 @@ class LocaliserConfig:
     turn_length_m: float = 0.2
     #: Belief mass spread uniformly each step, so that a wrong estimate can be recovered from.
     mixing: float = 1e-4
+    #: Horizontal shifts (pooled pixels, each way) the view is also compared at, against the subgoal the
+    #: belief expects: a robot turned off the taught heading (closing a side offset) sees the taught view
+    #: shifted sideways (Bearnav's registration); unregistered, a turn of 10 degrees matched no subgoal.
+    shifts: tuple[int, ...] = (3, 6)
+    #: ... only where the teach turned less than this (rad) in each gap beside that subgoal: in a turn the
+    #: neighbouring subgoals are the view shifted sideways, and the heading is the position along the route
+    #: (registered there, a robot turned past the end of a taught turn in place matched its last subgoal).
+    register_turn: float = 0.05
 
     def __post_init__(self) -> None:
         if self.cells_per_gap < 1 or self.window_behind < 1 or self.window_ahead < 1:
             raise ValueError("cells_per_gap, window_behind and window_ahead must be >= 1")
-        for name in ("motion_noise", "motion_floor", "obs_sigma", "turn_length_m", "mixing"):
+        if not all(isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in self.shifts):
+            raise ValueError(f"shifts must be positive integers (pooled pixels), got {self.shifts!r}")
+        for name in ("motion_noise", "motion_floor", "obs_sigma", "turn_length_m", "mixing", "register_turn"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
@@ -87,6 +97,9 @@ class Estimate:
         k = index - self.first
         return float(self.errors[k]) if 0 <= k < len(self.errors) else math.nan
 
+
+#: The fewest tiles across a view for it to be registered sideways: a shift drops one column of them.
+REGISTER_COLUMNS = 4
 
 #: Half-width (gaps) of the span around the mode whose mass is the confidence.
 CONFIDENT_SPAN = 0.75
@@ -154,6 +167,10 @@ class RouteLocaliser:
         self._motion_sq = np.einsum("ij,ij->i", self._motion, self._motion)
         # the taught travel from the first subgoal to each (m, turns at ``rho`` a radian): window_travel's sums
         self._travelled = np.concatenate([[0.0], np.cumsum(np.sqrt(self._motion_sq))])
+        # per subgoal: whether the teach drove on without turning much on either side (register_turn)
+        turn = np.abs(np.asarray(motion, dtype=np.float64).reshape(-1, 2)[:, 1])
+        before, after = np.concatenate([[0.0], turn]), np.concatenate([turn, [0.0]])
+        self._straight = np.maximum(before, after) < self.cfg.register_turn
         # the teach's own distances, subgoal k to k + o for every offset o of the widest window
         self._span = self.cfg.window_behind + self.cfg.window_ahead + 1
         self._band = self._self_distances(self._span)
@@ -265,10 +282,13 @@ class RouteLocaliser:
     def update(self, view: Frame | np.ndarray) -> Estimate:
         """Weigh the belief by how well ``view`` fits each position: a frame, or the current image's features
         from the localiser's matcher (``matcher.features(frame)``, which a caller may need for more)."""
-        if isinstance(view, Frame):
-            view = self.matcher.features(view)
+        frame = view if isinstance(view, Frame) else None
+        if frame is not None:
+            view = self.matcher.features(frame)
         win = self.window()
         errors = self.matcher.distances(view, self.feats[win.start : win.stop])
+        if frame is not None and self.cfg.shifts and self._registers(frame):
+            errors = self._registered(frame, errors, win)
         best = int(errors.argmin())
         if self.n < 2:
             self.last = Estimate(0.0, 0.0, 1.0, float(errors[0]), 0, float(errors[0]), 0, errors)
@@ -309,6 +329,30 @@ class RouteLocaliser:
             errors=errors,
         )
         return self.last
+
+    def _registers(self, frame: Frame) -> bool:
+        """Whether views are registered sideways: patch matching, ``REGISTER_COLUMNS`` tiles across or more."""
+        return self.matcher.cfg.method == "patch" and self.matcher.tile_columns(frame) >= REGISTER_COLUMNS
+
+    def _registered(self, frame: Frame, errors: np.ndarray, win: range) -> np.ndarray:
+        """``errors``, and the window's distances at the sideways shift that lines the view up best with the
+        subgoal the belief expects (the closest one where it has no prior), where those are lower."""
+        near = int(errors.argmin()) if self._wide else int(round(self._mean())) - win.start
+        near = min(max(near, 0), len(errors) - 1)
+        if not self._straight[win.start + near]:
+            return errors
+        target = self.feats[win.start + near]
+        found, least = None, float(errors[near])
+        for size in self.cfg.shifts:
+            for shift in (size, -size):
+                feats, faces = self.matcher.shifted_features(frame, shift)
+                d = float(self.matcher.distances(feats, target[None, faces])[0])
+                if d < least:
+                    found, least = (feats, faces), d
+        if found is None:
+            return errors
+        feats, faces = found
+        return np.minimum(errors, self.matcher.distances(feats, self.feats[win.start : win.stop][:, faces]))
 
     def _expected(self, pos: np.ndarray, win: range) -> np.ndarray:
         """(len(pos), len(win)) distances the teach predicts at each position to each subgoal of the window."""

@@ -191,6 +191,36 @@ class Matcher:
         that sample their own tiles (runtime.obstruction warps a taught view)."""
         return self._normalised(tiles)
 
+    def shifted_features(self, frame: Frame, shift: int) -> tuple[np.ndarray, np.ndarray]:
+        """A frame's patch features with its tile grid cut ``shift`` pooled pixels to the right (0 < |shift| <
+        patch), and the indices of the tiles of an unshifted grid they face: the view of a robot turned
+        ``shift`` pooled pixels' worth to the left, lined up with a taught view. The edge column of tiles
+        that the shift leaves half outside the image is dropped. Made once per frame and shift."""
+        p = self.cfg.patch
+        if not 0 < abs(shift) < p:
+            raise ValueError(f"shift must be 1..{p - 1} pooled pixels either way, got {shift!r}")
+        if self.tile_columns(frame) < 2:
+            raise ValueError(f"a {frame.shape[1]} px wide image has too few tiles across to shift")
+        return frame.derived(("shifted_features", shift, self.cfg), lambda fr: self._shifted(fr, shift))
+
+    def tile_columns(self, frame: Frame) -> int:
+        """Tiles across a frame."""
+        return frame.shape[1] // (self.cfg.downsample * self.cfg.patch)
+
+    def _shifted(self, frame: Frame, shift: int) -> tuple[np.ndarray, np.ndarray]:
+        p = self.cfg.patch
+        pooled = pooled_sums(frame, self.cfg.downsample)
+        c, h, w = pooled.shape
+        hp, wp = h // p, w // p
+        start = shift if shift > 0 else p + shift
+        cut = pooled[:, :, start : start + (wp - 1) * p]
+        tiles = cut.reshape(c, hp, p, wp - 1, p).transpose(1, 3, 0, 2, 4).reshape(1, hp * (wp - 1), c, p * p)
+        features = self._normalised(tiles.astype(np.float32))[0]
+        first = 0 if shift > 0 else 1
+        faces = (np.arange(hp)[:, None] * wp + np.arange(first, first + wp - 1)[None, :]).ravel()
+        features.flags.writeable = faces.flags.writeable = False
+        return features, faces
+
     def distance(self, a: np.ndarray, b: np.ndarray) -> float:
         """Distance between two features (or images for raw) from :meth:`features`."""
         if self.cfg.method == "raw":

@@ -98,3 +98,43 @@ def test_a_frame_is_weighed_as_its_features_are():
         a, b = by_frame.update(as_frame(render(x))), by_features.update(_view(x))
         assert (a.position, a.confidence, a.best) == (b.position, b.confidence, b.best)
         assert np.array_equal(a.errors, b.errors)
+
+
+def _textured_localiser(turn: float = 0.0, **cfg) -> tuple[RouteLocaliser, np.ndarray]:
+    """A route of 12 unrelated textured views, matched patch by patch (the default matcher), taught driving
+    0.1 m and turning ``turn`` rad a gap."""
+    images = np.random.default_rng(11).integers(0, 256, (12, 64, 64, 3), dtype=np.uint8)
+    matcher = Matcher(MatchConfig())
+    feats = matcher.features(images)
+    poses = np.stack([np.arange(12) * 0.1, np.zeros(12), np.arange(12) * turn], axis=1)
+    motion = taught_motion(poses, np.tile([0.25, 0.0], (12, 1)), 12, 0.4)
+    return RouteLocaliser(feats, matcher, motion, 1.0, LocaliserConfig(**cfg)), images
+
+
+@pytest.mark.parametrize("pixels", [12, -12, 6])
+def test_a_view_turned_off_the_taught_heading_still_matches_its_subgoal(pixels):
+    """Turned a few degrees, the view is the taught one moved sideways: unshifted it matches nothing (a
+    robot correcting a side offset got lost this way, dev routes), registered it matches its subgoal."""
+    from vtr.runtime.frame import as_frame
+
+    loc, images = _textured_localiser()
+    loc.start_at(5.0)
+    turned = as_frame(np.roll(images[5], pixels, axis=1))
+    est = loc.update(turned)
+    assert est.best == 5 and est.best_error < 0.05
+    assert est.position == pytest.approx(5.0, abs=0.3)
+    blind, _ = _textured_localiser(shifts=())
+    blind.start_at(5.0)
+    assert blind.update(turned).best_error > 0.8
+
+
+def test_where_the_teach_turned_a_sideways_shift_is_not_registered():
+    """In a taught turn the neighbouring subgoals are the view shifted sideways: heading is position there,
+    and registering it away let a robot turn past a taught turn in place's end (dev gen_105)."""
+    from vtr.runtime.frame import as_frame
+
+    loc, images = _textured_localiser(turn=0.2)
+    loc.start_at(5.0)
+    assert loc.update(as_frame(np.roll(images[5], 12, axis=1))).best_error > 0.8
+    with pytest.raises(ValueError, match="shifts"):
+        LocaliserConfig(shifts=(0,))

@@ -85,3 +85,22 @@ def test_raw_distances_over_a_stack_are_each_images_image_error_to_the_bit():
     assert m.distances(image, others[:0]).shape == (0,)
     with pytest.raises(ValueError, match="image shapes differ"):
         m.distances(image, others[:, :8])
+
+
+@pytest.mark.parametrize("shift", [3, -3, 6, -6])
+def test_shifted_features_line_a_turned_view_up_with_the_taught_tiles_it_faces(shift):
+    """A view whose content moved ``shift`` pooled pixels sideways (a robot turned off the taught heading),
+    cut ``shift`` to the right, gives the taught view's own features for every tile it faces."""
+    from vtr.runtime.frame import as_frame
+
+    m = Matcher(MatchConfig())
+    taught = np.random.default_rng(5).integers(0, 256, (64, 64, 3), dtype=np.uint8)
+    turned = np.roll(taught, 2 * shift, axis=1)  # 2 image pixels a pooled pixel
+    feats, faces = m.shifted_features(as_frame(turned), shift)
+    assert feats.shape == (len(faces), m.features(taught).shape[-1]) and len(faces) == 4 * 3
+    assert np.allclose(feats, m.features(taught)[faces], atol=1e-5)
+    dropped = 3 if shift > 0 else 0  # the edge column the shift leaves half outside
+    assert dropped not in faces % 4
+    assert m.distance(m.features(turned), m.features(taught)) > 0.8  # unshifted: unrelated
+    with pytest.raises(ValueError, match="shift"):
+        m.shifted_features(as_frame(turned), 8)
