@@ -171,6 +171,7 @@ class RouteLocaliser:
         turn = np.abs(np.asarray(motion, dtype=np.float64).reshape(-1, 2)[:, 1])
         before, after = np.concatenate([[0.0], turn]), np.concatenate([turn, [0.0]])
         self._straight = np.maximum(before, after) < self.cfg.register_turn
+        self._shifts = tuple(s for size in self.cfg.shifts for s in (size, -size))  # each size, both ways
         # the teach's own distances, subgoal k to k + o for every offset o of the widest window
         self._span = self.cfg.window_behind + self.cfg.window_ahead + 1
         self._band = self._self_distances(self._span)
@@ -341,18 +342,13 @@ class RouteLocaliser:
         near = min(max(near, 0), len(errors) - 1)
         if not self._straight[win.start + near]:
             return errors
-        target = self.feats[win.start + near]
-        found, least = None, float(errors[near])
-        for size in self.cfg.shifts:
-            for shift in (size, -size):
-                feats, faces = self.matcher.shifted_features(frame, shift)
-                d = float(self.matcher.distances(feats, target[None, faces])[0])
-                if d < least:
-                    found, least = (feats, faces), d
-        if found is None:
+        target = self.feats[win.start + near : win.start + near + 1]
+        d = self.matcher.shifted_distances(frame, self._shifts, target)[:, 0]
+        best = int(d.argmin())
+        if not d[best] < errors[near]:
             return errors
-        feats, faces = found
-        return np.minimum(errors, self.matcher.distances(feats, self.feats[win.start : win.stop][:, faces]))
+        window = self.matcher.shifted_distances(frame, self._shifts, self.feats[win.start : win.stop], best)
+        return np.minimum(errors, window[best])
 
     def _expected(self, pos: np.ndarray, win: range) -> np.ndarray:
         """(len(pos), len(win)) distances the teach predicts at each position to each subgoal of the window."""

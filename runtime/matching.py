@@ -191,35 +191,68 @@ class Matcher:
         that sample their own tiles (runtime.obstruction warps a taught view)."""
         return self._normalised(tiles)
 
-    def shifted_features(self, frame: Frame, shift: int) -> tuple[np.ndarray, np.ndarray]:
-        """A frame's patch features with its tile grid cut ``shift`` pooled pixels to the right (0 < |shift| <
-        patch), and the indices of the tiles of an unshifted grid they face: the view of a robot turned
-        ``shift`` pooled pixels' worth to the left, lined up with a taught view. The edge column of tiles
-        that the shift leaves half outside the image is dropped. Made once per frame and shift."""
+    def shifted_features(self, frame: Frame, shifts: tuple[int, ...]) -> np.ndarray:
+        """(S, rows, columns - 1, D) a frame's patch features with its tile grid cut each of ``shifts`` pooled
+        pixels to the right (0 < |shift| < patch): the view of a robot turned that many pooled pixels' worth
+        to the left, lined up with a taught view. The edge column of tiles a shift leaves half outside the
+        image is dropped: a shift to the right faces the taught grid's columns 0 .. columns - 2, one to the
+        left 1 .. columns - 1 (:meth:`shifted_distances`). Made once per frame and shifts, in one batch."""
         p = self.cfg.patch
-        if not 0 < abs(shift) < p:
-            raise ValueError(f"shift must be 1..{p - 1} pooled pixels either way, got {shift!r}")
+        if not all(0 < abs(s) < p for s in shifts):
+            raise ValueError(f"shifts must be 1..{p - 1} pooled pixels either way, got {shifts!r}")
         if self.tile_columns(frame) < 2:
             raise ValueError(f"a {frame.shape[1]} px wide image has too few tiles across to shift")
-        return frame.derived(("shifted_features", shift, self.cfg), lambda fr: self._shifted(fr, shift))
+        return frame.derived(
+            ("shifted_features", tuple(shifts), self.cfg), lambda fr: self._shifted(fr, shifts)
+        )
 
     def tile_columns(self, frame: Frame) -> int:
         """Tiles across a frame."""
         return frame.shape[1] // (self.cfg.downsample * self.cfg.patch)
 
-    def _shifted(self, frame: Frame, shift: int) -> tuple[np.ndarray, np.ndarray]:
+    def _shifted(self, frame: Frame, shifts: tuple[int, ...]) -> np.ndarray:
         p = self.cfg.patch
         pooled = pooled_sums(frame, self.cfg.downsample)
         c, h, w = pooled.shape
         hp, wp = h // p, w // p
-        start = shift if shift > 0 else p + shift
-        cut = pooled[:, :, start : start + (wp - 1) * p]
-        tiles = cut.reshape(c, hp, p, wp - 1, p).transpose(1, 3, 0, 2, 4).reshape(1, hp * (wp - 1), c, p * p)
-        features = self._normalised(tiles.astype(np.float32))[0]
-        first = 0 if shift > 0 else 1
-        faces = (np.arange(hp)[:, None] * wp + np.arange(first, first + wp - 1)[None, :]).ravel()
-        features.flags.writeable = faces.flags.writeable = False
-        return features, faces
+        span = (wp - 1) * p
+        cuts = np.stack(
+            [pooled[:, :, s if s > 0 else p + s :][:, :, :span] for s in shifts]
+        )  # (S, c, h, span)
+        tiles = cuts.reshape(len(shifts), c, hp, p, wp - 1, p).transpose(0, 2, 4, 1, 3, 5)
+        tiles = tiles.reshape(1, len(shifts) * hp * (wp - 1), c, p * p).astype(np.float32, copy=False)
+        features = self._normalised(tiles).reshape(len(shifts), hp, wp - 1, -1)
+        features.flags.writeable = False
+        return features
+
+    def shifted_distances(
+        self, frame: Frame, shifts: tuple[int, ...], others: np.ndarray, only: int | None = None
+    ) -> np.ndarray:
+        """(S, K) :meth:`distances` of a frame cut each of ``shifts`` pooled pixels across
+        (:meth:`shifted_features`) to K features of unshifted views (a (K, tiles, D) stack), over the tiles it
+        faces: a column range of each view's tile grid, read in place (gathering would copy the stack);
+        ``only``: the index of the one shift to compare (its row alone is filled, the others NaN)."""
+        features = self.shifted_features(frame, shifts)
+        k, n, d = others.shape
+        wp = self.tile_columns(frame)
+        grid = others.reshape(k, n // wp, wp, d)
+        out = np.full((len(shifts), k), np.nan)
+        for i, shift in enumerate(shifts):
+            if only is not None and i != only:
+                continue
+            first = 0 if shift > 0 else 1  # a shift to the right faces columns from 0, one to the left from 1
+            diff = grid[:, :, first : first + wp - 1] - features[i]  # (K, rows, columns - 1, D)
+            np.abs(diff, out=diff)
+            # (K, tiles, D) as distances() reduces it, so a shift of 0 would give its very bits
+            out[i] = self._trimmed(np.add.reduce(diff.reshape(k, -1, d), axis=-1) / d)
+        return out
+
+    def _trimmed(self, per_tile: np.ndarray) -> np.ndarray:
+        """(K,) the mean of each row's best ``1 - trim`` share of (K, tiles) tile scores, float64."""
+        keep = max(1, int(round(per_tile.shape[1] * (1.0 - self.cfg.trim))))
+        if keep < per_tile.shape[1]:
+            per_tile = np.partition(per_tile, keep - 1, axis=1)[:, :keep]
+        return (np.add.reduce(per_tile, axis=1) / keep).astype(np.float64)
 
     def distance(self, a: np.ndarray, b: np.ndarray) -> float:
         """Distance between two features (or images for raw) from :meth:`features`."""
@@ -249,11 +282,7 @@ class Matcher:
         diff = others - feature
         np.abs(diff, out=diff)
         # reduce / count: what ndarray.mean computes, without its Python-level bookkeeping
-        per_tile = np.add.reduce(diff, axis=-1) / diff.shape[-1]  # (K, tiles)
-        keep = max(1, int(round(per_tile.shape[1] * (1.0 - self.cfg.trim))))
-        if keep < per_tile.shape[1]:
-            per_tile = np.partition(per_tile, keep - 1, axis=1)[:, :keep]
-        return (np.add.reduce(per_tile, axis=1) / keep).astype(np.float64)
+        return self._trimmed(np.add.reduce(diff, axis=-1) / diff.shape[-1])  # (K, tiles) tile scores
 
     def tile_distances(self, feature: np.ndarray, others: np.ndarray) -> np.ndarray:
         """(K, tiles) per-tile scores of one patch feature against each of K (``others``: (K, tiles, D) or

@@ -87,20 +87,33 @@ def test_raw_distances_over_a_stack_are_each_images_image_error_to_the_bit():
         m.distances(image, others[:, :8])
 
 
-@pytest.mark.parametrize("shift", [3, -3, 6, -6])
-def test_shifted_features_line_a_turned_view_up_with_the_taught_tiles_it_faces(shift):
+def test_shifted_features_line_a_turned_view_up_with_the_taught_tiles_it_faces():
     """A view whose content moved ``shift`` pooled pixels sideways (a robot turned off the taught heading),
     cut ``shift`` to the right, gives the taught view's own features for every tile it faces."""
     from vtr.runtime.frame import as_frame
 
     m = Matcher(MatchConfig())
+    shifts = (3, -3, 6, -6)
     taught = np.random.default_rng(5).integers(0, 256, (64, 64, 3), dtype=np.uint8)
-    turned = np.roll(taught, 2 * shift, axis=1)  # 2 image pixels a pooled pixel
-    feats, faces = m.shifted_features(as_frame(turned), shift)
-    assert feats.shape == (len(faces), m.features(taught).shape[-1]) and len(faces) == 4 * 3
-    assert np.allclose(feats, m.features(taught)[faces], atol=1e-5)
-    dropped = 3 if shift > 0 else 0  # the edge column the shift leaves half outside
-    assert dropped not in faces % 4
-    assert m.distance(m.features(turned), m.features(taught)) > 0.8  # unshifted: unrelated
+    grid = m.features(taught).reshape(4, 4, -1)  # 4 x 4 tiles of 8 pooled pixels
+    stack = m.features(np.stack([taught, np.roll(taught, 2, axis=0)]))
+    for i, shift in enumerate(shifts):
+        turned = as_frame(np.roll(taught, 2 * shift, axis=1))  # 2 image pixels a pooled pixel
+        feats = m.shifted_features(turned, shifts)
+        assert feats.shape == (4, 4, 3, grid.shape[-1])
+        faced = grid[:, :3] if shift > 0 else grid[:, 1:]  # the edge column the shift leaves half outside
+        assert np.allclose(feats[i], faced, atol=1e-5)
+        assert m.distance(m.features(turned), m.features(taught)) > 0.8  # unshifted: unrelated
+        got = m.shifted_distances(turned, shifts, stack)
+        assert got.shape == (4, 2) and got[i, 0] < 1e-5 and (np.delete(got[:, 0], i) > 0.5).all()
+        assert np.isclose(got[i, 1], m.distances(feats[i].reshape(12, -1), stack[1:, faced_index(shift)])[0])
+        only = m.shifted_distances(turned, shifts, stack, i)
+        assert np.array_equal(only[i], got[i]) and np.isnan(np.delete(only, i, axis=0)).all()
     with pytest.raises(ValueError, match="shift"):
-        m.shifted_features(as_frame(turned), 8)
+        m.shifted_features(as_frame(taught), (8,))
+
+
+def faced_index(shift: int) -> np.ndarray:
+    """The taught tiles (of a 4 x 4 grid) that a view cut ``shift`` across faces."""
+    first = 0 if shift > 0 else 1
+    return (np.arange(4)[:, None] * 4 + np.arange(first, first + 3)[None, :]).ravel()
