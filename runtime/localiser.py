@@ -172,6 +172,10 @@ class RouteLocaliser:
         before, after = np.concatenate([[0.0], turn]), np.concatenate([turn, [0.0]])
         self._straight = np.maximum(before, after) < self.cfg.register_turn
         self._shifts = tuple(s for size in self.cfg.shifts for s in (size, -size))  # each size, both ways
+        if any(size >= matcher.cfg.patch for size in self.cfg.shifts):
+            raise ValueError(
+                f"shifts must be under the tile side ({matcher.cfg.patch}), got {self.cfg.shifts!r}"
+            )
         # the teach's own distances, subgoal k to k + o for every offset o of the widest window
         self._span = self.cfg.window_behind + self.cfg.window_ahead + 1
         self._band = self._self_distances(self._span)

@@ -243,7 +243,7 @@ class Matcher:
             first = 0 if shift > 0 else 1  # a shift to the right faces columns from 0, one to the left from 1
             diff = grid[:, :, first : first + wp - 1] - features[i]  # (K, rows, columns - 1, D)
             np.abs(diff, out=diff)
-            # (K, tiles, D) as distances() reduces it, so a shift of 0 would give its very bits
+            # reduced as distances() reduces its (K, tiles, D) stack
             out[i] = self._trimmed(np.add.reduce(diff.reshape(k, -1, d), axis=-1) / d)
         return out
 

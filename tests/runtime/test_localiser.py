@@ -138,3 +138,5 @@ def test_where_the_teach_turned_a_sideways_shift_is_not_registered():
     assert loc.update(as_frame(np.roll(images[5], 12, axis=1))).best_error > 0.8
     with pytest.raises(ValueError, match="shifts"):
         LocaliserConfig(shifts=(0,))
+    with pytest.raises(ValueError, match="under the tile side"):
+        _textured_localiser(shifts=(8,))
