@@ -166,6 +166,39 @@ def switch_lag(taught: np.ndarray, switch_poses: dict[int, tuple[float, float, f
     return float(np.mean((at[:, 0] - p[:, 0]) * np.cos(p[:, 2]) + (at[:, 1] - p[:, 1]) * np.sin(p[:, 2])))
 
 
+def suite_robot(route: Any, cond: Condition, house: str, method: Method, dt: float) -> tuple[Any, Any, Any]:
+    """The robot a suite run under ``cond`` repeats ``route`` on, in ``house`` (the condition's scene already
+    written): the simulator with the condition's camera, sensor and noise, wrapped to take the path's box
+    away (``clear_after_s``), to move it across the path (a moving scene) and to change the light. Returns
+    (robot, clearing, crossing): the last two those wrappers, None where the condition has none. One place,
+    so that ``run_once`` and ``evaluation.trace_run`` repeat on the same robot."""
+    from vtr.evaluation.conditions import LitRobot
+    from vtr.evaluation.moving_box import CrossingRobot
+    from vtr.evaluation.path_boxes import ClearingRobot, path_box, write_cleared_house
+    from vtr.sim2d import SimConfig, Simulator
+    from vtr.sim2d.config import camera_config
+    from vtr.sim2d.local_robot import LocalRobot
+
+    h, w = route.images.shape[1:3]
+    sim = Simulator(
+        SimConfig(
+            camera=camera_config(w, h, cond.camera),
+            sensor=SENSORS.get(cond.sensor or ""),
+            noise=cond.noise,
+            house=house,
+        )
+    )
+    robot: Any = LocalRobot(sim, scan=method.scan)
+    clearing = crossing = None
+    if cond.clear_after_s is not None:
+        clearing = robot = ClearingRobot(robot, str(write_cleared_house(house)), cond.clear_after_s, dt)
+    if cond.scene in MOVING_SCENES:
+        crossing = robot = CrossingRobot(robot, path_box(house) or {})
+    if cond.light:
+        robot = LitRobot(robot, LIGHTING[cond.light])
+    return robot, clearing, crossing
+
+
 def run_once(
     route: Any,
     script: Any,
@@ -182,35 +215,12 @@ def run_once(
     and the control steps per taught control step (``keep_path``: and the repeated x, y in mm precision);
     with the path box: ``box_face_m``, and ``cleared_at_s`` (simulated time it was taken away, None if
     never). ``cfg`` needs dt and max_steps_factor (a SuiteConfig)."""
-    from vtr.evaluation.conditions import LitRobot
-    from vtr.evaluation.moving_box import CrossingRobot
-    from vtr.evaluation.path_boxes import ClearingRobot, path_box, write_cleared_house
+    from vtr.evaluation.path_boxes import path_box
     from vtr.evaluation.runs import repeat_closed_loop
     from vtr.evaluation.scoring import score
     from vtr.runtime.light import LightMatchedPolicy
-    from vtr.sim2d import SimConfig, Simulator
-    from vtr.sim2d.config import camera_config
-    from vtr.sim2d.local_robot import LocalRobot
 
-    h, w = route.images.shape[1:3]
-    robot: Any = LocalRobot(
-        Simulator(
-            SimConfig(
-                camera=camera_config(w, h, cond.camera),
-                sensor=SENSORS.get(cond.sensor or ""),
-                noise=cond.noise,
-                house=house,
-            )
-        ),
-        scan=method.scan,
-    )
-    clearing = crossing = None
-    if cond.clear_after_s is not None:
-        clearing = robot = ClearingRobot(robot, str(write_cleared_house(house)), cond.clear_after_s, cfg.dt)
-    if cond.scene in MOVING_SCENES:
-        crossing = robot = CrossingRobot(robot, path_box(house) or {})
-    if cond.light:
-        robot = LitRobot(robot, LIGHTING[cond.light])
+    robot, clearing, crossing = suite_robot(route, cond, house, method, cfg.dt)
     if method.match_light:
         policy = LightMatchedPolicy(policy, side_ramp=method.side_ramp)
     start = start_pose(route.poses[0], cond.offset, seed)

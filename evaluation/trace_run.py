@@ -36,15 +36,15 @@ def trace(
     a RouteScript; ``base``: the house it is taught in (a scene condition changes a copy of it)."""
     import tempfile
 
-    from vtr.evaluation.condition_run import CONDITIONS, CONTROLLERS, cached_policy, start_pose
-    from vtr.evaluation.conditions import LIGHTING, LitRobot, write_scene_house
+    from vtr.evaluation.condition_run import CONDITIONS, CONTROLLERS, cached_policy, start_pose, suite_robot
+    from vtr.evaluation.conditions import write_scene_house
     from vtr.evaluation.harness import teach
     from vtr.models import find_model
     from vtr.runtime.follower import controller_for_route
     from vtr.runtime.light import LightMatchedPolicy
     from vtr.runtime.repeater import RepeatConfig, Repeater, StepRecord
-    from vtr.sim2d import CameraConfig, Pose, SimConfig, Simulator
-    from vtr.sim2d.local_robot import LocalRobot
+    from vtr.sim2d import Pose, SimConfig, Simulator
+    from vtr.sim2d.config import camera_config
 
     cond, method = CONDITIONS[cond_name], CONTROLLERS[controller]
     policy: Any = cached_policy(find_model(model), 1)
@@ -58,12 +58,10 @@ def trace(
             else base
         )
         h, w = route.images.shape[1:3]
-        sim = Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=cond.noise, house=house))
-        robot: Any = LocalRobot(sim)
+        robot, _, _ = suite_robot(route, cond, house, method, 0.1)  # the robot the suite repeats on
         # the unchanged house, noise-free: what the camera would see at the same pose without the change
-        clean = Simulator(SimConfig(camera=CameraConfig(width=w, height=h), noise=0.0, house=base))
-        if cond.light:
-            robot = LitRobot(robot, LIGHTING[cond.light])
+        camera = camera_config(w, h, cond.camera)
+        clean = Simulator(SimConfig(camera=camera, noise=0.0, house=base))
         if method.match_light:
             policy = LightMatchedPolicy(policy, side_ramp=method.side_ramp)
         ctrl = controller_for_route(route, method.controller)

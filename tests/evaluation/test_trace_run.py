@@ -34,3 +34,25 @@ def test_it_traces_the_follower_and_the_side_offset_it_sees():
         r for r in rows if np.isfinite(r["side_mm"])
     ]  # the follower's floor estimate (the rules have none)
     assert seen and abs(seen[0]["side_mm"] - seen[0]["cross_mm"]) < 30
+
+
+def test_it_repeats_on_the_robot_the_suite_repeats_on(monkeypatch):
+    """The trace built its own robot: no moving box, no box taken away, no sensor, the default camera, so a
+    held-out run that touched the moving obstacle finished when traced. It now asks the suite's
+    ``suite_robot``, with the condition's scene written, as ``run_once`` does."""
+    from vtr.evaluation import condition_run
+    from vtr.evaluation.moving_box import CrossingRobot
+
+    made: list[object] = []
+    real = condition_run.suite_robot
+
+    def recording(*args):
+        robot = real(*args)
+        made.append(robot)
+        return robot
+
+    monkeypatch.setattr(condition_run, "suite_robot", recording)
+    trace(ROUTE, "moving_obstacle", seed=0)
+    assert len(made) == 1
+    robot, clearing, crossing = made[0]
+    assert isinstance(crossing, CrossingRobot) and clearing is None
