@@ -197,11 +197,6 @@ class Matcher:
         to the left, lined up with a taught view. The edge column of tiles a shift leaves half outside the
         image is dropped: a shift to the right faces the taught grid's columns 0 .. columns - 2, one to the
         left 1 .. columns - 1 (:meth:`shifted_distances`). Made once per frame and shifts, in one batch."""
-        p = self.cfg.patch
-        if not all(0 < abs(s) < p for s in shifts):
-            raise ValueError(f"shifts must be 1..{p - 1} pooled pixels either way, got {shifts!r}")
-        if self.tile_columns(frame) < 2:
-            raise ValueError(f"a {frame.shape[1]} px wide image has too few tiles across to shift")
         return frame.derived(
             ("shifted_features", tuple(shifts), self.cfg), lambda fr: self._shifted(fr, shifts)
         )
@@ -211,7 +206,12 @@ class Matcher:
         return frame.shape[1] // (self.cfg.downsample * self.cfg.patch)
 
     def _shifted(self, frame: Frame, shifts: tuple[int, ...]) -> np.ndarray:
+        """:meth:`shifted_features`' batch, made (and its shifts checked) once per frame, not per call."""
         p = self.cfg.patch
+        if not all(0 < abs(s) < p for s in shifts):
+            raise ValueError(f"shifts must be 1..{p - 1} pooled pixels either way, got {shifts!r}")
+        if self.tile_columns(frame) < 2:
+            raise ValueError(f"a {frame.shape[1]} px wide image has too few tiles across to shift")
         pooled = pooled_sums(frame, self.cfg.downsample)
         c, h, w = pooled.shape
         hp, wp = h // p, w // p
