@@ -31,9 +31,12 @@ def trace(
     model: Path | None = None,
     max_steps_factor: float = 8.0,
     base: str = "house",
+    camera: tuple[float, float] | None = None,
 ) -> tuple[list[dict[str, Any]], str]:
     """Rows (one per judged image) and the run's final status and detail. ``route_path``: a ROUTE.json or
-    a RouteScript; ``base``: the house it is taught in (a scene condition changes a copy of it)."""
+    a RouteScript; ``base``: the house it is taught in (a scene condition changes a copy of it);
+    ``camera``: (fov deg, height m) of teach and repeat in place of the condition's (as `vtr eval --camera`)."""
+    import dataclasses
     import tempfile
 
     from vtr.evaluation.condition_run import CONDITIONS, CONTROLLERS, cached_policy, start_pose, suite_robot
@@ -47,8 +50,11 @@ def trace(
     from vtr.sim2d.config import camera_config
 
     cond, method = CONDITIONS[cond_name], CONTROLLERS[controller]
+    if camera is not None:
+        cond = dataclasses.replace(cond, camera=camera)
     policy: Any = cached_policy(find_model(model), 1)
-    route, _ = teach(route_path, tuple(policy.image_shape), 0.1, base)
+    # taught with the robot's own camera, as the suites teach (condition_suite, house_suite)
+    route, _ = teach(route_path, tuple(policy.image_shape), 0.1, base, camera=cond.camera)
     taught = np.asarray(route.poses, dtype=np.float64)
     rows: list[dict[str, Any]] = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -115,6 +121,12 @@ def trace(
     return rows, f"{summary.status.value}: {summary.detail}"
 
 
+def _camera(spec: str) -> tuple[float, float]:
+    from vtr.evaluation.house_suite import parse_camera
+
+    return parse_camera(spec)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m vtr.evaluation.trace_run", description=__doc__.split("\n")[0])
     p.add_argument("route", help="ROUTE.json, or with --house the generated route's index (sim2d.route_gen)")
@@ -123,6 +135,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0, help="noise seed (default: %(default)s)")
     p.add_argument("--controller", default="after", help="a suite controller (default: %(default)s)")
     p.add_argument("--model", type=Path, default=None, help="VelocityNet ONNX (default: the shipped one)")
+    p.add_argument(
+        "--camera",
+        type=_camera,
+        default=None,
+        metavar="FOV,HEIGHT",
+        help="the robot's camera at teach and repeat, as `vtr eval --camera` (default: the condition's)",
+    )
     p.add_argument("--every", type=int, default=1, help="print every n-th row (default: %(default)s)")
     p.add_argument("--json", type=Path, default=None, help="write the rows here")
     args = p.parse_args(argv)
@@ -145,7 +164,13 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 2
     rows, end = trace(
-        route, args.condition, args.seed, args.controller, args.model, base=args.house or "house"
+        route,
+        args.condition,
+        args.seed,
+        args.controller,
+        args.model,
+        base=args.house or "house",
+        camera=args.camera,
     )
     print(
         " step    i  action    error  clean  thresh  err_i+1  dist_mm  dyaw  near_mm near_k cross_mm side_mm"

@@ -6,8 +6,8 @@ Where the route localiser places the robot (position ``s`` in subgoal units), th
 then lines up as it looks from there, and what stands on it does not. Without the warp, the floor just
 ahead moves by several pixels between two subgoals, as much as a box changes it, and a fast route looks
 blocked half of the time. The robot is a little off that pose (a few centimetres, a few degrees), so each
-tile of the view is compared with the warped view's tile shifted by up to ``shift_rows`` x ``shift_cols``
-pooled pixels, and with the taught views of subgoals ``k`` and ``k + 1`` as they are, as the patch matcher
+tile of the view is compared with the warped view's tile shifted by up to ``shift_rows_deg`` x ``shift_cols_deg``
+(degrees of view, in pooled pixels of the robot's camera), and with the taught views of subgoals ``k`` and ``k + 1`` as they are, as the patch matcher
 compares (normalised per channel, so light drops out): a tile is *unmatched* when none of them is within
 ``tile_threshold``. Normalised, a plain tile matches any plain tile: one plain in the view is matched only
 where its colour, against the view's floor (which drops a colour cast and a light darker on one side), is
@@ -97,6 +97,17 @@ def beside(offset: Offset, dy: float, psi: float) -> Offset:
     return ahead - math.sin(turn) * dy, left + math.cos(turn) * dy, turn + psi
 
 
+def view_shifts(cfg: ObstructionConfig, camera: Camera, downsample: int) -> tuple[int, int]:
+    """The warped taught view's shifts each way (pooled pixels, down and across) on ``camera``: the
+    configured angles at its focal length, so a camera of another field of view or resolution tolerates the
+    same pose error (1 and 2 on the 90 deg, 128 px camera)."""
+    focal = camera.focal_px / downsample
+    return (
+        int(round(math.radians(cfg.shift_rows_deg) * focal)),
+        int(round(math.radians(cfg.shift_cols_deg) * focal)),
+    )
+
+
 def _once(fn: SideFn) -> SideFn:
     """``fn``, called at most once."""
     memo: list[tuple[float, float] | None] = []
@@ -141,7 +152,7 @@ class ObstructionDetector:
 
         self._least = cfg.min_region * float(straight.sum())
         self._points = tile_floor_points(camera, tile, tiles, 3).reshape(-1, 2)
-        self.floor = FloorTiles(camera, tiles, self.matcher, cfg.shift_rows, cfg.shift_cols)
+        self.floor = FloorTiles(camera, tiles, self.matcher, *view_shifts(cfg, camera, self.matcher.cfg.downsample))
         per_row = w // tile
         row, col = tiles // per_row, tiles % per_row
         # [i, j]: 1 where tile j is further along tile i's column (it sees the floor behind i's)

@@ -20,9 +20,12 @@ class ObstructionConfig:
     #: The matcher's floor on a tile's spread (0..255 units), higher than for localising: a plain patch of
     #: floor under a light that changes across it (one side darker) must stay plain.
     std_floor: float = 8.0
-    #: Pooled pixels (2 image pixels each) the warped taught view is shifted by, each way, down and across.
-    shift_rows: int = 1
-    shift_cols: int = 2
+    #: How far the warped taught view is shifted each way, down and across, in degrees of the camera's view:
+    #: the robot's pose error moves the floor by an angle, which a narrower camera spreads over more pixels.
+    #: 1 and 2 pooled pixels (2 image pixels each) on the 90 deg, 128 px camera the defaults were tuned on
+    #: (``ObstructionDetector`` rounds them to pooled pixels of the robot's camera).
+    shift_rows_deg: float = 1.8
+    shift_cols_deg: float = 3.6
     #: Metres ahead and behind the pose the robot is placed at that the taught floor is also warped to, where
     #: tiles stay unmatched there: the localiser's estimate lags or leads by up to this (dev offset_10cm_10deg,
     #: gen_104: 10 cm behind the robot; 0: no such tries).
@@ -97,7 +100,11 @@ class ObstructionConfig:
                 f"ObstructionConfig.clear_hidden ({self.clear_hidden}) must be under hidden_fraction "
                 f"({self.hidden_fraction})"
             )
-        for name, least in (("grow_steps", 1), ("clear_steps", 1), ("shift_rows", 0), ("shift_cols", 0)):
+        for name in ("shift_rows_deg", "shift_cols_deg"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0.0 <= value <= 30.0):
+                raise ValueError(f"ObstructionConfig.{name} must be 0 to 30 degrees, got {value!r}")
+        for name, least in (("grow_steps", 1), ("clear_steps", 1)):
             value = getattr(self, name)
             if not isinstance(value, int) or isinstance(value, bool) or value < least:
                 raise ValueError(f"ObstructionConfig.{name} must be an integer >= {least}, got {value!r}")

@@ -56,3 +56,28 @@ def test_it_repeats_on_the_robot_the_suite_repeats_on(monkeypatch):
     assert len(made) == 1
     robot, clearing, crossing = made[0]
     assert isinstance(crossing, CrossingRobot) and clearing is None
+
+
+def test_a_camera_given_is_the_robots_at_teach_and_at_repeat(monkeypatch):
+    """`--camera FOV,HEIGHT` traces a run of `vtr eval --camera`: the route taught and repeated with that
+    camera (the trace taught with the default camera even where the condition named another)."""
+    from vtr.evaluation import condition_run, harness
+
+    taught: list[object] = []
+    repeated: list[object] = []
+    real_teach, real_robot = harness.teach, condition_run.suite_robot
+
+    def teach(*args, **kwargs):
+        taught.append(kwargs.get("camera"))
+        return real_teach(*args, **kwargs)
+
+    def robot(route, cond, *args):
+        repeated.append(cond.camera)
+        return real_robot(route, cond, *args)
+
+    monkeypatch.setattr(harness, "teach", teach)
+    monkeypatch.setattr(condition_run, "suite_robot", robot)
+    rows, _ = trace(ROUTE, "noise_0.05", seed=0, camera=(65.0, 0.3))
+    assert rows and taught == [(65.0, 0.3)] and repeated == [(65.0, 0.3)]
+    assert main([str(ROUTE), "noise_0.05", "--camera", "65,0.3", "--every", "500"]) == 0
+    assert taught[-1] == (65.0, 0.3)

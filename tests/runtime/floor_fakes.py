@@ -12,14 +12,16 @@ from vtr.runtime.floor_view import Camera
 CAM = Camera()
 
 
-def floor_view(x: float, y: float = 0.0, yaw: float = 0.0, seed: int = 0) -> np.ndarray:
-    """What CAM sees from (x, y, yaw) over a floor of 20 cm squares of random colours (grey above the
+def floor_view(
+    x: float, y: float = 0.0, yaw: float = 0.0, seed: int = 0, cam: Camera = CAM
+) -> np.ndarray:
+    """What ``cam`` sees from (x, y, yaw) over a floor of 20 cm squares of random colours (grey above the
     horizon; sim2d's mosaic is coarser still)."""
     colours = np.random.default_rng(seed).integers(30, 220, (64, 64, 3))
-    f = CAM.focal_px
-    rows, cols = np.mgrid[0 : CAM.height, 0 : CAM.width] + 0.5
-    down, right = (rows - CAM.height / 2) / f, (cols - CAM.width / 2) / f
-    ahead = CAM.height_m / np.where(down > 0, down, np.nan)
+    f = cam.focal_px
+    rows, cols = np.mgrid[0 : cam.height, 0 : cam.width] + 0.5
+    down, right = (rows - cam.height / 2) / f, (cols - cam.width / 2) / f
+    ahead = cam.height_m / np.where(down > 0, down, np.nan)
     with np.errstate(invalid="ignore"):
         fx = x + math.cos(yaw) * ahead + math.sin(yaw) * right * ahead
         fy = y + math.sin(yaw) * ahead - math.cos(yaw) * right * ahead
@@ -29,10 +31,10 @@ def floor_view(x: float, y: float = 0.0, yaw: float = 0.0, seed: int = 0) -> np.
     return out.astype(np.uint8)
 
 
-def straight_route(n: int = 24, gap: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
-    """The views and poses of a straight route along x, a subgoal every ``gap`` m."""
+def straight_route(n: int = 24, gap: float = 0.1, cam: Camera = CAM) -> tuple[np.ndarray, np.ndarray]:
+    """The views (seen by ``cam``) and poses of a straight route along x, a subgoal every ``gap`` m."""
     poses = np.array([[gap * k, 0.0, 0.0] for k in range(n)])
-    return np.stack([floor_view(x) for x, _, _ in poses]), poses
+    return np.stack([floor_view(x, cam=cam) for x, _, _ in poses]), poses
 
 
 def with_blob(image: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
