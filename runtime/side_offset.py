@@ -36,17 +36,21 @@ class SideConfig:
     #: further ones are often a wall or furniture (whose rows all shift alike, as a turn would).
     near_m: float = 0.35
     far_m: float = 1.2
-    #: Largest shift tried each way, as a share of the image's width (12 pooled pixels of 64: a side offset of
-    #: 10 cm is 9 of them on the nearest row).
-    max_shift: float = 0.19
+    #: Largest shift tried each way, as an angle (rad): a row's shift is f (psi + dy / X) pixels, so this bounds
+    #: psi + dy / X whatever the camera's field of view or resolution (12 pooled pixels of the 90 deg, 128 px
+    #: camera, whose focal length is 32 of them: a side offset of 10 cm is 9 of them on the nearest row). As a
+    #: share of the image's width it was 37 deg each way on a 120 deg camera, where a row's best shift was as
+    #: often a wrong one (dev houses at 120 deg: 27/40 completed, 36/40 with the angle).
+    max_shift_rad: float = 0.375
     #: A row counts when its best score (mean absolute difference of normalised values: 0 the same row,
     #: about 1.1 unrelated ones) is under ``match`` and its median over the shifts ``distinct`` above it.
     match: float = 0.6
     distinct: float = 0.1
     #: ... and an estimate needs this share of the rows to agree on one line.
     min_share: float = 0.7
-    #: Rows whose shift is this far (pooled pixels) off the fitted line are dropped and the line fitted again.
-    outlier_px: float = 1.5
+    #: Rows whose shift is this far off the fitted line, as an angle (rad), are dropped and the line fitted
+    #: again (1.5 pooled pixels of the 90 deg, 128 px camera).
+    outlier_rad: float = 1.5 / 32
 
 
 @dataclass(frozen=True)
@@ -80,7 +84,8 @@ class SideOffset:
         if len(self.rows) < 4:
             raise ValueError(f"a {h}x{w} camera sees too few floor rows {cfg.near_m}-{cfg.far_m} m ahead")
         self.focal = camera.focal_px / ds  # in pooled pixels
-        self.shifts = max(2, round(cfg.max_shift * (w // ds)))
+        self.shifts = max(2, round(cfg.max_shift_rad * self.focal))
+        self.outlier = cfg.outlier_rad * self.focal  # in pooled pixels
         if w // ds - 2 * self.shifts < 4:
             raise ValueError(f"a {h}x{w} camera is too narrow to shift its floor rows {self.shifts} pixels")
         # the floor point each kept pooled pixel sees: ahead (m, per row) and -side * ahead to the left
@@ -166,7 +171,7 @@ class SideOffset:
             if kept < self.min_rows:
                 return None
             line = _weighted_line(self._design, shift, quality * ok)
-            ok &= np.abs(self._design @ line - shift) <= self.cfg.outlier_px
+            ok &= np.abs(self._design @ line - shift) <= self.outlier
             if np.count_nonzero(ok) == kept:  # no row dropped: a second fit would be this one
                 break
         if np.count_nonzero(ok) < self.min_rows:

@@ -17,7 +17,8 @@ from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
 from vtr.runtime.route import Route
 from vtr.runtime.route_sensing import floor_side_of
 from vtr.runtime.route_sensing import side_offset as side_offset_of
-from vtr.runtime.side_offset import SideEstimate, SideOffset
+from vtr.runtime.floor_view import Camera
+from vtr.runtime.side_offset import SideConfig, SideEstimate, SideOffset
 
 
 def side_offset() -> SideOffset:
@@ -127,6 +128,23 @@ def test_small_views_search_fewer_shifts_and_tiny_ones_have_no_side_offset():
     assert side_offset_of(views[:, ::8, ::8].copy(), poses, CAM) is None  # 16 x 16
 
 
+def test_the_shifts_searched_are_an_angle_so_a_narrow_camera_tells_an_offset_its_rows_move_far():
+    """8 cm beside and turned 6 deg, a 65 deg camera sees its nearest floor row 17 pooled pixels across: the
+    search the 90 deg camera's width gave (12 pixels) told nothing; the same angle as on that camera (19 on
+    this one) tells it."""
+    cam = Camera(fov_deg=65.0)
+    views, poses = straight_route(8, 0.1, cam=cam)
+    side = SideOffset(views, poses, cam)
+    assert SideOffset(*straight_route(8, 0.1), CAM).shifts == 12 and side.shifts == 19
+    view = floor_view(0.3, 0.08, math.radians(6), seed=7, cam=cam)
+    views7 = np.stack([floor_view(x, seed=7, cam=cam) for x, _, _ in poses])
+    told = SideOffset(views7, poses, cam).estimate(view, 3.0)
+    assert told is not None and abs(told.dy - 0.08) < 0.01 and abs(math.degrees(told.psi) - 6) < 1.5
+    f = cam.focal_px / 2  # pooled pixels
+    as_before = SideConfig(max_shift_rad=12 / f, outlier_rad=1.5 / f)
+    assert SideOffset(views7, poses, cam, as_before).estimate(view, 3.0) is None
+
+
 class Told:
     """A floor registration that tells the side offsets it is given, one per view."""
 
@@ -192,7 +210,7 @@ def reference_estimate(side: SideOffset, view: np.ndarray, position: float) -> S
         if np.count_nonzero(ok) < side.min_rows:
             return None
         line = _weighted_line(side._design, shift, quality * ok)
-        ok &= np.abs(side._design @ line - shift) <= side.cfg.outlier_px
+        ok &= np.abs(side._design @ line - shift) <= side.outlier
     if np.count_nonzero(ok) < side.min_rows:
         return None
     return SideEstimate(float(line[1] / side.focal), float(line[0] / side.focal), int(np.count_nonzero(ok)))
