@@ -152,7 +152,9 @@ class ObstructionDetector:
 
         self._least = cfg.min_region * float(straight.sum())
         self._points = tile_floor_points(camera, tile, tiles, 3).reshape(-1, 2)
-        self.floor = FloorTiles(camera, tiles, self.matcher, *view_shifts(cfg, camera, self.matcher.cfg.downsample))
+        self.floor = FloorTiles(
+            camera, tiles, self.matcher, *view_shifts(cfg, camera, self.matcher.cfg.downsample)
+        )
         per_row = w // tile
         row, col = tiles // per_row, tiles % per_row
         # [i, j]: 1 where tile j is further along tile i's column (it sees the floor behind i's)

@@ -12,9 +12,7 @@ from vtr.runtime.floor_view import Camera
 CAM = Camera()
 
 
-def floor_view(
-    x: float, y: float = 0.0, yaw: float = 0.0, seed: int = 0, cam: Camera = CAM
-) -> np.ndarray:
+def floor_view(x: float, y: float = 0.0, yaw: float = 0.0, seed: int = 0, cam: Camera = CAM) -> np.ndarray:
     """What ``cam`` sees from (x, y, yaw) over a floor of 20 cm squares of random colours (grey above the
     horizon; sim2d's mosaic is coarser still)."""
     colours = np.random.default_rng(seed).integers(30, 220, (64, 64, 3))

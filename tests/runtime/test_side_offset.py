@@ -12,12 +12,12 @@ from floor_fakes import CAM, box_at, floor_view, straight_route
 
 from vtr.runtime.contracts import Observation
 from vtr.runtime.controller import ControllerConfig
+from vtr.runtime.floor_view import Camera
 from vtr.runtime.follower import Follower
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
 from vtr.runtime.route import Route
 from vtr.runtime.route_sensing import floor_side_of
 from vtr.runtime.route_sensing import side_offset as side_offset_of
-from vtr.runtime.floor_view import Camera
 from vtr.runtime.side_offset import SideConfig, SideEstimate, SideOffset
 
 
