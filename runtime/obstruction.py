@@ -97,17 +97,6 @@ def beside(offset: Offset, dy: float, psi: float) -> Offset:
     return ahead - math.sin(turn) * dy, left + math.cos(turn) * dy, turn + psi
 
 
-def view_shifts(cfg: ObstructionConfig, camera: Camera, downsample: int) -> tuple[int, int]:
-    """The warped taught view's shifts each way (pooled pixels, down and across) on ``camera``: the
-    configured angles at its focal length, so a camera of another field of view or resolution tolerates the
-    same pose error (1 and 2 on the 90 deg, 128 px camera)."""
-    focal = camera.focal_px / downsample
-    return (
-        int(round(math.radians(cfg.shift_rows_deg) * focal)),
-        int(round(math.radians(cfg.shift_cols_deg) * focal)),
-    )
-
-
 def _once(fn: SideFn) -> SideFn:
     """``fn``, called at most once."""
     memo: list[tuple[float, float] | None] = []
@@ -152,9 +141,8 @@ class ObstructionDetector:
 
         self._least = cfg.min_region * float(straight.sum())
         self._points = tile_floor_points(camera, tile, tiles, 3).reshape(-1, 2)
-        self.floor = FloorTiles(
-            camera, tiles, self.matcher, *view_shifts(cfg, camera, self.matcher.cfg.downsample)
-        )
+        shifts = cfg.pooled_shifts(camera.focal_px / self.matcher.cfg.downsample)
+        self.floor = FloorTiles(camera, tiles, self.matcher, *shifts)
         per_row = w // tile
         row, col = tiles // per_row, tiles % per_row
         # [i, j]: 1 where tile j is further along tile i's column (it sees the floor behind i's)

@@ -70,6 +70,15 @@ class ObstructionConfig:
     #: dev boxes on the path blocked with 11-17% unmatched beside it).
     max_elsewhere: float = 0.5
 
+    def pooled_shifts(self, focal: float) -> tuple[int, int]:
+        """The warped taught view's shifts each way (pooled pixels, down and across) on a camera whose focal
+        length is ``focal`` pooled pixels: the configured angles there, so a camera of another field of view or
+        resolution tolerates the same pose error (1 and 2 on the 90 deg, 128 px camera)."""
+        return (
+            int(round(math.radians(self.shift_rows_deg) * focal)),
+            int(round(math.radians(self.shift_cols_deg) * focal)),
+        )
+
     def __post_init__(self) -> None:
         if not (isinstance(self.along_m, (int, float)) and 0.0 <= self.along_m <= 1.0):
             raise ValueError(f"ObstructionConfig.along_m must be in [0, 1] m, got {self.along_m!r}")

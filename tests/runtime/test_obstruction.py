@@ -11,7 +11,7 @@ from floor_fakes import straight_route as route
 
 from vtr.runtime.floor_view import Camera, path_weights, taught_offset
 from vtr.runtime.matching import MatchConfig, Matcher
-from vtr.runtime.obstruction import ObstructionConfig, ObstructionDetector, view_shifts
+from vtr.runtime.obstruction import ObstructionConfig, ObstructionDetector
 
 
 def test_path_weights_cover_the_floor_ahead_and_nothing_beside():
@@ -65,13 +65,16 @@ def test_a_narrower_camera_tolerates_the_pose_error_the_default_one_does():
     views, poses = route(cam=cam)
     off = floor_view(0.25, 0.0, math.radians(5), cam=cam)
     det = ObstructionDetector(views, poses, camera=cam)
-    assert view_shifts(det.cfg, CAM, 2) == (1, 2) and view_shifts(det.cfg, cam, 2) == (2, 3)
+    assert det.cfg.pooled_shifts(CAM.focal_px / 2) == (1, 2) and det.cfg.pooled_shifts(cam.focal_px / 2) == (
+        2,
+        3,
+    )
     assert ObstructionDetector(*route()).share(floor_view(0.25, 0.0, math.radians(5)), 2.5) < 0.05
     assert det.share(off, 2.5) < 0.05
     # the 90 deg camera's pooled pixels on this camera leave the same pose error unmatched
     f = cam.focal_px / 2
     pixels = ObstructionConfig(shift_rows_deg=math.degrees(1 / f), shift_cols_deg=math.degrees(2 / f))
-    assert view_shifts(pixels, cam, 2) == (1, 2)
+    assert pixels.pooled_shifts(f) == (1, 2)
     assert ObstructionDetector(views, poses, pixels, camera=cam).share(off, 2.5) > 0.3
 
 
