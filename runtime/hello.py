@@ -49,6 +49,9 @@ SHOULD_ANNOUNCE = ("dt", "mode")
 TWIST_SOURCES = ("measured", "commanded")
 #: Older names still read, each with the name to use instead; a hello using one gets a warning.
 DEPRECATED = {"camera.camera_height": "camera.height_m"}
+#: The camera's height above the floor in a camera object: the name, then the deprecated one (the simulator's,
+#: and that of routes taught on it or with older bridges), read where the first is not given.
+CAMERA_HEIGHT_KEYS = ("height_m", "camera_height")
 
 T = TypeVar("T")
 
@@ -59,6 +62,18 @@ class RobotMismatchError(ValueError):
 
 class CameraMismatchError(RobotMismatchError):
     """Robot, route and model disagree about the camera; the message says which and how."""
+
+
+def current_camera_names(camera: dict[str, Any]) -> dict[str, Any]:
+    """A camera object with its deprecated keys (``DEPRECATED``) under their current names, the rest as given:
+    what a route records, whichever way the robot described its camera (a hello, or the simulator's info)."""
+    out = dict(camera)
+    for old, new in DEPRECATED.items():
+        before, after = old.split(".", 1)[1], new.split(".", 1)[1]
+        if before in out:
+            value = out.pop(before)
+            out.setdefault(after, value)
+    return out
 
 
 def camera_from_dict(d: Any, err: type[ValueError] = BadFrameError, where: str = "camera.") -> CameraSpec:
@@ -72,7 +87,7 @@ def camera_from_dict(d: Any, err: type[ValueError] = BadFrameError, where: str =
     fov = number(d, "fov_deg", err, where) if d.get("fov_deg") is not None else None
     if fov is not None and not 0 < fov < 360:
         raise err(f"{where}fov_deg must be in (0, 360), got {fov}")
-    key = "height_m" if d.get("height_m") is not None else "camera_height"
+    key = CAMERA_HEIGHT_KEYS[0] if d.get(CAMERA_HEIGHT_KEYS[0]) is not None else CAMERA_HEIGHT_KEYS[1]
     height_m = number(d, key, err, where) if d.get(key) is not None else None
     return CameraSpec(width=width, height=height, fov_deg=fov, height_m=height_m)
 

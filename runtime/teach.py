@@ -31,7 +31,7 @@ import numpy as np
 from vtr.runtime.address import EXAMPLE, check_endpoint
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT
-from vtr.runtime.hello import accept_hello, fit_model, mapping_notes
+from vtr.runtime.hello import accept_hello, current_camera_names, fit_model, mapping_notes
 from vtr.runtime.kinematics import wrap_angle
 from vtr.runtime.preprocess import image_error
 from vtr.runtime.protocol import Limits, jsonable
@@ -98,6 +98,14 @@ class TeachConfig:
         return dist >= self.min_distance or abs(wrap_angle(obs.pose[2] - last_pose[2])) >= self.min_angle
 
 
+def _current_names(info: dict[str, Any]) -> dict[str, Any]:
+    """``info`` with its camera's keys under their current names (``hello.current_camera_names``), as a
+    checked hello gives them: the simulator's ``camera_height`` recorded as ``height_m`` (read by the floor
+    geometry, ``route_sensing.floor_camera``)."""
+    camera = info.get("camera")
+    return {**info, "camera": current_camera_names(camera)} if isinstance(camera, dict) else info
+
+
 def _robot_info(robot: Any, dt: float, model: Any = None) -> dict[str, Any]:
     """Camera/map description from the robot, when it offers one (SimClient's hello, LocalRobot.sim.info).
 
@@ -132,10 +140,10 @@ def _robot_info(robot: Any, dt: float, model: Any = None) -> dict[str, Any]:
             header = robot.hello()
             info = dict(header.get("info") or {})
             info.update({k: header[k] for k in ("camera", "map") if header.get(k) is not None})
-            return info
+            return _current_names(info)
         sim = getattr(robot, "sim", None)
         if sim is not None and hasattr(sim, "info"):
-            return dict(jsonable(sim.info()))
+            return _current_names(dict(jsonable(sim.info())))
     except RobotError:
         if getattr(robot, "timeouts", 0) > timeouts:
             raise  # nothing answers: say so now, not after a second round of tries on reset
