@@ -6,8 +6,9 @@ Where the route localiser places the robot (position ``s`` in subgoal units), th
 then lines up as it looks from there, and what stands on it does not. Without the warp, the floor just
 ahead moves by several pixels between two subgoals, as much as a box changes it, and a fast route looks
 blocked half of the time. The robot is a little off that pose (a few centimetres, a few degrees), so each
-tile of the view is compared with the warped view's tile shifted by up to ``shift_rows_deg`` x ``shift_cols_deg``
-(degrees of view, in pooled pixels of the robot's camera), and with the taught views of subgoals ``k`` and ``k + 1`` as they are, as the patch matcher
+tile of the view is compared with the warped view's tile shifted by up to ``shift_rows_deg`` x
+``shift_cols_deg`` (angles, in pooled pixels of the robot's camera), and with the taught views of subgoals
+``k`` and ``k + 1`` as they are, as the patch matcher
 compares (normalised per channel, so light drops out): a tile is *unmatched* when none of them is within
 ``tile_threshold``. Normalised, a plain tile matches any plain tile: one plain in the view is matched only
 where its colour, against the view's floor (which drops a colour cast and a light darker on one side), is

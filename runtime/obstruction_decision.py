@@ -111,7 +111,8 @@ class ObstructionConfig:
             )
         for name in ("shift_rows_deg", "shift_cols_deg"):
             value = getattr(self, name)
-            if not (math.isfinite(value) and 0.0 <= value <= 30.0):
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            if not (ok and 0.0 <= value <= 30.0):
                 raise ValueError(f"ObstructionConfig.{name} must be 0 to 30 degrees, got {value!r}")
         for name, least in (("grow_steps", 1), ("clear_steps", 1)):
             value = getattr(self, name)

@@ -146,6 +146,9 @@ def test_bad_settings_and_inputs_are_refused():
         ObstructionConfig(grow_steps=0)
     with pytest.raises(ValueError, match="tile_threshold"):
         ObstructionConfig(tile_threshold=float("nan"))
+    for bad in (-1.0, 45.0, float("nan"), "2", True):
+        with pytest.raises(ValueError, match="shift_cols_deg"):
+            ObstructionConfig(shift_cols_deg=bad)
     views, poses = route(3)
     with pytest.raises(ValueError, match="subgoals"):
         ObstructionDetector(views.astype(np.float32), poses)
