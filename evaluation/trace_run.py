@@ -121,13 +121,9 @@ def trace(
     return rows, f"{summary.status.value}: {summary.detail}"
 
 
-def _camera(spec: str) -> tuple[float, float]:
+def main(argv: list[str] | None = None) -> int:
     from vtr.evaluation.house_suite import parse_camera
 
-    return parse_camera(spec)
-
-
-def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m vtr.evaluation.trace_run", description=__doc__.split("\n")[0])
     p.add_argument("route", help="ROUTE.json, or with --house the generated route's index (sim2d.route_gen)")
     p.add_argument("--house", default=None, help="a procedural house (random:SEED) the route is generated in")
@@ -137,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--model", type=Path, default=None, help="VelocityNet ONNX (default: the shipped one)")
     p.add_argument(
         "--camera",
-        type=_camera,
+        type=parse_camera,
         default=None,
         metavar="FOV,HEIGHT",
         help="the robot's camera at teach and repeat, as `vtr eval --camera` (default: the condition's)",

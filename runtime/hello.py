@@ -49,9 +49,6 @@ SHOULD_ANNOUNCE = ("dt", "mode")
 TWIST_SOURCES = ("measured", "commanded")
 #: Older names still read, each with the name to use instead; a hello using one gets a warning.
 DEPRECATED = {"camera.camera_height": "camera.height_m"}
-#: The camera's height above the floor in a camera object: the name, then the deprecated one (the simulator's,
-#: and that of routes taught on it or with older bridges), read where the first is not given.
-CAMERA_HEIGHT_KEYS = ("height_m", "camera_height")
 
 T = TypeVar("T")
 
@@ -65,14 +62,16 @@ class CameraMismatchError(RobotMismatchError):
 
 
 def current_camera_names(camera: dict[str, Any]) -> dict[str, Any]:
-    """A camera object with its deprecated keys (``DEPRECATED``) under their current names, the rest as given:
-    what a route records, whichever way the robot described its camera (a hello, or the simulator's info)."""
+    """A camera object with its deprecated keys (``DEPRECATED``) under their current names, where the current
+    one is not given, the rest as given: what a route records and what is read, whichever way the robot described
+    its camera (a hello, the simulator's info, an older route)."""
     out = dict(camera)
     for old, new in DEPRECATED.items():
         before, after = old.split(".", 1)[1], new.split(".", 1)[1]
         if before in out:
             value = out.pop(before)
-            out.setdefault(after, value)
+            if out.get(after) is None:
+                out[after] = value
     return out
 
 
@@ -81,14 +80,14 @@ def camera_from_dict(d: Any, err: type[ValueError] = BadFrameError, where: str =
     and older routes' name) is read as ``height_m``. A field not given is None (unknown)."""
     if not isinstance(d, dict):
         raise err(f"{where.rstrip('.')} must be an object with width and height, got {d!r:.60}")
+    d = current_camera_names(d)
     width, height = integer(d, "width", err, where), integer(d, "height", err, where)
     if not (0 < width <= MAX_IMAGE_SIDE and 0 < height <= MAX_IMAGE_SIDE):
         raise err(f"{where}width/height must be in 1..{MAX_IMAGE_SIDE}, got {width}x{height}")
     fov = number(d, "fov_deg", err, where) if d.get("fov_deg") is not None else None
     if fov is not None and not 0 < fov < 360:
         raise err(f"{where}fov_deg must be in (0, 360), got {fov}")
-    key = CAMERA_HEIGHT_KEYS[0] if d.get(CAMERA_HEIGHT_KEYS[0]) is not None else CAMERA_HEIGHT_KEYS[1]
-    height_m = number(d, key, err, where) if d.get(key) is not None else None
+    height_m = number(d, "height_m", err, where) if d.get("height_m") is not None else None
     return CameraSpec(width=width, height=height, fov_deg=fov, height_m=height_m)
 
 

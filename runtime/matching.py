@@ -168,15 +168,19 @@ class Matcher:
         return np.maximum(spread, np.float32(self.cfg.std_floor * f * f))
 
     def _tiles(self, pooled: np.ndarray) -> np.ndarray:
-        """(1, tiles, C, p * p) tiles of one image's pooled sums (C, H / f, W / f), in a new array."""
+        """(1, tiles, C, p * p) tiles of one image's pooled sums (C, H / f, W / f), in a new array; of a stack
+        of them (S, C, H / f, W / f), every image's tiles in turn (S * tiles)."""
         p = self.cfg.patch
-        c, h, w = pooled.shape
+        *stack, c, h, w = pooled.shape
         if h % p or w % p:
             f = self.cfg.downsample
             raise BadFrameError(f"image {h * f}x{w * f} is not a multiple of downsample * patch = {f * p}")
-        hp, wp = h // p, w // p
-        # (C, hp, p, wp, p) -> (1, tiles, C, p * p): a copy (a view of read-only levels when f = 1 and one tile)
-        tiles = pooled.reshape(c, hp, p, wp, p).transpose(1, 3, 0, 2, 4).reshape(1, hp * wp, c, p * p)
+        hp, wp, s = h // p, w // p, int(np.prod(stack, dtype=int))
+        # (S, C, hp, p, wp, p) -> (1, S * tiles, C, p * p): a copy (a view of read-only levels when f = 1 and
+        # one tile)
+        tiles = (
+            pooled.reshape(s, c, hp, p, wp, p).transpose(0, 2, 4, 1, 3, 5).reshape(1, s * hp * wp, c, p * p)
+        )
         return (tiles if tiles.flags.writeable else tiles.copy()).astype(np.float32, copy=False)
 
     def _normalised(self, tiles: np.ndarray) -> np.ndarray:
@@ -213,15 +217,13 @@ class Matcher:
         if self.tile_columns(frame) < 2:
             raise ValueError(f"a {frame.shape[1]} px wide image has too few tiles across to shift")
         pooled = pooled_sums(frame, self.cfg.downsample)
-        c, h, w = pooled.shape
+        h, w = pooled.shape[1:]
         hp, wp = h // p, w // p
         span = (wp - 1) * p
         cuts = np.stack(
             [pooled[:, :, s if s > 0 else p + s :][:, :, :span] for s in shifts]
         )  # (S, c, h, span)
-        tiles = cuts.reshape(len(shifts), c, hp, p, wp - 1, p).transpose(0, 2, 4, 1, 3, 5)
-        tiles = tiles.reshape(1, len(shifts) * hp * (wp - 1), c, p * p).astype(np.float32, copy=False)
-        features = self._normalised(tiles).reshape(len(shifts), hp, wp - 1, -1)
+        features = self._normalised(self._tiles(cuts)).reshape(len(shifts), hp, wp - 1, -1)
         features.flags.writeable = False
         return features
 
@@ -264,11 +266,7 @@ class Matcher:
         # same number (the controller compares distances from both)
         diff = b - a
         np.abs(diff, out=diff)
-        per_tile = np.add.reduce(diff, axis=-1) / diff.shape[-1]
-        keep = max(1, int(round(per_tile.shape[0] * (1.0 - self.cfg.trim))))
-        if keep < per_tile.shape[0]:
-            per_tile = np.partition(per_tile, keep - 1)[:keep]
-        return float(np.add.reduce(per_tile) / keep)
+        return float(self._trimmed((np.add.reduce(diff, axis=-1) / diff.shape[-1])[None])[0])
 
     def distances(self, feature: np.ndarray, others: np.ndarray) -> np.ndarray:
         """(K,) distances from one feature to each of K features (a stack from :meth:`features`)."""

@@ -10,7 +10,7 @@ import numpy as np
 
 from vtr.runtime.floor_view import Camera
 from vtr.runtime.frame import Frame
-from vtr.runtime.hello import CAMERA_HEIGHT_KEYS
+from vtr.runtime.hello import current_camera_names
 from vtr.runtime.obstruction import ObstructionDetector
 from vtr.runtime.side_offset import SideEstimate, SideOffset
 
@@ -20,20 +20,17 @@ FloorSide = Callable[[], "SideEstimate | None"]
 
 def floor_camera(camera: dict[str, object]) -> Camera:
     """The pinhole camera a route's ``camera`` meta describes (its field of view and height where known, the
-    shipped camera's where not; the image size comes from the views). The height is read under either of its
-    names (``hello.CAMERA_HEIGHT_KEYS``): routes taught on the simulator record ``camera_height``."""
+    shipped camera's where not; the image size comes from the views). Older names are read as hello reads them
+    (``hello.current_camera_names``): routes taught on the simulator recorded ``camera_height``."""
     base = Camera()
+    camera = current_camera_names(camera)
 
-    def known(keys: tuple[str, ...], default: float) -> float:
-        for key in keys:
-            value = camera.get(key)
-            ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-            if ok and value > 0:  # type: ignore[operator]
-                return float(value)  # type: ignore[arg-type]
-        return default
+    def known(key: str, default: float) -> float:
+        value = camera.get(key)
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+        return float(value) if ok and value > 0 else default  # type: ignore[operator, arg-type]
 
-    fov, height = known(("fov_deg",), base.fov_deg), known(CAMERA_HEIGHT_KEYS, base.height_m)
-    return Camera(base.height, base.width, fov, height)
+    return Camera(base.height, base.width, known("fov_deg", base.fov_deg), known("height_m", base.height_m))
 
 
 def obstruction_detector(
