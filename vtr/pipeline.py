@@ -318,6 +318,22 @@ def add_all_arguments(p: argparse.ArgumentParser) -> None:
     stages.add_common_arguments(p, pipeline=True)
 
 
+#: Said when the shipped recipe is to run without a GPU: its floors stage (batch 64) is most of its time there.
+CPU_HINT = (
+    "vtr train all: training on the CPU: `--recipe cpu` is this recipe sized for one, its floors stage at "
+    "batch 32 (50 min from nothing on 2 cores; training/README.md)"
+)
+
+
+def _on_cpu(device: str | None) -> bool:
+    """Whether the stages will train on the CPU (``--device``; auto: no CUDA device)."""
+    if device not in (None, "auto"):
+        return device == "cpu"
+    import torch
+
+    return not torch.cuda.is_available()
+
+
 def run_all_cli(args: argparse.Namespace) -> int:
     from vtr.training import recipe as recipes
 
@@ -332,6 +348,8 @@ def run_all_cli(args: argparse.Namespace) -> int:
             dry_run=args.dry_run,
             allow_no_gain=args.allow_no_gain,
         )
+        if recipe.name == recipes.DEFAULT and _on_cpu(args.device):
+            print(CPU_HINT, file=sys.stderr)
         run_all(cfg, recipe, args)
     except StageStopped:  # the stage check printed its line
         return EXIT_FAILED

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -194,3 +195,50 @@ def test_a_recipe_stage_sets_the_floor_consistency_weight(
     args = argparse.Namespace(device="cpu", workers=0, amp=None, data_on_device=None, max_minutes=None)
     pipeline._velocitynet(tmp_path, recipe, stage, get_preset(recipe.preset), args, None)
     assert seen["loss"].w_consistency == 0.25
+
+
+def test_the_cpu_recipe_is_the_shipped_one_with_its_floors_stage_at_batch_32() -> None:
+    shipped, cpu = recipes.load("shipped"), recipes.load("cpu")
+    assert (cpu.preset, cpu.data, cpu.collect, cpu.int8) == (
+        shipped.preset,
+        shipped.data,
+        shipped.collect,
+        True,
+    )
+
+    def trained(r: recipes.Recipe) -> list[tuple[str, str | None, dict[str, Any]]]:
+        drop = ("threads", "batch_size")  # how a stage runs, and the one change
+        return [
+            (s.name, s.init, {k: v for k, v in s.options.items() if k not in drop})
+            for s in [r.viewnet, *r.velocitynet]
+        ]
+
+    assert trained(cpu) == trained(shipped)
+    assert [s.options.get("batch_size") for s in cpu.velocitynet] == [None, None, None, 32]
+    assert shipped.velocitynet[-1].options["batch_size"] == 64
+    assert not any("threads" in s.options for s in [cpu.viewnet, *cpu.velocitynet])  # the preset's 2
+
+
+@pytest.mark.parametrize(
+    ("recipe", "cuda", "hint"), [("shipped", False, True), ("cpu", False, False), ("shipped", True, False)]
+)
+def test_the_shipped_recipe_on_a_cpu_points_to_the_cpu_one(
+    recipe: str, cuda: bool, hint: bool, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import torch
+
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: cuda)
+    argv = [
+        "train",
+        "all",
+        "--recipe",
+        recipe,
+        "--dry-run",
+        "--out",
+        "/nonexistent/run",
+        "--data",
+        "/nonexistent/d",
+    ]
+    assert cli.main(argv) == 0
+    assert ("`--recipe cpu` is this recipe sized for one" in capsys.readouterr().err) == hint
+    assert not Path("/nonexistent").exists()
