@@ -326,12 +326,13 @@ CPU_HINT = (
 
 
 def _on_cpu(device: str | None) -> bool:
-    """Whether the stages will train on the CPU (``--device``; auto: no CUDA device)."""
-    if device not in (None, "auto"):
-        return device == "cpu"
-    import torch
+    """Whether the stages will train on the CPU (``--device`` as the stages resolve it)."""
+    from vtr.training.distributed import resolve_device
 
-    return not torch.cuda.is_available()
+    try:
+        return resolve_device(device or "auto").type == "cpu"
+    except RuntimeError:  # CUDA asked for and missing: the first stage says so
+        return False
 
 
 def run_all_cli(args: argparse.Namespace) -> int:
