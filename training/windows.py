@@ -55,6 +55,10 @@ class Windows:
                 on_device = data.images.nbytes < 0.25 * free
         else:
             on_device = cfg.data_on_device == "yes"
+        if not isinstance(data.images, np.ndarray):
+            # a sharded dataset's frames are gathered from memory maps on the host, so its commands stay there
+            # too: DataLoader workers (forked) index both, and a forked process cannot touch CUDA tensors
+            on_device = False
         self.device = dist.device
         self.on_device = on_device
         target = dist.device if on_device else torch.device("cpu")

@@ -145,3 +145,21 @@ def test_training_with_the_floor_consistency_term_runs_and_records_it(looks: Pat
     assert cli.main([*argv, "--w-consistency", "1", "--w-stop", "0.5"]) == 0
     ckpt = torch.load(out / "model.pt", weights_only=True)
     assert ckpt["loss_config"]["w_consistency"] == 1.0
+
+
+def test_a_sharded_dataset_is_gathered_on_the_host_even_when_asked_to_live_on_the_device(looks: Path) -> None:
+    # On a GPU lease the floor stage of the paper preset (4 loader workers) crashed: its commands had gone to the
+    # device while its frames stayed in memory maps, and the forked workers indexed both ("Cannot re-initialize
+    # CUDA in forked subprocess"). A sharded dataset now keeps its commands on the host with its frames.
+    from vtr.training.config import TrainConfig
+    from vtr.training.distributed import Dist
+    from vtr.training.windows import Windows
+
+    data = load_dataset(looks)
+    dist = Dist()
+    windows = Windows(data, 3, TrainConfig(batch_size=4, data_on_device="yes"), dist, alt=True)
+    assert not windows.on_device and windows.commands.device.type == "cpu"
+    batches = list(windows.loader(windows.train_batches(4, 0, 0, dist), 2, workers=2))  # forked workers
+    assert len(batches) == 2
+    frames, commands = batches[0]
+    assert frames.shape[:2] == (4, 6) and commands.shape == (4, 2, 2)  # both appearances, three frames each
