@@ -12,9 +12,9 @@ VelocityNet stages (`training/recipes/shipped.toml`) at batch 64 with the same s
 Data: the recipe's own collection (`vtr collect --houses 40 --frames-per-house 2000 --include-house house
 --include-house-frames 10000 --appearances 4 --seed 0`), on the machine's cores. Every stage has a share of the
 wall-clock budget by its steps (the floor stage's steps weigh 1.3: its consistency pass); a stage the budget cuts
-short validates and saves as if done, and its `report.json` says how many steps it ran. OUT gets `log.txt`,
-`summary.json` and `part_*` (`cat part_* | tar xz`: each stage's report.json and metrics.jsonl, the last stage's
-model.pt). Export and closed-loop evaluation happen afterwards on the CPU (`vtr export`, `vtr eval`).
+short validates and saves as if done (its log says at which step). OUT gets `log.txt`, `summary.json` and
+`part_*` (`cat part_* | tar xz`: each stage's report.json and metrics.jsonl, the weights of stages c and floors,
+the job logs). Export and closed-loop evaluation happen afterwards on the CPU (`vtr export`, `vtr eval`).
 
     python -m studies.paper_preset_on_gpu --out $OUT --work /tmp/w --budget-s 520          # on the device
     python -m studies.paper_preset_on_gpu --out out/dry --work /tmp/dry --tiny --device cpu  # dry run, CPU
@@ -132,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     last = STAGES[-1][0]
     files = [
         runs / f"{name}_{stage}" / f
-        for name, _, _ in CHAINS
+        for name, _, _ in chains
         for stage, *_ in STAGES
         for f in ("report.json", "metrics.jsonl")
     ]
