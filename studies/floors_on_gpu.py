@@ -21,11 +21,8 @@ report.json, metrics.jsonl and its log). Export and closed-loop evaluation happe
 
 from __future__ import annotations
 
-import argparse
-from pathlib import Path
-
 from studies.mpc_vs_bc import STD
-from studies.train_on_gpu import PY, Session, common, pack, run_parallel
+from studies.train_on_gpu import PY, common, lease_parser, open_session, pack, run_parallel
 
 #: name -> the flags that make the candidate (all share the rest).
 CANDIDATES: dict[str, list[str]] = {
@@ -37,13 +34,7 @@ CANDIDATES: dict[str, list[str]] = {
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m studies.floors_on_gpu", description=__doc__.split("\n")[0])
-    ap.add_argument("--out", required=True, help="folder for log.txt, summary.json and the packed runs")
-    ap.add_argument("--work", required=True, help="scratch folder (data, runs)")
-    ap.add_argument("--budget-s", type=float, default=460.0, help="wall-clock budget (default 460)")
-    ap.add_argument("--tiny", action="store_true", help="dry run: tiny preset, few frames and steps (CPU)")
-    ap.add_argument("--device", default="cuda", help="training device (default cuda)")
-    ap.add_argument("--workers", type=int, default=16, help="collect workers (default 16)")
+    ap = lease_parser("python -m studies.floors_on_gpu", __doc__, 460.0)
     ap.add_argument("--steps", type=int, default=3000, help="steps of each candidate (default 3000)")
     ap.add_argument(
         "--candidates",
@@ -51,9 +42,7 @@ def main(argv: list[str] | None = None) -> int:
         help=f"which candidates run (default {','.join(CANDIDATES)})",
     )
     args = ap.parse_args(argv)
-    s = Session(Path(args.out), Path(args.work), args.budget_s, args.tiny, args.device)
-    s.out.mkdir(parents=True, exist_ok=True)
-    s.work.mkdir(parents=True, exist_ok=True)
+    s = open_session(args)
     data, runs = s.work / "data" / "floors", s.work / "runs"
     tiny = args.tiny
     collect = [

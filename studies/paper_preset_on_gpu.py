@@ -22,11 +22,10 @@ the job logs). Export and closed-loop evaluation happen afterwards on the CPU (`
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 from studies.mpc_vs_bc import STD
-from studies.train_on_gpu import PY, Session, common, pack, run_parallel
+from studies.train_on_gpu import PY, Session, common, lease_parser, open_session, pack, run_parallel
 
 BATCH = 64
 # (name, steps at batch 64, lr, extra flags): the shipped recipe's VelocityNet stages
@@ -54,16 +53,14 @@ def chain(
     """The four stages of one chain, each starting from the previous stage's model."""
     cmds, prev = [], None
     minutes = stage_minutes(0.97 * s.left() / 60.0)
-    size = ["--preset", "tiny"] if s.tiny else ["--preset", preset]
+    size = [] if s.tiny else ["--preset", preset]  # common() names the tiny preset itself
     for stage, steps, lr, flags in STAGES:
         out = runs / f"{name}_{stage}"
         cmd = [*PY, "train", "velocitynet", "--augment", "--preprocessing", STD, "--viewnet", viewnet]
         cmd += ["--data", str(data), "--out", str(out), "--seed", str(seed), "--lr", lr, *flags]
         cmd += ["--steps", str(max(2, steps // 200)) if s.tiny else str(steps)]
         cmd += ["--batch-size", "4" if s.tiny else str(BATCH), "--max-minutes", f"{minutes[stage]:.2f}"]
-        cmd += [*size, "--val-every", "100000", "--allow-no-gain", "--device", s.device, "--threads", "2"]
-        cmd += ["--workers", "2" if s.tiny else str(LOADER_WORKERS)]
-        cmd += ["--data-on-device", "yes" if s.device.startswith("cuda") else "no"]
+        cmd += [*common(s, threads=2), *size, "--workers", "2" if s.tiny else str(LOADER_WORKERS)]
         if prev is not None:
             cmd += ["--init", str(prev / "model.pt")]
         cmds.append(cmd)
@@ -72,28 +69,14 @@ def chain(
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(
-        prog="python -m studies.paper_preset_on_gpu", description=__doc__.split("\n")[0]
-    )
-    ap.add_argument(
-        "--out", required=True, help="folder for log.txt, summary.json and the packed runs (part_*)"
-    )
-    ap.add_argument("--work", required=True, help="scratch folder (data, runs)")
-    ap.add_argument(
-        "--budget-s", type=float, default=520.0, help="wall-clock budget of the whole script (default 520)"
-    )
-    ap.add_argument("--tiny", action="store_true", help="dry run: tiny preset, few frames and steps (CPU)")
-    ap.add_argument("--device", default="cuda", help="training device (default cuda)")
-    ap.add_argument("--workers", type=int, default=16, help="collect workers (default 16)")
+    ap = lease_parser("python -m studies.paper_preset_on_gpu", __doc__, 520.0)
     ap.add_argument(
         "--chains",
         default=",".join(c[0] for c in CHAINS),
         help=f"which chains to train (default {','.join(c[0] for c in CHAINS)})",
     )
     args = ap.parse_args(argv)
-    s = Session(Path(args.out), Path(args.work), args.budget_s, args.tiny, args.device)
-    s.out.mkdir(parents=True, exist_ok=True)
-    s.work.mkdir(parents=True, exist_ok=True)
+    s = open_session(args)
     data, runs = s.work / "data" / "recipe", s.work / "runs"
     houses, frames, house_frames = ("2", "60", "120") if s.tiny else ("40", "2000", "10000")
     collect = [*PY, "collect", "--houses", houses, "--frames-per-house", frames, "--include-house", "house"]

@@ -138,25 +138,43 @@ def minutes(s: Session, share: float) -> str:
     return f"{max(0.2, share * s.left() / 60.0):.2f}"
 
 
-def common(s: Session) -> list[str]:
-    flags = ["--threads", "1", "--val-every", "100000", "--allow-no-gain", "--device", s.device]
+def common(s: Session, threads: int = 1) -> list[str]:
+    """The flags every training command of a lease shares: final validation only, go on without gain, the device."""
+    flags = ["--threads", str(threads), "--val-every", "100000", "--allow-no-gain", "--device", s.device]
     if s.tiny:
         return [*flags, "--preset", "tiny"]
     return [*flags, "--data-on-device", "yes" if s.device.startswith("cuda") else "no"]
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m studies.train_on_gpu", description=__doc__.split("\n")[0])
+def lease_parser(prog: str, doc: str, budget_s: float) -> argparse.ArgumentParser:
+    """The options every lease script takes: where its output and scratch go, its budget, the dry run."""
+    ap = argparse.ArgumentParser(prog=prog, description=doc.split("\n")[0])
     ap.add_argument(
         "--out", required=True, help="folder for log.txt, summary.json and the packed runs (part_*)"
     )
     ap.add_argument("--work", required=True, help="scratch folder (data, runs)")
     ap.add_argument(
-        "--budget-s", type=float, default=480.0, help="wall-clock budget of the whole script (default 480)"
+        "--budget-s",
+        type=float,
+        default=budget_s,
+        help=f"wall-clock budget of the whole script (default {budget_s:g})",
     )
     ap.add_argument("--tiny", action="store_true", help="dry run: tiny preset, few frames and steps (CPU)")
     ap.add_argument("--device", default="cuda", help="training device (default cuda)")
     ap.add_argument("--workers", type=int, default=16, help="collect workers (default 16)")
+    return ap
+
+
+def open_session(args: argparse.Namespace) -> Session:
+    """The lease's session from ``lease_parser``'s options, its output and scratch folders made."""
+    s = Session(Path(args.out), Path(args.work), args.budget_s, args.tiny, args.device)
+    s.out.mkdir(parents=True, exist_ok=True)
+    s.work.mkdir(parents=True, exist_ok=True)
+    return s
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = lease_parser("python -m studies.train_on_gpu", __doc__, 480.0)
     ap.add_argument(
         "--phases",
         default="viewnet,probe,velocitynet,cams",
@@ -181,9 +199,7 @@ def main(argv: list[str] | None = None) -> int:
         help=f"VelocityNet steps at lr 1e-3, then at 3e-4 (default {STAGE_A} {STAGE_B})",
     )
     args = ap.parse_args(argv)
-    s = Session(Path(args.out), Path(args.work), args.budget_s, args.tiny, args.device)
-    s.out.mkdir(parents=True, exist_ok=True)
-    s.work.mkdir(parents=True, exist_ok=True)
+    s = open_session(args)
     w = s.work
     tiny = args.tiny
     scale = 0.02 if tiny else 1.0
