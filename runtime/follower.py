@@ -131,8 +131,7 @@ class Follower:
         )
         #: Where the floor put the robot beside the taught path on the last command (None: it did not tell).
         self.beside: SideEstimate | None = None
-        self._side_run: list[float] = []  # the side offsets of the last views the floor told, while driving
-        self._side_missed = 0  # views in a row since the floor last told
+        self._side_run: list[float] = []  # the side offsets of the last views in a row the floor told
         #: The obstruction detector's verdict on the last view (None without a detector).
         self.obstructed: ObstructionVerdict | None = None
         self._speed = 0.0  # the last forward speed commanded (m/s)
@@ -288,23 +287,17 @@ class Follower:
         """The turn (rad/s) toward the taught path that the floor's side offset asks for: a pure pursuit of the
         path point ``side_lookahead`` ahead, ``side_gain`` x atan(dy / side_lookahead) (see ControllerConfig),
         at most SIDE_TURN_MAX, ``dy`` the median of the last SIDE_VIEWS views' estimates; none until that many
-        views told it while driving, nor where the teach or the robot did not drive forward (turning closes no
-        side offset on the spot), nor after SIDE_VIEWS views in a row whose floor did not tell
-        (``runtime.side_offset``; fewer keep the turn: dev gen_117 lost it one view in six)."""
+        views in a row told it, nor where the teach or the robot did not drive forward (turning closes no side
+        offset on the spot) or the floor does not tell (``runtime.side_offset``)."""
         speed = min(float(self._feed[gap, 0]), self._speed)  # the pace the robot is driving at
         run, self.beside = self._side_run, None
-        if not (driving and self.side is not None and floor_side is not None and speed > FORWARD_SPEED):
+        if driving and self.side is not None and floor_side is not None and speed > FORWARD_SPEED:
+            self.beside = floor_side()
+        if self.beside is None:
             run.clear()
             return 0.0
-        self.beside = floor_side()
-        if self.beside is not None:
-            self._side_missed = 0
-            run.append(self.beside.dy)
-            del run[:-SIDE_VIEWS]
-        else:  # the offset moves millimetres a view: the last views' median holds through a few that do not tell
-            self._side_missed += 1
-            if self._side_missed >= SIDE_VIEWS:
-                run.clear()
+        run.append(self.beside.dy)
+        del run[:-SIDE_VIEWS]
         if len(run) < SIDE_VIEWS:
             return 0.0
         dy = sorted(run)[len(run) // 2]
