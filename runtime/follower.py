@@ -90,7 +90,6 @@ class Follower:
         steps_per_subgoal: float = 2.0,
         dt: float = 0.1,
         camera: Camera | None = None,
-        spaced_by_steps: bool = True,
     ) -> None:
         check_subgoals(subgoals)
         self.cfg = cfg or ControllerConfig()
@@ -108,14 +107,6 @@ class Follower:
         self.lost_bounds = lost_bounds(self.gaps, n, self.cfg, self.lost_bound)
         self._steps = float(steps_per_subgoal)
         motion = taught_motion(travel_poses, self.commands, n, dt * steps_per_subgoal)
-        # The feed-forward of each gap: its taught motion over its time where the teach spaced subgoals by
-        # control steps, which is what the localiser counts as progress, so that driving it moves the estimate
-        # on. The command at the gap's start is not (a gap that ended a turn in place and began a drive has
-        # v = 0 there: a robot whose policy eased off stood in it, dev gen_110). Else the taught command. (n, 2):
-        # the last subgoal keeps its command, as the gaps' rows do where the time is unknown.
-        self._feed = self.commands.copy()
-        if spaced_by_steps:
-            self._feed[: n - 1] = motion / (dt * steps_per_subgoal)
         self.localiser = RouteLocaliser(
             self._feats, self.matcher, motion, self.median_gap, self.cfg.localiser
         )
@@ -164,7 +155,6 @@ class Follower:
             steps,
             float(route.dt),
             camera,
-            spaced_by_steps=route.steps_between is not None,
         )
 
     def __len__(self) -> int:
@@ -271,7 +261,7 @@ class Follower:
         left = self.localiser.left_to_end(self._steps)
         prior = None
         if (self.cfg.feed_forward > 0 or turn > 0) and last > 0:
-            prior = (left * self.cfg.feed_forward, left * turn, *map(float, self._feed[gap]))
+            prior = (left * self.cfg.feed_forward, left * turn, *map(float, self.commands[gap]))
         return Decision(
             Action.COMMAND,
             target,
@@ -289,7 +279,7 @@ class Follower:
         at most SIDE_TURN_MAX, ``dy`` the median of the last SIDE_VIEWS views' estimates; none until that many
         views in a row told it, nor where the teach or the robot did not drive forward (turning closes no side
         offset on the spot) or the floor does not tell (``runtime.side_offset``)."""
-        speed = min(float(self._feed[gap, 0]), self._speed)  # the pace the robot is driving at
+        speed = min(float(self.commands[gap, 0]), self._speed)  # the pace the robot is driving at
         run, self.beside = self._side_run, None
         if driving and self.side is not None and floor_side is not None and speed > FORWARD_SPEED:
             self.beside = floor_side()

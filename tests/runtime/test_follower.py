@@ -178,24 +178,3 @@ def test_the_taught_command_is_not_replayed_past_the_end():
     # replayed, it drove on to the step limit, 0.6 m past the end with the estimate pinned there; faded, the
     # robot stops within the few centimetres the noisy views keep the estimate behind the truth
     assert 0.35 < robot.x < 0.5
-
-
-def test_the_feed_forward_is_the_taught_motion_of_the_gap_so_driving_it_moves_the_estimate_on():
-    """A gap whose first control step ended a turn in place and whose second drove on: its command (v = 0)
-    is not what the teach did across it. Fed forward, it had a robot whose policy eased off stand there, the
-    estimate waiting for motion and the motion for the estimate (dev gen_110, moved furniture: `lost`, no
-    progress for 128 images). The gap's taught motion over its time is what the localiser counts as progress."""
-    route = corridor_route(0.2, 0.05)  # subgoals 0.05 m apart, two control steps of 0.1 s each
-    commands = route.commands.copy()
-    commands[1] = (0.0, 0.5)  # the teach turned on the spot as it left subgoal 1, then drove on to subgoal 2
-    route = replace(route, commands=commands, spacing={"rule": "steps", "every": 2, "dt": 0.1})
-    follower = Follower.for_route(route, ControllerConfig(lead=0.0))
-    follower.localiser.start_at(1.5)
-    decision = follower.judge(render(0.075)).decision  # half-way from subgoal 1 to 2
-    assert 1 < follower.estimate.position < 2
-    assert decision.action is Action.COMMAND and decision.v_limit > 0  # the gap was not a turn in place
-    assert decision.prior is not None and decision.prior[2] == pytest.approx(0.05 / 0.2)
-    # where the gap's time is unknown (spacing by distance), the taught command stays the feed-forward
-    unknown = Follower.for_route(replace(route, spacing={"rule": "distance", "min_distance": 0.05}))
-    unknown.localiser.start_at(1.5)
-    assert unknown.judge(render(0.075)).decision.prior[2] == 0.0
