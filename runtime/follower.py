@@ -278,19 +278,10 @@ class Follower:
         path point ``side_lookahead`` ahead, ``side_gain`` x atan(dy / side_lookahead) (see ControllerConfig),
         at most SIDE_TURN_MAX, ``dy`` the median of the last SIDE_VIEWS views' estimates; none until that many
         views in a row told it, nor where the teach or the robot did not drive forward (turning closes no side
-        offset on the spot) or the floor does not tell (``runtime.side_offset``), nor in a taught arc (the teach
-        turned ``register_turn`` or more in a gap next to the estimate, ``RouteLocaliser.straight``)."""
+        offset on the spot) or the floor does not tell (``runtime.side_offset``)."""
         speed = min(float(self.commands[gap, 0]), self._speed)  # the pace the robot is driving at
         run, self.beside = self._side_run, None
-        # not in a taught arc: there an estimate a quarter of a gap off reads as 10-30 mm beside the path
-        straight = self.localiser.straight(gap)
-        if (
-            driving
-            and straight
-            and self.side is not None
-            and floor_side is not None
-            and speed > FORWARD_SPEED
-        ):
+        if driving and self.side is not None and floor_side is not None and speed > FORWARD_SPEED:
             self.beside = floor_side()
         if self.beside is None:
             run.clear()

@@ -335,14 +335,6 @@ class RouteLocaliser:
         )
         return self.last
 
-    def straight(self, gap: int) -> bool:
-        """Whether the teach turned less than ``register_turn`` in gap ``gap`` and in the gaps on either side of
-        it: where a position off by a fraction of a gap leaves the heading, and the floor ahead, as taught."""
-        if self.n < 2:
-            return True
-        k = min(max(gap, 0), self.n - 2)
-        return bool(self._straight[k] and self._straight[k + 1])
-
     def _registers(self, frame: Frame) -> bool:
         """Whether views are registered sideways: patch matching, ``REGISTER_COLUMNS`` tiles across or more."""
         return self.matcher.cfg.method == "patch" and self.matcher.tile_columns(frame) >= REGISTER_COLUMNS

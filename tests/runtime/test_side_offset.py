@@ -176,31 +176,6 @@ def test_the_side_turn_waits_for_views_in_a_row_and_one_wrong_view_does_not_turn
     )
 
 
-def test_no_side_turn_where_the_teach_drove_an_arc():
-    """In a taught arc a localiser estimate a quarter of a gap off moves the floor as a side offset of 10-30 mm
-    would (dev gen_100 and held-out gen_2000, robot on the taught pose: +-0.25 gap read -8..+19 mm, +-0.5 gap
-    up to 27 mm; on a straight, the same error only moves rows along their column). The pursuit turned a robot
-    the wrong way there (gen_2000: read 35-43 mm left while 5-11 mm right). It acts only where the teach drove
-    without turning more than the localiser's ``register_turn`` a gap (where it registers views sideways)."""
-    views, poses = straight_route(8, 0.1)
-    commands = np.zeros((8, 2))
-    commands[:-1] = (0.25, 0.0)
-    arc = commands.copy()
-    arc[:-1, 1] = 0.5  # 0.1 rad a gap of two 0.1 s steps: an arc
-    cfg = ControllerConfig(zero_bias=0.0, obstruction=False)
-    turns = {}
-    for name, cmds in (("straight", commands), ("arc", arc)):
-        follower = Follower(views, cfg, cmds, None, None, camera=CAM)
-        follower.side = follower._floor_side = Told([0.08] * 4)  # type: ignore[assignment]
-        follower._speed = 0.25
-        follower.localiser.start_at(2.0)
-        turns[name] = [
-            follower._side_turn(floor_side_of(follower._floor_side, views[2], 2.0), 2, driving=True)
-            for _ in range(4)
-        ]
-    assert turns["straight"][-1] < 0.0 and turns["arc"] == [0.0] * 4
-
-
 def reference_estimate(side: SideOffset, view: np.ndarray, position: float) -> SideEstimate | None:
     """The side estimate as written before it was trimmed for speed (sliding windows, np.median, both line
     fits always): :meth:`SideOffset.estimate` must give the same bits."""
