@@ -248,7 +248,7 @@ class ObstructionDetector:
 
     def elsewhere(self, view: Frame | np.ndarray, position: float) -> float:
         """The unmatched share of the floor beside the path region of the last view scored, as near as the
-        region's nearest unmatched tile or nearer where the view has such tiles, else all of it: its tiles the taught view shows
+        region's nearest unmatched tile or nearer (0 where none is unmatched): its tiles the taught view shows
         as floor (:meth:`floor_evidence`) and saw from where the robot is. Walls and furniture never change
         with the floor, and would water a re-laid floor's share down. What stands on the path hides the floor
         beyond it, beside the region too, and not the floor nearer than its base: over all the floor beside the
@@ -256,18 +256,18 @@ class ObstructionDetector:
         little as 38% (a veto at 35% let a box through on held-out set 23); as near as the box's base, at most
         50% (of 1-6 tiles) against 75-100%."""
         view = as_frame(view, self.subgoals.shape[1:3])
+        unmatched = self._rows[(self.weights > 0) & (self._scores > self.cfg.tile_threshold)]
+        if not len(unmatched):
+            return 0.0
         k = taught_offset(self.poses, position)[0]
-        outside = np.flatnonzero((self.weights == 0) & self.floor_evidence(k))
+        near = self._rows >= unmatched.max()  # as near as the region's nearest unmatched tile, or nearer
+        outside = np.flatnonzero((self.weights == 0) & self.floor_evidence(k) & near)
         if not len(outside):
             return 0.0
         d = self._distances(view, position, outside)
         judged = outside[~self._unseen[outside]]
         if not len(judged):
             return 0.0
-        unmatched = self._rows[(self.weights > 0) & (self._scores > self.cfg.tile_threshold)]
-        if len(unmatched):  # as near as the region's nearest unmatched tile, or nearer, where any is in view
-            near = judged[self._rows[judged] >= unmatched.max()]
-            judged = near if len(near) else judged
         return float(np.count_nonzero(d[judged] > self.cfg.tile_threshold)) / len(judged)
 
     def _distances(
