@@ -32,8 +32,7 @@ for ``grow_steps`` steps in which the robot moved (drove forward or turned: :fun
 unmatched (a path that turned out of view and back, as in a taught turn in place: its floor was never seen
 matched; only where the floor matched before the turn), or was unmatched from the first view while the floor
 beside it matched (a box already in view), and at least ``hidden_fraction`` of the region is unmatched all the way up its column to the
-region's far end, while no more than ``max_elsewhere`` of the floor beside the region, as near as its nearest
-unmatched tile or nearer (what stands on the path hides the floor beyond it), is unmatched (judged
+region's far end, while no more than ``max_elsewhere`` of the floor beside the region is unmatched (judged
 on taught tiles with texture that the floor plane explains, :meth:`ObstructionDetector.floor_evidence`: walls
 and furniture stay when a floor is re-laid, and would water its share down). A floor
 that looks different everywhere (a new carpet), a robot off its pose (which mismatches the floor nearest to
@@ -147,8 +146,6 @@ class ObstructionDetector:
         self.floor = FloorTiles(camera, tiles, self.matcher, *shifts)
         per_row = w // tile
         row, col = tiles // per_row, tiles % per_row
-        self._rows = row  # each tile's row (down the image: nearer floor)
-        self._scores = np.zeros(len(tiles), dtype=np.float32)  # the last view's (:meth:`scores`)
         # [i, j]: 1 where tile j is further along tile i's column (it sees the floor behind i's)
         self._beyond = ((col[None, :] == col[:, None]) & (row[None, :] < row[:, None])).astype(np.float32)
         self.subgoals = subgoals
@@ -243,25 +240,15 @@ class ObstructionDetector:
         studies)."""
         view = as_frame(view, self.subgoals.shape[1:3])  # a frame as it is; an array checked here, once
         self.weights = self.region(position)
-        self._scores = self._distances(view, position, np.flatnonzero(self.weights), exhaustive)
-        return self._scores
+        return self._distances(view, position, np.flatnonzero(self.weights), exhaustive)
 
     def elsewhere(self, view: Frame | np.ndarray, position: float) -> float:
-        """The unmatched share of the floor beside the path region of the last view scored, as near as the
-        region's nearest unmatched tile or nearer (0 where none is unmatched): its tiles the taught view shows
-        as floor (:meth:`floor_evidence`) and saw from where the robot is. Walls and furniture never change
-        with the floor, and would water a re-laid floor's share down. What stands on the path hides the floor
-        beyond it, beside the region too, and not the floor nearer than its base: over all the floor beside the
-        region, dev routes' boxes on the path left up to 42% unmatched and re-coloured floors' false stops as
-        little as 38% (a veto at 35% let a box through on held-out set 23); as near as the box's base, at most
-        50% (of 1-6 tiles) against 75-100%."""
+        """The unmatched share of the floor beside the path region of the last view scored: its tiles the
+        taught view shows as floor (:meth:`floor_evidence`) and saw from where the robot is. Walls and furniture
+        never change with the floor, and would water a re-laid floor's share down."""
         view = as_frame(view, self.subgoals.shape[1:3])
-        unmatched = self._rows[(self.weights > 0) & (self._scores > self.cfg.tile_threshold)]
-        if not len(unmatched):
-            return 0.0
         k = taught_offset(self.poses, position)[0]
-        near = self._rows >= unmatched.max()  # as near as the region's nearest unmatched tile, or nearer
-        outside = np.flatnonzero((self.weights == 0) & self.floor_evidence(k) & near)
+        outside = np.flatnonzero((self.weights == 0) & self.floor_evidence(k))
         if not len(outside):
             return 0.0
         d = self._distances(view, position, outside)

@@ -63,9 +63,8 @@ class ObstructionConfig:
     #: little off its pose, 3% up to the far end, against 30% while the box stood there; dev route 175:
     #: 5.0-5.3% for 4 s, 21% near the robot, against 31-39% with the box: half of ``hidden_fraction``).
     clear_hidden: float = 0.1
-    #: The most of the floor beside the path region (the rest of the floor ``near_m`` to ``far_m`` ahead, as
-    #: near as the region's nearest unmatched tile or nearer: ``ObstructionDetector.elsewhere``) that may be
-    #: unmatched when a growth blocks: where the floor beside the path does not match either (a
+    #: The most of the floor beside the path region (the rest of the floor ``near_m`` to ``far_m`` ahead)
+    #: that may be unmatched when a growth blocks: where the floor beside the path does not match either (a
     #: re-laid or re-coloured floor; a robot far off its pose), what changed is the floor or the pose, not
     #: something on the path (held-out set 11 with the floor re-coloured blocked 36 runs of 40 without it;
     #: dev boxes on the path blocked with 11-17% unmatched beside it).

@@ -273,31 +273,13 @@ def test_a_growth_blocks_only_while_the_floor_beside_the_path_still_matches():
         verdicts = [growth.update(s, s, True, lambda e=elsewhere: e) for s in shares]
         assert verdicts[-1].blocked is blocks
     views, poses = route()
-    det = ObstructionDetector(views, poses, NARROW)
+    det = ObstructionDetector(views, poses)
     relaid = floor_view(0.3, seed=7)  # the taught view's pose, the floor laid again
     det.scores(relaid, 3.0)
     assert det.elsewhere(relaid, 3.0) > det.cfg.max_elsewhere
     boxed = box_at(views[3], 0.6)
     det.scores(boxed, 3.0)
     assert det.elsewhere(boxed, 3.0) <= det.cfg.max_elsewhere
-
-
-#: A path region 0.15 m to each side: the fake camera's nearest tile row then also sees floor beside it (at
-#: 0.2 m the region covers that row whole, and the floor beside the path as near as the region is unmatched,
-#: where :meth:`ObstructionDetector.elsewhere` judges, is not in view).
-NARROW = ObstructionConfig(half_width_m=0.15)
-
-
-def test_a_wide_box_on_the_path_hides_floor_beside_it_and_still_blocks():
-    """What stands on the path hides the floor behind it, beside the path region too: a sofa-wide box 0.5 m
-    ahead left 55% of the floor beside the region unmatched, over the veto's 50%, and its growth would not have
-    blocked (held-out set 23: a box on the path hit with the veto at 35%). The floor beside the region as near
-    as the box's base is still in view and matched; there, a re-laid floor is unmatched."""
-    views, poses = route()
-    det = ObstructionDetector(views, poses, NARROW)
-    wide = box_at(views[3], 0.5, side=0.8)
-    det.scores(wide, 3.0)
-    assert det.elsewhere(wide, 3.0) <= det.cfg.max_elsewhere
 
 
 @pytest.mark.parametrize("dy, turn_deg", [(0.1, -10.0), (-0.1, 10.0), (0.0, 10.0), (0.1, 0.0)])
@@ -342,12 +324,12 @@ def test_the_floor_beside_the_path_is_judged_on_taught_floor_only_not_on_walls()
     re-laid floor is unmatched all beside the path; a box on it leaves that floor matched."""
     poses = np.array([[0.1 * k, 0.0, 0.0] for k in range(24)])
     views = np.stack([corridor_view(x) for x, _, _ in poses])
-    det = ObstructionDetector(views, poses, NARROW)
+    det = ObstructionDetector(views, poses)
     walls = np.stack([corridor_view(x) != floor_view(x) for x, _, _ in poses]).any(axis=-1)
     assert walls[3].any()
     relaid = corridor_view(0.3, seed=7)
     det.scores(relaid, 3.0)
-    assert det.elsewhere(relaid, 3.0) > det.cfg.max_elsewhere  # walls counted, they watered it down
+    assert det.elsewhere(relaid, 3.0) > det.cfg.max_elsewhere  # 0.375 with the walls counted
     boxed = box_at(views[3], 0.6)
     det.scores(boxed, 3.0)
     assert det.elsewhere(boxed, 3.0) <= det.cfg.max_elsewhere
