@@ -66,9 +66,6 @@ from vtr.runtime.thresholds import check_subgoals, lost_bounds, route_views
 if TYPE_CHECKING:
     from vtr.runtime.route import Route
 
-#: The shortest control step (m) the approach to the end allows (``Follower._approach``): the estimate stays
-#: about half a gap short at the end, and the robot must still get there.
-APPROACH_MIN_M = 0.01
 #: Commands under these (m/s, rad/s) count as the policy standing still at the end of the route.
 IDLE_SPEED, IDLE_TURN = 0.01, 0.02
 #: The most the side correction turns (rad/s): VelocityNet keeps the rest of the turn range, and holds a
@@ -142,7 +139,6 @@ class Follower:
         #: images and commanded translation since the last evidence of where the robot is (``_stalled``)
         self.progress = ProgressWatch(window * self._steps)
         self.end = EndWatch(np.concatenate([[0.0], np.cumsum(np.abs(motion[:, 0]))]))  # the end by travel
-        self._dt = float(dt)
         self._idle = 0
         self._finished = False
 
@@ -272,18 +268,10 @@ class Follower:
             est.error_to(target),
             then_stop=not self.cfg.continuous,
             note=f"at {est.position:.2f} (confidence {est.confidence:.2f})",
-            v_limit=0.0 if hold else self._approach(est.position),
+            v_limit=0.0 if hold else math.inf,
             prior=prior,
             turn=self._side_turn(floor_side, gap, driving=not hold and last > 0),
         )
-
-    def _approach(self, position: float) -> float:
-        """The fastest forward speed (m/s) whose control step covers no more than the taught translation left
-        from ``position`` to the last subgoal (at least ``APPROACH_MIN_M`` a step): a last segment taught at
-        0.45 m/s is 4.5 cm a step, and the last step overshot the end by as much (held-out set 23: gen_1990
-        finished 51-56 mm from it, gen_2007 drove 32 mm on into moved furniture)."""
-        left = self.end.left_from(position)
-        return max(left, APPROACH_MIN_M) / self._dt
 
     def _side_turn(self, floor_side: FloorSide | None, gap: int, driving: bool) -> float:
         """The turn (rad/s) toward the taught path that the floor's side offset asks for: a pure pursuit of the

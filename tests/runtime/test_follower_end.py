@@ -264,20 +264,3 @@ def test_a_robot_driven_on_while_its_view_matches_a_subgoal_without_progress_end
     window_m = follower.localiser.window_travel(follower.estimate.position)
     assert action is Action.LOST and "m driven" in note
     assert abs(0.025 * images - window_m) <= 0.05  # once the travel passed the window's
-
-
-def test_the_last_steps_cover_no_more_than_what_is_left():
-    """Held-out set 23: routes whose last segment was taught at 0.45 m/s (4.5 cm a control step) overshot the
-    end by a step (gen_1990: finished 51-56 mm from it; gen_2007: 32 mm on into moved furniture). Near the end
-    the forward speed is capped so that a step covers no more than the taught translation the estimate has
-    left (at least APPROACH_MIN_M); elsewhere it is not capped."""
-    from vtr.runtime.follower import APPROACH_MIN_M
-
-    follower = Follower.for_route(wall_route(), ControllerConfig(zero_bias=0.0))
-    follower.localiser.start_at(2.0)
-    assert follower.judge(wall_view(0.1)).decision.v_limit >= 0.5  # 0.3 m left: no cap that binds
-    near = _near_end()  # at the last-but-one subgoal, one 5 cm gap (two steps at 0.25 m/s) from the end
-    decision = near.judge(wall_view(END - 0.04)).decision
-    left = near.end.left_from(near.estimate.position)
-    assert decision.action is Action.COMMAND and left <= 0.05
-    assert decision.v_limit == pytest.approx(max(left, APPROACH_MIN_M) / 0.1) and decision.v_limit <= 0.5
