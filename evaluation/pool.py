@@ -1,18 +1,22 @@
-"""The evaluation's process pool, which Ctrl-C stops at once.
+"""The evaluation's process pool, which Ctrl-C and SIGTERM stop at once.
 
 A plain ``ProcessPoolExecutor`` leaving its ``with`` block on KeyboardInterrupt waits for every task already
 queued to its workers, and a worker hit by the terminal's SIGINT reports the interrupt as that task's result and
 takes the next: `vtr eval` took 14-20 s to stop. Here the workers ignore SIGINT (the parent decides), and an
-exception in the parent (Ctrl-C included) cancels the queued tasks and terminates the workers.
+exception in the parent (Ctrl-C included) cancels the queued tasks and terminates the workers. SIGTERM to the
+parent alone (`kill PID`, a job scheduler, a CI timeout) killed it outright and left its spawned workers
+running, idle, for as long as the machine stayed up: while the pool is open it is Ctrl-C's interrupt.
 """
 
 from __future__ import annotations
 
 import multiprocessing as mp
 import signal
+import threading
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
+from typing import Any
 
 
 def _ignore_interrupts() -> None:
@@ -26,12 +30,28 @@ def process_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
     pool = ProcessPoolExecutor(
         max_workers=workers, mp_context=mp.get_context("spawn"), initializer=_ignore_interrupts
     )
+    previous = _interrupt_on_sigterm()
     try:
         yield pool
     except BaseException:
         stop(pool)
         raise
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
     pool.shutdown(wait=True)
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def _interrupt_on_sigterm() -> Any:
+    """SIGTERM raises KeyboardInterrupt in the main thread (the previous handler, to restore; None elsewhere:
+    only the main thread may set one)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _interrupt)
 
 
 def stop(pool: ProcessPoolExecutor) -> None:

@@ -31,6 +31,19 @@ def _children(pid: int) -> list[int]:
 
 
 def test_ctrl_c_stops_vtr_eval_and_its_workers_at_once(tmp_path: Path) -> None:
+    _stop_and_check(tmp_path, to_group=True)
+
+
+def test_sigterm_to_vtr_eval_alone_stops_its_workers_too(tmp_path: Path) -> None:
+    """`kill PID` (a job scheduler, a CI timeout, `pkill -f`) signals the parent only: it died at once and its
+    spawned workers lived on, idle, holding their memory (three found 50 minutes later in session 13)."""
+    _stop_and_check(tmp_path, to_group=False)
+
+
+def _stop_and_check(tmp_path: Path, to_group: bool) -> None:
+    """Start `vtr eval` on two workers, stop it (SIGINT to its process group, as Ctrl-C; or SIGTERM to the
+    parent alone) once the workers are into their routes, and check it ended at once, in one line, with no
+    worker left."""
     out = tmp_path / "eval.json"
     args = ["eval", "--routes", *ROUTES, "--workers", "2", "--json", str(out)]
     proc = subprocess.Popen(
@@ -52,7 +65,10 @@ def test_ctrl_c_stops_vtr_eval_and_its_workers_at_once(tmp_path: Path) -> None:
             time.sleep(0.1)
         workers = _children(proc.pid)
         time.sleep(3.0 if workers else 8.0)  # the workers are into their routes
-        os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: the whole group, workers included
+        if to_group:
+            os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: the whole group, workers included
+        else:
+            os.kill(proc.pid, signal.SIGTERM)  # the parent alone
         t0 = time.monotonic()
         _, err = proc.communicate(timeout=60)
         stopped_s = time.monotonic() - t0
