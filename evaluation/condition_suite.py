@@ -192,7 +192,7 @@ def run(cfg: SuiteConfig) -> dict[str, Any]:
 
     with Progress("condition suite (route x condition)", len(tasks)) as progress:  # stderr, a terminal only
         if cfg.workers > 1 and len(tasks) > 1:
-            from vtr.evaluation.pool import process_pool
+            from vtr.training.pool import process_pool
 
             with process_pool(cfg.workers) as ex:  # Ctrl-C stops it at once
                 for (path, cond, _), out in zip(tasks, ex.map(evaluate_task, tasks), strict=True):

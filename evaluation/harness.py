@@ -30,7 +30,6 @@ import numpy as np
 from vtr.benchmarks.results import write_json
 from vtr.evaluation.mpc import ViewNetMPC
 from vtr.evaluation.plots import write_plots
-from vtr.evaluation.pool import process_pool
 from vtr.evaluation.runs import PoseOracle, repeat_closed_loop, repeat_open_loop
 from vtr.evaluation.scoring import PAPER, PAPER_ROUTES, aggregate, bar_checks, score
 from vtr.evaluation.tables import markdown_report
@@ -41,6 +40,7 @@ from vtr.runtime.contracts import CONTROL_DT, Policy
 from vtr.runtime.route_script import RouteScript, load_route_script
 from vtr.runtime.status_line import Progress
 from vtr.sim2d.routes import ROUTES_DIR
+from vtr.training.pool import process_pool
 
 QUICK_ROUTES = ("translation",)
 

@@ -258,7 +258,7 @@ def run(cfg: HouseSuiteConfig, progress: bool = True) -> dict[str, Any]:
 
     with line:
         if cfg.workers > 1 and len(tasks) > 1:
-            from vtr.evaluation.pool import process_pool
+            from vtr.training.pool import process_pool
 
             with process_pool(min(cfg.workers, len(tasks))) as ex:  # Ctrl-C stops it at once
                 for fut in line.as_completed([ex.submit(evaluate_route, t) for t in tasks]):

@@ -19,7 +19,7 @@ import multiprocessing as mp
 import os
 import time
 import zlib
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, wait
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from vtr.training.config import CollectConfig
+from vtr.training.pool import process_pool
 
 _progress: Any = None  # a shared frame counter, set in each worker by _init_worker
 
@@ -230,9 +231,7 @@ def run_houses(cfg: HousesConfig, progress: bool = True, resume: bool = False) -
     bar = tqdm(total=total, desc=f"collect {len(tasks)} houses", disable=not progress, dynamic_ncols=True)
     bar.update(kept)
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(
-        max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=(counter,)
-    ) as pool:
+    with process_pool(workers, ctx.get_start_method(), _init_worker, (counter,)) as pool:
         todo = [(h, k, n) for h, k, n in tasks if k not in entries]
         pending = {pool.submit(record_house, str(out), h, k, n, cfg.collect) for h, k, n in todo}
         while pending:

@@ -35,7 +35,6 @@ import json
 import math
 import multiprocessing as mp
 import os
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -45,6 +44,7 @@ import numpy as np
 from vtr.runtime.atomic import atomic_path, write_text_atomic
 from vtr.runtime.contracts import V_MAX, W_MAX
 from vtr.training.dataset import DatasetError, FrameData, window_starts
+from vtr.training.pool import process_pool
 
 INDEX = "recovery.json"
 FORMAT = "vtr-recovery"
@@ -245,9 +245,9 @@ def render_recovery(
                     h,
                 )
             )
-    ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+    context = "fork" if "fork" in mp.get_all_start_methods() else "spawn"
     parts = []
-    with ProcessPoolExecutor(max_workers=workers or os.cpu_count() or 1, mp_context=ctx) as pool:
+    with process_pool(workers or os.cpu_count() or 1, context) as pool:
         futures = [pool.submit(_render_house, *t) for t in tasks]
         for fut in tqdm(futures, desc=f"recovery views, {len(tasks)} houses", disable=not progress):
             parts.append(fut.result())

@@ -1,11 +1,13 @@
-"""The evaluation's process pool, which Ctrl-C and SIGTERM stop at once.
+"""A process pool that Ctrl-C and SIGTERM stop at once, workers included: `vtr eval`, `vtr collect` and the
+recovery views run their houses and routes in it.
 
 A plain ``ProcessPoolExecutor`` leaving its ``with`` block on KeyboardInterrupt waits for every task already
 queued to its workers, and a worker hit by the terminal's SIGINT reports the interrupt as that task's result and
 takes the next: `vtr eval` took 14-20 s to stop. Here the workers ignore SIGINT (the parent decides), and an
 exception in the parent (Ctrl-C included) cancels the queued tasks and terminates the workers. SIGTERM to the
-parent alone (`kill PID`, a job scheduler, a CI timeout) killed it outright and left its spawned workers
-running, idle, for as long as the machine stayed up: while the pool is open it is Ctrl-C's interrupt.
+parent alone (`kill PID`, a job scheduler, a CI timeout) killed it outright and left its workers running, idle,
+for as long as the machine stayed up (forked ones hold their own call queue open): while the pool is open it
+is Ctrl-C's interrupt.
 """
 
 from __future__ import annotations
@@ -13,22 +15,33 @@ from __future__ import annotations
 import multiprocessing as mp
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 from typing import Any
 
 
-def _ignore_interrupts() -> None:
+def _start_worker(initializer: Callable[..., object] | None, initargs: tuple[Any, ...]) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if initializer is not None:
+        initializer(*initargs)
 
 
 @contextmanager
-def process_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
-    """A pool of ``workers`` spawned processes (fresh interpreters: no forked onnxruntime or torch thread
-    pools), shut down cleanly on success and stopped at once on any exception."""
+def process_pool(
+    workers: int,
+    context: str = "spawn",
+    initializer: Callable[..., object] | None = None,
+    initargs: tuple[Any, ...] = (),
+) -> Iterator[ProcessPoolExecutor]:
+    """A pool of ``workers`` processes started by ``context`` ("spawn", the default: fresh interpreters, no forked
+    onnxruntime or torch thread pools; "fork" where the workers should share the parent's memory), each running
+    ``initializer(*initargs)`` first; shut down cleanly on success and stopped at once on any exception."""
     pool = ProcessPoolExecutor(
-        max_workers=workers, mp_context=mp.get_context("spawn"), initializer=_ignore_interrupts
+        max_workers=workers,
+        mp_context=mp.get_context(context),
+        initializer=_start_worker,
+        initargs=(initializer, initargs),
     )
     previous = _interrupt_on_sigterm()
     try:
