@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from vtr.training.config import CollectConfig
-from vtr.training.pool import process_pool
+from vtr.training.pool import FORK_OR_SPAWN, process_pool
 
 _progress: Any = None  # a shared frame counter, set in each worker by _init_worker
 
@@ -217,7 +217,7 @@ def run_houses(cfg: HousesConfig, progress: bool = True, resume: bool = False) -
     out = Path(cfg.out)
     out.mkdir(parents=True, exist_ok=True)
     workers = cfg.workers or os.cpu_count() or 1
-    ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+    ctx = mp.get_context(FORK_OR_SPAWN)
     counter = ctx.Value("q", 0)
     tasks = cfg.tasks()
     total = sum(frames for _, _, frames in tasks)
@@ -231,7 +231,7 @@ def run_houses(cfg: HousesConfig, progress: bool = True, resume: bool = False) -
     bar = tqdm(total=total, desc=f"collect {len(tasks)} houses", disable=not progress, dynamic_ncols=True)
     bar.update(kept)
     t0 = time.perf_counter()
-    with process_pool(workers, ctx.get_start_method(), _init_worker, (counter,)) as pool:
+    with process_pool(workers, FORK_OR_SPAWN, _init_worker, (counter,)) as pool:
         todo = [(h, k, n) for h, k, n in tasks if k not in entries]
         pending = {pool.submit(record_house, str(out), h, k, n, cfg.collect) for h, k, n in todo}
         while pending:

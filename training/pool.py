@@ -20,6 +20,10 @@ from concurrent.futures import ProcessPoolExecutor
 from contextlib import contextmanager
 from typing import Any
 
+#: The start method for workers that should share the parent's memory (its loaded data): fork, where the
+#: platform has it, else spawn.
+FORK_OR_SPAWN = "fork" if "fork" in mp.get_all_start_methods() else "spawn"
+
 
 def _start_worker(initializer: Callable[..., object] | None, initargs: tuple[Any, ...]) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -35,7 +39,7 @@ def process_pool(
     initargs: tuple[Any, ...] = (),
 ) -> Iterator[ProcessPoolExecutor]:
     """A pool of ``workers`` processes started by ``context`` ("spawn", the default: fresh interpreters, no forked
-    onnxruntime or torch thread pools; "fork" where the workers should share the parent's memory), each running
+    onnxruntime or torch thread pools; ``FORK_OR_SPAWN`` where they should share the parent's memory), each running
     ``initializer(*initargs)`` first; shut down cleanly on success and stopped at once on any exception."""
     pool = ProcessPoolExecutor(
         max_workers=workers,
@@ -43,15 +47,14 @@ def process_pool(
         initializer=_start_worker,
         initargs=(initializer, initargs),
     )
-    previous = _interrupt_on_sigterm()
+    restore = _interrupt_on_sigterm()
     try:
         yield pool
     except BaseException:
         stop(pool)
         raise
     finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        restore()
     pool.shutdown(wait=True)
 
 
@@ -59,12 +62,13 @@ def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
 
 
-def _interrupt_on_sigterm() -> Any:
-    """SIGTERM raises KeyboardInterrupt in the main thread (the previous handler, to restore; None elsewhere:
-    only the main thread may set one)."""
+def _interrupt_on_sigterm() -> Callable[[], object]:
+    """SIGTERM raises KeyboardInterrupt in the main thread (only it may set a handler; elsewhere nothing
+    changes); returns what puts the previous handler back."""
     if threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(signal.SIGTERM, _interrupt)
+        return lambda: None
+    previous = signal.signal(signal.SIGTERM, _interrupt)  # None: one set outside Python, taken as the default
+    return lambda: signal.signal(signal.SIGTERM, signal.SIG_DFL if previous is None else previous)
 
 
 def stop(pool: ProcessPoolExecutor) -> None:

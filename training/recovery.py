@@ -33,7 +33,6 @@ from __future__ import annotations
 
 import json
 import math
-import multiprocessing as mp
 import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -44,7 +43,7 @@ import numpy as np
 from vtr.runtime.atomic import atomic_path, write_text_atomic
 from vtr.runtime.contracts import V_MAX, W_MAX
 from vtr.training.dataset import DatasetError, FrameData, window_starts
-from vtr.training.pool import process_pool
+from vtr.training.pool import FORK_OR_SPAWN, process_pool
 
 INDEX = "recovery.json"
 FORMAT = "vtr-recovery"
@@ -245,9 +244,8 @@ def render_recovery(
                     h,
                 )
             )
-    context = "fork" if "fork" in mp.get_all_start_methods() else "spawn"
     parts = []
-    with process_pool(workers or os.cpu_count() or 1, context) as pool:
+    with process_pool(workers or os.cpu_count() or 1, FORK_OR_SPAWN) as pool:
         futures = [pool.submit(_render_house, *t) for t in tasks]
         for fut in tqdm(futures, desc=f"recovery views, {len(tasks)} houses", disable=not progress):
             parts.append(fut.result())

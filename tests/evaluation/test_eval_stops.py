@@ -10,6 +10,8 @@ import sys
 import time
 from pathlib import Path
 
+from tests.process_tree import children, running
+
 ROOT = Path(__file__).resolve().parents[2]
 #: more routes than workers: a pool that is not stopped goes on with the queued ones
 # long enough that the eval is still running when the interrupt comes (the repeat now runs at the taught pace)
@@ -21,13 +23,6 @@ ROUTES = (
     "living_to_study",
     "bedroom_to_study",
 )
-
-
-def _children(pid: int) -> list[int]:
-    try:
-        return [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
-    except OSError:  # not Linux, or a kernel without the file: the caller waits a fixed time instead
-        return []
 
 
 def test_ctrl_c_stops_vtr_eval_and_its_workers_at_once(tmp_path: Path) -> None:
@@ -59,11 +54,9 @@ def _stop_and_check(tmp_path: Path, to_group: bool) -> None:
     )
     try:
         deadline = time.monotonic() + 60
-        while (
-            len(_children(proc.pid)) < 3 and time.monotonic() < deadline
-        ):  # 2 workers + the resource tracker
+        while len(children(proc.pid)) < 3 and time.monotonic() < deadline:  # 2 workers + the resource tracker
             time.sleep(0.1)
-        workers = _children(proc.pid)
+        workers = children(proc.pid)
         time.sleep(3.0 if workers else 8.0)  # the workers are into their routes
         if to_group:
             os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: the whole group, workers included
@@ -82,12 +75,5 @@ def _stop_and_check(tmp_path: Path, to_group: bool) -> None:
     assert stopped_s < 3.0, f"took {stopped_s:.1f} s to stop"
     assert not out.exists()
     time.sleep(0.2)
-    alive = [pid for pid in workers if Path(f"/proc/{pid}").exists() and "Z" not in _state(pid)]
+    alive = [pid for pid in workers if running(pid)]
     assert not alive, f"workers still running: {alive}"
-
-
-def _state(pid: int) -> str:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-    except (OSError, IndexError):
-        return "Z"

@@ -11,21 +11,9 @@ import sys
 import time
 from pathlib import Path
 
+from tests.process_tree import children, running
+
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def _children(pid: int) -> list[int]:
-    try:
-        return [int(c) for c in Path(f"/proc/{pid}/task/{pid}/children").read_text().split()]
-    except OSError:  # not Linux: the caller waits a fixed time instead
-        return []
-
-
-def _running(pid: int) -> bool:
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
-    except (OSError, IndexError):
-        return False
 
 
 def test_sigterm_stops_vtr_collect_and_its_workers(tmp_path: Path) -> None:
@@ -51,9 +39,9 @@ def test_sigterm_stops_vtr_collect_and_its_workers(tmp_path: Path) -> None:
     )
     try:
         deadline = time.monotonic() + 60
-        while len(_children(proc.pid)) < 2 and time.monotonic() < deadline:
+        while len(children(proc.pid)) < 2 and time.monotonic() < deadline:
             time.sleep(0.1)
-        workers = _children(proc.pid)
+        workers = children(proc.pid)
         time.sleep(2.0 if workers else 8.0)  # the workers are into their houses
         os.kill(proc.pid, signal.SIGTERM)  # the parent alone
         _, err = proc.communicate(timeout=30)
@@ -64,4 +52,4 @@ def test_sigterm_stops_vtr_collect_and_its_workers(tmp_path: Path) -> None:
             pass
     assert proc.returncode == 130 and err.strip().splitlines()[-1] == "vtr collect: interrupted", err
     time.sleep(0.2)
-    assert not [pid for pid in workers if _running(pid)], "workers still running"
+    assert not [pid for pid in workers if running(pid)], "workers still running"
