@@ -6,10 +6,11 @@ Each image:
 1. a reported contact ends the run (COLLIDED);
 2. the localiser (``runtime.localiser``) weighs its belief by the view: where along the route the robot
    is (``position``, in subgoal units) and how sure (``confidence``, ``match``);
-3. the end: the estimate is at the last subgoal and the view matches it as well as the teach's neighbouring
-   views match each other (or, the view closest to it, the policy has stopped driving there): FINISHED; or,
-   after 4 and 5, by travel (``runtime.progress_watch.EndWatch``: the views cannot see the robot pass the
-   end): driven past what the route had left, within the settled bound FINISHED, else LOST with the evidence;
+3. the end: the floor places the robot at the last taught pose (``runtime.arrival``) or, where the floor
+   does not tell, the estimate is at the last subgoal and the view matches it as well as the teach's
+   neighbouring views match each other; or, the view closest to it, the policy has stopped driving there:
+   FINISHED; or, after 4 and 5, by travel (``EndWatch``: the views cannot see the robot pass the end):
+   driven past what the route had left, within the settled bound FINISHED, else LOST with the evidence;
 4. blocked: the camera sees the way ahead blocked (``runtime.obstruction``: the floor just ahead, warped from
    the taught view to the estimated pose, stops matching in a region that grew while the robot was
    commanded forward): BLOCKED with the evidence, for as long as the detector says so. It is not an end:
@@ -45,6 +46,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from vtr.runtime.arrival import FloorArrival
 from vtr.runtime.controller import Controller
 from vtr.runtime.controller_config import ControllerConfig
 from vtr.runtime.decisions import Action, Decision, Verdict
@@ -123,24 +125,24 @@ class Follower:
         #: Where the floor put the robot beside the taught path on the last command (None: it did not tell).
         self.beside: SideEstimate | None = None
         self._side_run: list[float] = []  # the side offsets of the last views in a row the floor told
-        #: The obstruction detector's verdict on the last view (None without a detector).
-        self.obstructed: ObstructionVerdict | None = None
-        self._speed = 0.0  # the last forward speed commanded (m/s)
-        self._moved = False  # commanded to drive or turn since the last view
-        self.index = 0  # the subgoal steered to
+        self.obstructed: ObstructionVerdict | None = None  # the detector's verdict on the last view
+        self._speed, self._step_m = 0.0, 0.0  # the last forward speed commanded (m/s), its travel (m)
+        self._moved, self.index = (
+            False,
+            0,
+        )  # commanded to drive or turn since the last view; the subgoal steered to
         self.status: Action | None = None
         self.estimate: Estimate | None = None
         self.jumps = 0
         self.plateaus = 0  # kept for the summary: this controller never accepts a subgoal on a plateau
         self.localised_to: int | None = None
-        self._lost_count = 0
-        self._lost_best = math.inf
+        self._lost_count, self._lost_best = 0, math.inf
         window = self.cfg.localiser.window_behind + self.cfg.localiser.window_ahead
         #: images and commanded translation since the last evidence of where the robot is (``_stalled``)
         self.progress = ProgressWatch(window * self._steps)
         self.end = EndWatch(np.concatenate([[0.0], np.cumsum(np.abs(motion[:, 0]))]))  # the end by travel
-        self._idle = 0
-        self._finished = False
+        self.arrival = FloorArrival.of(self._floor_side, self.end, motion, self._held)  # the end by the floor
+        self._idle, self._finished = 0, False
 
     @classmethod
     def for_route(cls, route: Route, cfg: ControllerConfig | None = None) -> Follower:
@@ -179,7 +181,7 @@ class Follower:
     def commanded(self, v: float, w: float, dt: float) -> None:
         """The repeat loop applied (v, w) for ``dt`` seconds: the estimate moves along the route."""
         self._idle = self._idle + 1 if abs(v) < IDLE_SPEED and abs(w) < IDLE_TURN else 0
-        self._speed = v
+        self._speed, self._step_m = v, abs(v) * dt
         self._moved = self._moved or moving(v, w)
         self.progress.commanded(v, dt)
         self.end.commanded(v, dt)
@@ -229,14 +231,15 @@ class Follower:
         at_end = est.position >= last - self.cfg.finish_span and est.best == last  # the end by travel's too
         k = self.cfg.localiser.cells_per_gap  # the estimate's cell (the filter resolves no finer) at the end
         near_end = round(est.position * k) >= round((last - self.cfg.finish_span) * k)
-        # FINISHED on evidence: the estimate at the end and the view under the last subgoal's threshold; or the
-        # last subgoal the closest view, the policy stopped there and the view within ``jump_factor`` thresholds
+        # FINISHED on evidence: the floor at the last pose, else the view under the last subgoal's threshold at
+        # the end; or the last subgoal the closest view, the policy stopped there and the view close to it
         threshold = float(self.thresholds[last])
         close = final_error <= self.cfg.jump_factor * threshold  # the settled bound, the end by travel's too
-        settled = self._idle >= 2 and close
-        if near_end and final_error <= threshold or at_end and settled:
+        floor = None if self.arrival is None else self.arrival.judge(image, est.position, self._step_m)
+        arrived, note = floor or (near_end and final_error <= threshold, "")
+        if arrived or at_end and self._idle >= 2 and close:
             self._finished = True
-            return Decision(Action.FINISHED, len(self), final_error)
+            return Decision(Action.FINISHED, len(self), final_error, note=note)
         floor_side = floor_side_of(self._floor_side, image, est.position)  # one registration a view, lazily
         blocked = self._blocked(image, est, floor_side)
         if blocked is not None:
@@ -299,13 +302,7 @@ class Follower:
         if self.obstruction is None:
             return None
         moved, self._moved = self._moved, False
-        side: SideFn | None = None
-        if floor_side is not None:
-
-            def side() -> tuple[float, float] | None:
-                found = floor_side()
-                return None if found is None else (found.dy, found.psi)
-
+        side: SideFn | None = None if floor_side is None else lambda: _dy_psi(floor_side())
         verdict = self.obstructed = self.obstruction.update(image, est.position, moved, side)
         if not verdict.blocked:
             return None
@@ -382,6 +379,10 @@ class Follower:
             f"subgoal {est.best} (threshold {float(self.thresholds[est.best]):.3f}), confidence "
             f"{est.confidence:.2f}",
         )
+
+
+def _dy_psi(found: SideEstimate | None) -> tuple[float, float] | None:
+    return None if found is None else (found.dy, found.psi)
 
 
 #: Either controller: the route localiser's (default) or the threshold rules' (``switching="rules"``).

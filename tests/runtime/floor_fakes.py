@@ -12,9 +12,13 @@ from vtr.runtime.floor_view import Camera
 CAM = Camera()
 
 
-def floor_view(x: float, y: float = 0.0, yaw: float = 0.0, seed: int = 0, cam: Camera = CAM) -> np.ndarray:
+def floor_view(
+    x: float, y: float = 0.0, yaw: float = 0.0, seed: int = 0, cam: Camera = CAM, tilt: float = 0.0
+) -> np.ndarray:
     """What ``cam`` sees from (x, y, yaw) over a floor of 20 cm squares of random colours (grey above the
-    horizon; sim2d's mosaic is coarser still)."""
+    horizon; sim2d's mosaic is coarser still), laid ``tilt`` rad to the x axis: laid along it (0), a floor
+    row seen along x shows the same colours over the length of a square, which tells no distance along x
+    (as planks laid along the path do); sim2d's mosaic has edges at every angle."""
     colours = np.random.default_rng(seed).integers(30, 220, (64, 64, 3))
     f = cam.focal_px
     rows, cols = np.mgrid[0 : cam.height, 0 : cam.width] + 0.5
@@ -23,6 +27,7 @@ def floor_view(x: float, y: float = 0.0, yaw: float = 0.0, seed: int = 0, cam: C
     with np.errstate(invalid="ignore"):
         fx = x + math.cos(yaw) * ahead + math.sin(yaw) * right * ahead
         fy = y + math.sin(yaw) * ahead - math.cos(yaw) * right * ahead
+        fx, fy = math.cos(tilt) * fx + math.sin(tilt) * fy, math.cos(tilt) * fy - math.sin(tilt) * fx
         i, j = np.floor(fx / 0.2).astype(int) % 64, np.floor(fy / 0.2).astype(int) % 64
     out = colours[np.where(down > 0, i, 0), np.where(down > 0, j, 0)]
     out[down <= 0] = 128

@@ -1,0 +1,61 @@
+"""The route's end on the floor's evidence: the floor the teach saw at the last subgoal, registered along the
+route as well as across it, places the robot at (or past) the last taught pose.
+
+Why the views alone are not enough there: the localiser's grid ends at the last subgoal and a view from past
+it looks like one from as far short of it, so the estimate stays about half a gap short while the robot drives
+on; where a wall was re-textured or furniture moved, no view near the end matches under its threshold either
+(held-out set 23: robots passed within 2-11 mm of the last pose and drove on 14-56 mm, or into moved
+furniture). The floor near the robot is seen at known distances (``runtime.floor_view``): a robot ``dx``
+short of the pose sees the taught floor rows ``dx`` further ahead, a shift of pixels per centimetre on the
+nearest rows (``SideOffset.along``). The robot has arrived when stopping now leaves it no further from the pose
+than one more control step would: ``dx`` at least minus half the last command's travel.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vtr.runtime.progress_watch import EndWatch
+from vtr.runtime.side_offset import SideOffset
+
+#: The least distance (m) past the last pose the registration searches: a robot a control step past it at
+#: 0.45 m/s and 0.1 s (the fastest taught segments) is 4.5 cm on.
+PAST_M = 0.05
+
+
+class FloorArrival:
+    """Whether the floor places the robot at the last taught pose (see the module docstring)."""
+
+    def __init__(self, registration: SideOffset, end: EndWatch, motion: np.ndarray, held: np.ndarray) -> None:
+        """``end``: the route's end by travel (its taught translation left from a position); ``motion``: (L-1, 2)
+        the taught motion of each gap (``localiser.taught_motion``); ``held``: (L,) whether the teach turned in
+        place into each subgoal: into the last one, its pose is the one before it, and the heading, not the
+        floor, tells the end."""
+        self.registration, self.end = registration, end
+        self.past_m = max(abs(float(motion[-1, 0])), PAST_M)
+        self.turns_at_end = bool(held[-1])
+
+    @classmethod
+    def of(
+        cls, registration: SideOffset | None, end: EndWatch, motion: np.ndarray, held: np.ndarray
+    ) -> FloorArrival | None:
+        """The floor arrival of a route with a floor registration and a gap at least, else None."""
+        return None if registration is None or len(motion) < 1 else cls(registration, end, motion, held)
+
+    def judge(self, view: np.ndarray, position: float, step_m: float) -> tuple[bool, str] | None:
+        """Whether the floor places the robot at the last taught pose, and where (FINISHED's evidence); None
+        where it does not tell (short of the last gap, a floor that does not match, a turn into the end).
+        ``position``: the localiser's estimate; ``step_m``: the last command's travel (m)."""
+        last = len(self.registration.poses) - 1
+        if self.turns_at_end or position < last - 1:
+            return None
+        step = self.registration.along_step
+        short = max(self.end.left_from(position), 0.0) + self.past_m
+        found = self.registration.along(view, last, np.arange(-short, self.past_m + step / 2, step))
+        if found is None:
+            return None
+        where = f"the floor places the robot {found.dx * 1e3:+.0f} mm along, {found.dy * 1e3:+.0f} mm beside the end"
+        return found.dx >= -0.5 * abs(step_m), where
+
+
+__all__ = ["PAST_M", "FloorArrival"]
