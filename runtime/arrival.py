@@ -8,8 +8,10 @@ on; where a wall was re-textured or furniture moved, no view near the end matche
 furniture). The floor near the robot is seen at known distances (``runtime.floor_view``): a robot ``dx``
 short of the pose sees the taught floor rows ``dx`` further ahead, a shift of pixels per centimetre on the
 nearest rows (``SideOffset.along``). The robot has arrived when stopping now leaves it no further from the pose
-than one more control step would: ``dx`` at least minus half the last command's travel; where the teach
-turned in place into the end, the heading within half the last command's turn (or a pooled pixel).
+than one more control step would: ``dx`` at least minus half the last command's travel (or past the pose);
+where the teach turned in place into the end, the heading turned as far as the teach's, less half the last
+command's turn (or a pooled pixel: dev gen_176 turned on from 2 degrees short to 20 degrees past the end's
+heading, its view matching nothing, with a rule for the heading's size alone).
 """
 
 from __future__ import annotations
@@ -37,7 +39,8 @@ class FloorArrival:
         the heading the floor shows tells the end."""
         self.registration, self.end = registration, end
         self.past_m = max(abs(float(motion[-1, 0])), PAST_M)
-        self.turns_at_end = bool(held[-1])
+        self.turns_at_end, self.turn_sign = bool(held[-1]), math.copysign(1.0, float(motion[-1, 1]))
+        registration.tells_along(len(registration.poses) - 1)  # the end's floor checked once, with the route
 
     @classmethod
     def of(
@@ -63,8 +66,12 @@ class FloorArrival:
             f"the floor places the robot {found.dx * 1e3:+.0f} mm along, {found.dy * 1e3:+.0f} mm beside and "
             f"{math.degrees(found.psi):+.1f} deg turned from the end"
         )
-        if self.turns_at_end:  # turned in place into the end: the heading tells it, to a pooled pixel
-            return abs(found.psi) <= max(0.5 * abs(step[1]), 1.0 / self.registration.focal), where
+        if (
+            self.turns_at_end
+        ):  # turned in place into the end: turned as far as the teach did, the heading tells
+            return self.turn_sign * found.psi >= -max(
+                0.5 * abs(step[1]), 1.0 / self.registration.focal
+            ), where
         return found.dx >= -0.5 * abs(step[0]), where
 
 

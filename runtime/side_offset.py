@@ -157,7 +157,7 @@ class SideOffset:
         ``dx``, and ``(dy, psi)`` fitted there; None where the best is at an end of ``ahead`` or the floor does
         not tell. A robot ``dx`` ahead sees the floor the teach saw ``X`` ahead at ``X - dx``: the near rows
         move by pixels per centimetre (1.3 cm a pooled pixel 0.35 m ahead on the 90 deg, 128 px camera)."""
-        if not self._tells_along(k):
+        if not self.tells_along(k):
             return None
         cur, band = self._current(view), self._band(k)
         tables: dict[int, np.ndarray] = {}
@@ -186,7 +186,7 @@ class SideOffset:
             return None
         return SideEstimate(found.dy, found.psi, found.rows, float(ahead[i] + frac * (ahead[1] - ahead[0])))
 
-    def _tells_along(self, k: int) -> bool:
+    def tells_along(self, k: int) -> bool:
         """Whether taught view ``k``'s floor tells a distance along the route: warped two of :meth:`along`'s
         steps either way, it differs from itself by more than ``distinct`` (a plain floor, or squares or planks
         laid along the path, shows the same rows over a stretch: sim2d's mosaic 0.15-0.46 on dev routes'
