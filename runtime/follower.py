@@ -126,7 +126,7 @@ class Follower:
         self.beside: SideEstimate | None = None
         self._side_run: list[float] = []  # the side offsets of the last views in a row the floor told
         self.obstructed: ObstructionVerdict | None = None  # the detector's verdict on the last view
-        self._speed, self._step = 0.0, (0.0, 0.0)  # the last forward speed commanded (m/s); its travel, turn
+        self._speed, self._step_m = 0.0, 0.0  # the last forward speed commanded (m/s), its travel (m)
         self._moved, self.index = (
             False,
             0,
@@ -181,7 +181,7 @@ class Follower:
     def commanded(self, v: float, w: float, dt: float) -> None:
         """The repeat loop applied (v, w) for ``dt`` seconds: the estimate moves along the route."""
         self._idle = self._idle + 1 if abs(v) < IDLE_SPEED and abs(w) < IDLE_TURN else 0
-        self._speed, self._step = v, (abs(v) * dt, abs(w) * dt)
+        self._speed, self._step_m = v, abs(v) * dt
         self._moved = self._moved or moving(v, w)
         self.progress.commanded(v, dt)
         self.end.commanded(v, dt)
@@ -235,7 +235,7 @@ class Follower:
         # the end; or the last subgoal the closest view, the policy stopped there and the view close to it
         threshold = float(self.thresholds[last])
         close = final_error <= self.cfg.jump_factor * threshold  # the settled bound, the end by travel's too
-        floor = None if self.arrival is None else self.arrival.judge(image, est, self._step)
+        floor = None if self.arrival is None else self.arrival.judge(image, est.position, self._step_m)
         arrived, note = floor or (near_end and final_error <= threshold, "")
         if arrived or at_end and self._idle >= 2 and close:
             self._finished = True

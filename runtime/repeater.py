@@ -263,7 +263,7 @@ class Repeater:
             return self._wait(obs, verdict, decision.note)
         if decision.action is not Action.COMMAND:
             status = _status_of(decision.action.value, RepeatStatus.STALLED)
-            return self._end(status, decision.note if status is not RepeatStatus.FINISHED else "", verdict)
+            return self._end(status, decision.note, verdict)  # a FINISHED note is its evidence
         if self.steps >= self.max_steps:
             return self._end(RepeatStatus.STEP_LIMIT, "", verdict)
         target = min(self.controller.index, self._last)
