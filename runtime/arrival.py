@@ -56,8 +56,8 @@ class FloorArrival:
         found = self.registration.along(view, last, np.arange(-short, self.past_m + spacing / 2, spacing))
         if found is None:
             return None
-        where = f"the floor places the robot {found.dx * 1e3:+.0f} mm along and {found.dy * 1e3:+.0f} mm beside the end"
-        return found.dx >= -0.5 * abs(step_m), where
+        where = f"the floor places the robot {found.dx * 1e3:+.0f} mm along, {found.dy * 1e3:+.0f} mm beside the end"
+        return found.dx >= -0.5 * abs(step_m), where  # stopping now: no further from it than one more step
 
 
 __all__ = ["PAST_M", "FloorArrival"]

@@ -127,10 +127,8 @@ class Follower:
         self._side_run: list[float] = []  # the side offsets of the last views in a row the floor told
         self.obstructed: ObstructionVerdict | None = None  # the detector's verdict on the last view
         self._speed, self._step_m = 0.0, 0.0  # the last forward speed commanded (m/s), its travel (m)
-        self._moved, self.index = (
-            False,
-            0,
-        )  # commanded to drive or turn since the last view; the subgoal steered to
+        self._moved = False  # commanded to drive or turn since the last view
+        self.index = 0  # the subgoal steered to
         self.status: Action | None = None
         self.estimate: Estimate | None = None
         self.jumps = 0

@@ -8,7 +8,11 @@ import pytest
 from floor_fakes import CAM, floor_view
 
 from vtr.runtime.arrival import FloorArrival
+from vtr.runtime.contracts import Observation
+from vtr.runtime.controller import ControllerConfig
 from vtr.runtime.progress_watch import EndWatch
+from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
+from vtr.runtime.route import Route
 from vtr.runtime.side_offset import SideOffset
 
 TILT = 0.3  # squares laid across the path at an angle, as sim2d's mosaic has edges at every angle
@@ -70,3 +74,47 @@ def test_the_floor_is_not_asked_before_the_last_gap_nor_where_the_teach_turned_i
     assert arrival().judge(floor_view(1.0, tilt=TILT), 9.9, 0.025) is None
     assert arrival(turns_at_end=True).judge(floor_view(1.1, tilt=TILT), 10.8, 0.025) is None
     assert arrival(tilt=0.0).judge(floor_view(1.1), 10.8, 0.025) is None
+
+
+class FloorRobot:
+    """A robot driving straight along x over the tilted floor of :func:`route`, from ``x``."""
+
+    def __init__(self, x: float = 0.0) -> None:
+        self.x, self.t = x, 0.0
+
+    def observe(self) -> Observation:
+        return Observation(floor_view(self.x, tilt=TILT), self.t, pose=(self.x, 0.0, 0.0))
+
+    def step(self, v: float, w: float, duration: float) -> Observation:
+        self.x += v * duration
+        self.t += duration
+        return self.observe()
+
+    def stop(self) -> None:
+        pass
+
+
+class Ahead:
+    """A policy that drives on at ``pace`` whatever it sees (the views alone cannot stop it)."""
+
+    image_shape = (128, 128)
+
+    def __init__(self, pace: float) -> None:
+        self.pace = pace
+
+    def predict(self, current: np.ndarray, subgoal: np.ndarray) -> np.ndarray:
+        return np.array([[self.pace, self.pace], [0.0, 0.0]], dtype=np.float32)
+
+
+@pytest.mark.parametrize("pace", [0.25, 0.45])
+def test_a_repeat_ends_where_the_floor_places_the_robot_at_the_last_pose(pace):
+    # the view under the last subgoal's threshold ended these repeats 50 and 20 mm short (86cae58)
+    views, poses = route()
+    commands = np.zeros((len(poses), 2))
+    commands[:-1, 0] = pace
+    taught = Route(images=views, poses=poses, commands=commands, name="floor", dt=0.1)
+    robot = FloorRobot()
+    config = RepeatConfig(controller=ControllerConfig(zero_bias=0.0, obstruction=False), max_steps=200)
+    summary = Repeater(robot, Ahead(pace), taught, config=config).run()
+    assert summary.status is RepeatStatus.FINISHED and "the floor places the robot" in summary.detail
+    assert abs(robot.x - poses[-1, 0]) <= 0.5 * pace * 0.1 + 0.01, (robot.x, summary.detail)
