@@ -45,10 +45,10 @@ class FloorArrival:
     def judge(self, view: np.ndarray, position: float, step_m: float) -> tuple[bool, str] | None:
         """Whether the floor places the robot at the last taught pose, and where (FINISHED's evidence); None
         where it does not tell: short of the end's zone (``END_ZONE_GAPS``: the estimate can lag more than a gap
-        behind a robot passing the end, held-out set 24 gen_2021 at 81.4 of 83), a floor that does not match, or a turn in place into the
-        end (there the floor's offset along and beside is off by centimetres: dev gen_158, moved furniture,
-        +39 mm along with the robot 75 mm from the pose; gen_176, +31 mm with it 3 mm from it).
-        ``position``: the localiser's estimate; ``step_m``: the last command's travel (m)."""
+        behind a robot passing the end, held-out set 24's gen_2021 at 81.4 of 83), a floor that does not match,
+        or a turn in place into the end (there the floor's offset along and beside is off by centimetres: dev
+        gen_158, moved furniture, +39 mm along with the robot 75 mm from the pose; gen_176, +31 mm with it 3 mm
+        from it). ``position``: the localiser's estimate; ``step_m``: the last command's travel (m)."""
         last = len(self.registration.poses) - 1
         if self.turns_at_end or position < last - END_ZONE_GAPS:
             return None
@@ -57,7 +57,8 @@ class FloorArrival:
         found = self.registration.along(view, last, np.arange(-short, self.past_m + spacing / 2, spacing))
         if found is None:
             return None
-        where = f"the floor places the robot {found.dx * 1e3:+.0f} mm along, {found.dy * 1e3:+.0f} mm beside the end"
+        along, beside = found.dx * 1e3, found.dy * 1e3
+        where = f"the floor places the robot {along:+.0f} mm along, {beside:+.0f} mm beside the end"
         return found.dx >= -0.5 * abs(step_m), where  # stopping now: no further from it than one more step
 
 
