@@ -166,7 +166,7 @@ class SideOffset:
         def score(*indices: int) -> None:
             for i in indices:
                 if 0 <= i < len(ahead) and i not in tables:
-                    tables[i] = self._table(cur, self._taught_rows(band, (float(ahead[i]), 0.0, 0.0)))
+                    tables[i] = self._ahead_table(cur, band, float(ahead[i]))
                     scores[i] = self._row_score(tables[i])
 
         # every other candidate, then those beside the best (the scores rise smoothly over a few candidates
@@ -194,10 +194,14 @@ class SideOffset:
         if k not in self._along_told:
             cur, band = self._current(self.subgoals[k]), self._band(k)
             self._along_told[k] = all(
-                self._row_score(self._table(cur, self._taught_rows(band, (dx, 0.0, 0.0)))) > self.cfg.distinct
+                self._row_score(self._ahead_table(cur, band, dx)) > self.cfg.distinct
                 for dx in (-2 * self.along_step, 2 * self.along_step)
             )
         return self._along_told[k]
+
+    def _ahead_table(self, cur: np.ndarray, band: np.ndarray, dx: float) -> np.ndarray:
+        """:meth:`_table` of the current rows against a taught band as seen ``dx`` m ahead of its pose."""
+        return self._table(cur, self._taught_rows(band, (dx, 0.0, 0.0)))
 
     @staticmethod
     def _row_score(table: np.ndarray) -> float:
