@@ -243,19 +243,23 @@ class ObstructionDetector:
         return self._distances(view, position, np.flatnonzero(self.weights), exhaustive)
 
     def elsewhere(self, view: Frame | np.ndarray, position: float) -> float:
-        """The unmatched share of the floor beside the path region of the last view scored: its tiles the
-        taught view shows as floor (:meth:`floor_evidence`) and saw from where the robot is. Walls and furniture
-        never change with the floor, and would water a re-laid floor's share down."""
+        """The unmatched share of the floor beside the path region of the last view scored (0 where none is
+        judged): :meth:`beside_tiles` as a share."""
+        unmatched, judged = self.beside_tiles(view, position)
+        return unmatched / judged if judged else 0.0
+
+    def beside_tiles(self, view: Frame | np.ndarray, position: float) -> tuple[int, int]:
+        """The unmatched and judged tiles of the floor beside the path region of the last view scored: its
+        tiles the taught view shows as floor (:meth:`floor_evidence`) and saw from where the robot is. Walls
+        and furniture never change with the floor, and would water a re-laid floor's share down."""
         view = as_frame(view, self.subgoals.shape[1:3])
         k = taught_offset(self.poses, position)[0]
         outside = np.flatnonzero((self.weights == 0) & self.floor_evidence(k))
         if not len(outside):
-            return 0.0
+            return 0, 0
         d = self._distances(view, position, outside)
         judged = outside[~self._unseen[outside]]
-        if not len(judged):
-            return 0.0
-        return float(np.count_nonzero(d[judged] > self.cfg.tile_threshold)) / len(judged)
+        return int(np.count_nonzero(d[judged] > self.cfg.tile_threshold)), len(judged)
 
     def _distances(
         self, view: Frame, position: float, active: np.ndarray, exhaustive: bool = False
@@ -378,7 +382,7 @@ class ObstructionDetector:
                 self.growth.unseen()
                 if not self.growth.blocked:  # no region in view is no matched view of it
                     return ObstructionVerdict(False, 0.0, 0, "path region out of view")
-            return self.growth.update(share, hidden, moved, lambda: self.elsewhere(view, position))
+            return self.growth.update(share, hidden, moved, lambda: self.beside_tiles(view, position))
         finally:
             self._side = None
 

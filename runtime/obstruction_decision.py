@@ -11,6 +11,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 
+#: The floor beside the path region in one view: its (unmatched, judged) tiles (ObstructionDetector.beside_tiles).
+Elsewhere = Callable[[], "tuple[int, int]"]
+
+
 @dataclass(frozen=True)
 class ObstructionConfig:
     """The detector's settings; chosen on development routes only (evaluation/README.md)."""
@@ -151,6 +155,12 @@ class Growth:
         self.clear = 0
         self.fresh = False  # the path came into view unmatched: no matched view of it to grow from
         self.seen = False  # any view of the path region judged yet
+        self._beside_spell()
+
+    def _beside_spell(self) -> None:
+        """Forget the floor beside the path: the unmatched and judged tiles pooled over the views asked since the
+        path region went unmatched (:meth:`_floor_changed`)."""
+        self.beside_unmatched = self.beside_judged = 0
 
     def unseen(self) -> None:
         """No floor of the path in view (it turns out of view): the next region seen is new. It may grow
@@ -159,12 +169,25 @@ class Growth:
         if not self.blocked:
             self.fresh = self.fresh or self.low <= self.cfg.max_base or not self.seen
             self.growing, self.last, self.low = 0, 0.0, 1.0
+            self._beside_spell()
+
+    def _floor_changed(self, elsewhere: Elsewhere) -> bool:
+        """Whether the floor beside the path region is unmatched by more than ``max_elsewhere``, its tiles
+        (``elsewhere``: this view's unmatched and judged ones) pooled over every view asked in this unmatched
+        spell. One view judges 10-25 tiles: on a re-coloured floor the share beside the path read 60-93% view
+        after view and a growth blocked on the one view it read 50% (dev floor_recoloured gen_104, gen_109,
+        gen_120, gen_125, gen_133); the floor does not change back between two views, a box does not change it."""
+        unmatched, judged = elsewhere()
+        self.beside_unmatched += unmatched
+        self.beside_judged += judged
+        return self.beside_judged > 0 and self.beside_unmatched > self.cfg.max_elsewhere * self.beside_judged
 
     def update(
-        self, share: float, hidden: float, moved: bool, elsewhere: Callable[[], float] | None = None
+        self, share: float, hidden: float, moved: bool, elsewhere: Elsewhere | None = None
     ) -> ObstructionVerdict:
-        """Fold one view's unmatched share and hidden share in: the verdict. ``elsewhere``: the unmatched
-        share of the floor beside the path region, asked only when everything else says blocked."""
+        """Fold one view's unmatched share and hidden share in: the verdict. ``elsewhere``: the unmatched and
+        judged tiles of the floor beside the path region in this view, asked only when everything else says
+        blocked (or on the first view, unmatched)."""
         cfg = self.cfg
         if self.blocked:
             clear = share <= cfg.clear_fraction or hidden <= cfg.clear_hidden
@@ -178,10 +201,11 @@ class Growth:
             # unmatched from the first view on: something on the path already in view where the floor beside
             # it matches (a box just past a turn near the start, dev box_after_turn gen_102), else the floor
             # itself changed (re-laid), and nothing grew from a matched floor
-            self.low = 0.0 if elsewhere() <= cfg.max_elsewhere else 1.0
+            self.low = 1.0 if self._floor_changed(elsewhere) else 0.0
         self.seen = True
         if share < cfg.onset_fraction:
             self.growing, self.low, self.fresh = 0, share, False
+            self._beside_spell()
         elif moved:
             if not self.growing:
                 self.base = share
@@ -198,7 +222,7 @@ class Growth:
             and (self.low <= cfg.max_base or self.fresh)
             and hidden >= cfg.hidden_fraction
         )
-        if self.blocked and elsewhere is not None and elsewhere() > cfg.max_elsewhere:
+        if self.blocked and elsewhere is not None and self._floor_changed(elsewhere):
             self.blocked = False  # the floor beside the path changed as much: not evidence of something on it
         note = self.note(share) if self.blocked else f"path region {share:.0%} unmatched"
         return ObstructionVerdict(self.blocked, share, self.growing, note, hidden)
@@ -209,4 +233,4 @@ class Growth:
         )
 
 
-__all__ = ["Growth", "ObstructionConfig", "ObstructionVerdict"]
+__all__ = ["Elsewhere", "Growth", "ObstructionConfig", "ObstructionVerdict"]

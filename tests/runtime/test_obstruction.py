@@ -268,7 +268,7 @@ def test_a_growth_blocks_only_while_the_floor_beside_the_path_still_matches():
     from vtr.runtime.obstruction import Growth
 
     shares = [0.05, 0.15, 0.25, 0.35, 0.45]
-    for elsewhere, blocks in ((0.9, False), (0.1, True)):
+    for elsewhere, blocks in (((18, 20), False), ((2, 20), True)):
         growth = Growth(ObstructionConfig())
         verdicts = [growth.update(s, s, True, lambda e=elsewhere: e) for s in shares]
         assert verdicts[-1].blocked is blocks
@@ -347,13 +347,48 @@ def test_a_path_region_unmatched_since_the_first_view_never_grew_from_a_matched_
 
     relaid = [0.71, 0.8, 0.8, 0.77, 0.87, 0.87, 0.97, 0.97]
     growth = Growth(ObstructionConfig())
-    beside = iter([0.75] + [0.3] * 10)  # the floor beside the path unmatched on the first view
+    beside = iter([(15, 20)] + [(6, 20)] * 10)  # the floor beside the path unmatched on the first view
     assert not any(growth.update(s, s, True, lambda: next(beside)).blocked for s in relaid)
     growth = Growth(ObstructionConfig())  # dev box_after_turn gen_102: the box in view from the start
-    assert growth.update(0.5, 0.4, False, lambda: 0.1).note and growth.low == 0.0
-    assert [growth.update(s, s, True, lambda: 0.1).blocked for s in (0.5, 0.6, 0.7, 0.8)][-1]
+    assert growth.update(0.5, 0.4, False, lambda: (2, 20)).note and growth.low == 0.0
+    assert [growth.update(s, s, True, lambda: (2, 20)).blocked for s in (0.5, 0.6, 0.7, 0.8)][-1]
     growth = Growth(ObstructionConfig())  # a box half-way along a short route: in view from the start, small
-    assert [growth.update(s, s, True, lambda: 0.1).blocked for s in (0.2, 0.3, 0.4, 0.5)][-1]
+    assert [growth.update(s, s, True, lambda: (2, 20)).blocked for s in (0.2, 0.3, 0.4, 0.5)][-1]
+
+
+def test_the_floor_beside_the_path_is_judged_on_every_view_of_the_unmatched_spell_not_one():
+    """Dev floor_recoloured (gen_120, seed 0): after a turn in place at the start the path came into view
+    unmatched; the floor beside it read 60-93% unmatched view after view (10-24 tiles a view) and a growth
+    blocked on the first view it read 5 of 10, with nothing on the path (as it does here where every view reads
+    5 of 10). Pooled over the spell's views, the floor beside the path changed. A box on an unchanged floor (2 of 20 beside it) blocks on the same view
+    as one view's share would say; so does one whose spell began on views with the floor beside it unmatched
+    where the path region then matched again (a new spell)."""
+    from vtr.runtime.obstruction import Growth
+
+    relaid = [0.78, 0.83, 0.8, 0.87, 0.7, 0.86, 1.0, 0.84, 0.87, 0.97, 0.77, 0.9, 0.94, 0.9]
+    counts = [(9, 10), (13, 15), (8, 13)] + [(5, 10)] * 11
+    asked: list[tuple[int, int]] = []
+
+    def beside() -> tuple[int, int]:
+        asked.append(counts[len(asked)])
+        return asked[-1]
+
+    growth = Growth(ObstructionConfig())
+    growth.unseen()  # the route starts with a turn in place: the path comes into view unmatched
+    verdicts = [growth.update(s, s, True, beside) for s in relaid]
+    assert (5, 10) in asked and not any(v.blocked for v in verdicts)
+    halves = Growth(ObstructionConfig())  # every view 5 of 10 beside the path: that view's verdict, blocked
+    halves.unseen()
+    assert any(halves.update(s, s, True, lambda: (5, 10)).blocked for s in relaid)
+
+    box = [0.05, 0.15, 0.25, 0.35, 0.45, 0.55]
+    growth, first = Growth(ObstructionConfig()), Growth(ObstructionConfig())
+    for s in (0.3, 0.4, 0.5, 0.6):  # off its pose: the floor beside unmatched, then the region matches again
+        growth.update(s, s, True, lambda: (18, 20))
+    assert [growth.update(s, s, True, lambda: (2, 20)).blocked for s in box] == [
+        first.update(s, s, True, lambda: (2, 20)).blocked for s in box
+    ]
+    assert growth.blocked
 
 
 def test_a_path_that_turns_back_into_view_unmatched_blocks_only_where_the_floor_matched_before_the_turn():
@@ -367,13 +402,13 @@ def test_a_path_that_turns_back_into_view_unmatched_blocks_only_where_the_floor_
     for before, blocks in (([0.8, 0.75, 0.85], False), ([0.02, 0.0, 0.03], True)):
         growth = Growth(ObstructionConfig())
         for s in before:  # re-laid: the floor beside the path unmatched as much
-            growth.update(s, s, True, lambda: 0.8)
+            growth.update(s, s, True, lambda: (16, 20))
         for _ in range(3):
             growth.unseen()
-        assert [growth.update(s, s, True, lambda: 0.1).blocked for s in after_turn][-1] is blocks
+        assert [growth.update(s, s, True, lambda: (2, 20)).blocked for s in after_turn][-1] is blocks
     growth = Growth(ObstructionConfig())  # a route that starts with the turn: nothing seen before it
     growth.unseen()
-    assert [growth.update(s, s, True, lambda: 0.1).blocked for s in after_turn][-1]
+    assert [growth.update(s, s, True, lambda: (2, 20)).blocked for s in after_turn][-1]
 
 
 @pytest.mark.parametrize("ahead", [0.12, -0.1])
