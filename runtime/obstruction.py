@@ -31,17 +31,18 @@ for ``grow_steps`` steps in which the robot moved (drove forward or turned: :fun
 ``min_growth`` in all, grew from a region that matched (``max_base`` or less unmatched) or came into view
 unmatched (a path that turned out of view and back, as in a taught turn in place: its floor was never seen
 matched; only where the floor matched before the turn), or was unmatched from the first view while the floor
-beside it matched (a box already in view), and at least ``hidden_fraction`` of the region is unmatched all the way up its column to the
-region's far end, while no more than ``max_elsewhere`` of the floor beside the region is unmatched (judged
-on taught tiles with texture that the floor plane explains, :meth:`ObstructionDetector.floor_evidence`: walls
-and furniture stay when a floor is re-laid, and would water its share down). A floor
-that looks different everywhere (a new carpet), a robot off its pose (which mismatches the floor nearest to
-it first), or a region that is unmatched while the robot stands, does not fire. Things lower than about two thirds of the camera's height hide too little of the far floor to be
-seen this way (the range sensor's job). Once blocked, the verdict holds until the region matches again
-(``clear_fraction`` or less for ``clear_steps`` views): the caller waits on it and resumes when it clears.
-It also clears when the floor at the region's far end is seen again (``clear_hidden`` or less unmatched
-all the way up): a robot that stopped a little off its pose still mismatches some floor near it once the
-box is gone.
+beside it matched (a box already in view), and at least ``hidden_fraction`` of the region is unmatched all
+the way up its column to the region's far end, while no more than ``max_elsewhere`` of the floor beside the
+region is unmatched (judged on taught tiles with texture that the floor plane explains,
+:meth:`ObstructionDetector.floor_evidence`: walls and furniture stay when a floor is re-laid, and would water
+its share down; pooled over the views of the unmatched spell, obstruction_decision.Growth). A floor that
+looks different everywhere (a new carpet), a robot off its pose (which mismatches the floor nearest to it
+first), or a region that is unmatched while the robot stands, does not fire. Things lower than about two
+thirds of the camera's height hide too little of the far floor to be seen this way (the range sensor's job).
+Once blocked, the verdict holds until the region matches again (``clear_fraction`` or less for
+``clear_steps`` views): the caller waits on it and resumes when it clears. It also clears when the floor at
+the region's far end is seen again (``clear_hidden`` or less unmatched all the way up): a robot that stopped
+a little off its pose still mismatches some floor near it once the box is gone.
 
 Use: ``ObstructionDetector(route.images, route.travel_poses())``, then per view ``update(image,
 estimate.position, moved)`` with ``moved`` true when the robot was commanded to move since the last view.

@@ -10,7 +10,6 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-
 #: The floor beside the path region in one view: its (unmatched, judged) tiles (ObstructionDetector.beside_tiles).
 Elsewhere = Callable[[], "tuple[int, int]"]
 
