@@ -244,8 +244,7 @@ class ObstructionDetector:
         return self._distances(view, position, np.flatnonzero(self.weights), exhaustive)
 
     def elsewhere(self, view: Frame | np.ndarray, position: float) -> float:
-        """The unmatched share of the floor beside the path region of the last view scored (0 where none is
-        judged): :meth:`beside_tiles` as a share."""
+        """:meth:`beside_tiles` as a share (0 where none is judged)."""
         unmatched, judged = self.beside_tiles(view, position)
         return unmatched / judged if judged else 0.0
 
