@@ -188,6 +188,13 @@ class Growth:
         judged tiles of the floor beside the path region in this view, asked only when everything else says
         blocked (or on the first view, unmatched)."""
         cfg = self.cfg
+        verdicts: list[bool] = []
+
+        def floor_changed() -> bool:  # the view's tiles pooled once, however often it is asked
+            if not verdicts:
+                verdicts.append(elsewhere is not None and self._floor_changed(elsewhere))
+            return verdicts[0]
+
         if self.blocked:
             clear = share <= cfg.clear_fraction or hidden <= cfg.clear_hidden
             self.clear = self.clear + 1 if clear else 0
@@ -200,7 +207,7 @@ class Growth:
             # unmatched from the first view on: something on the path already in view where the floor beside
             # it matches (a box just past a turn near the start, dev box_after_turn gen_102), else the floor
             # itself changed (re-laid), and nothing grew from a matched floor
-            self.low = 1.0 if self._floor_changed(elsewhere) else 0.0
+            self.low = 1.0 if floor_changed() else 0.0
         self.seen = True
         if share < cfg.onset_fraction:
             self.growing, self.low, self.fresh = 0, share, False
@@ -221,7 +228,7 @@ class Growth:
             and (self.low <= cfg.max_base or self.fresh)
             and hidden >= cfg.hidden_fraction
         )
-        if self.blocked and elsewhere is not None and self._floor_changed(elsewhere):
+        if self.blocked and elsewhere is not None and floor_changed():
             self.blocked = False  # the floor beside the path changed as much: not evidence of something on it
         note = self.note(share) if self.blocked else f"path region {share:.0%} unmatched"
         return ObstructionVerdict(self.blocked, share, self.growing, note, hidden)

@@ -389,6 +389,10 @@ def test_the_floor_beside_the_path_is_judged_on_every_view_of_the_unmatched_spel
         first.update(s, s, True, lambda: (2, 20)).blocked for s in box
     ]
     assert growth.blocked
+    calls: list[int] = []
+    growth = Growth(ObstructionConfig(grow_steps=1, min_growth=0.0))  # a view asked twice is pooled once
+    assert growth.update(0.5, 0.5, True, lambda: calls.append(1) or (2, 20)).blocked
+    assert len(calls) == 1 and (growth.beside_unmatched, growth.beside_judged) == (2, 20)
 
 
 def test_a_path_that_turns_back_into_view_unmatched_blocks_only_where_the_floor_matched_before_the_turn():
