@@ -235,8 +235,9 @@ class Follower:
         close = final_error <= self.cfg.jump_factor * threshold  # the settled bound, the end by travel's too
         floor = None if self.arrival is None else self.arrival.judge(image, est.position, self._step_m)
         arrived, note = floor or (near_end and final_error <= threshold, "")
-        if arrived or at_end and self._idle >= 2 and close:
+        if arrived or at_end and self._idle >= 2 and close:  # the evidence in the note (the run's summary)
             self._finished = True
+            note = note or f"the view {final_error:.3f} from the last subgoal's (threshold {threshold:.3f})"
             return Decision(Action.FINISHED, len(self), final_error, note=note)
         floor_side = floor_side_of(self._floor_side, image, est.position)  # one registration a view, lazily
         blocked = self._blocked(image, est, floor_side)
