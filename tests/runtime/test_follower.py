@@ -64,9 +64,8 @@ def test_a_robot_that_follows_finishes_at_about_the_taught_pace():
     robot = Corridor()
     rep, records = _run(robot)
     assert rep.status is RepeatStatus.FINISHED
-    assert (
-        rep.detail.startswith("the view ") and "from the last subgoal's (threshold" in rep.detail
-    )  # evidence
+    # the evidence it finished on, in the run's summary: the view against the last subgoal's threshold
+    assert rep.detail.startswith("the view ") and "from the last subgoal's (threshold" in rep.detail
     assert robot.x == pytest.approx(0.4, abs=0.02)
     taught_steps = 2 * (len(rep.route) - 1)  # a subgoal every 2 control steps
     assert rep.steps <= 1.3 * taught_steps
