@@ -178,9 +178,7 @@ class SideOffset:
         if not 0 < i < len(ahead) - 1:
             return None
         score(i - 1, i + 1)
-        lo, mid, hi = scores[i - 1 : i + 2]
-        curve = lo - 2 * mid + hi
-        frac = min(max(0.5 * (lo - hi) / curve, -0.5), 0.5) if curve > 1e-9 else 0.0
+        frac = _vertex(*scores[i - 1 : i + 2])
         found = self._fit(tables[i])
         if found is None:
             return None
@@ -233,11 +231,7 @@ class SideOffset:
         best = table.argmin(axis=0)
         at = np.minimum(np.maximum(best, 1), 2 * s_max - 1)
         lo, mid, hi = table[at + self._around, r]  # one gather for the best shift and its two neighbours
-        curve = lo - 2 * mid + hi
-        curved = curve > 1e-9
-        frac = np.zeros(curve.shape, curve.dtype)
-        np.divide(0.5 * (lo - hi), curve, out=frac, where=curved)
-        shift = at - s_max + np.minimum(np.maximum(frac, -0.5), 0.5)
+        shift = at - s_max + _vertex(lo, mid, hi)
         # the median of an odd number of shifts is the middle one of a partition (np.median's own way, less
         # its ~60 us of Python); the best score is the table's at the best shift
         quality = np.partition(table, s_max, axis=0)[s_max] - table[best, r]
@@ -256,6 +250,15 @@ class SideOffset:
         if not (math.isfinite(dy) and math.isfinite(psi)):
             return None
         return SideEstimate(float(dy), float(psi), int(np.count_nonzero(ok)))
+
+
+def _vertex(lo: np.ndarray, mid: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """The vertex of the parabola through three scores a step apart, in steps from the middle one and within half
+    a step of it (0 where they do not curve up): the sub-step refinement of a best shift or a best offset."""
+    curve = lo - 2 * mid + hi
+    frac = np.zeros(np.shape(curve), np.result_type(curve))
+    np.divide(0.5 * (lo - hi), curve, out=frac, where=curve > 1e-9)
+    return np.minimum(np.maximum(frac, -0.5), 0.5)
 
 
 def _weighted_line(design: np.ndarray, y: np.ndarray, weights: np.ndarray) -> np.ndarray:
