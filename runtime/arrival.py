@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vtr.runtime.progress_watch import END_ZONE_GAPS, EndWatch
+from vtr.runtime.progress_watch import END_ZONE_GAPS, route_left
 from vtr.runtime.side_offset import SideOffset
 
 #: The least distance (m) past the last pose the registration searches: a robot a control step past it at
@@ -26,21 +26,19 @@ PAST_M = 0.05
 class FloorArrival:
     """Whether the floor places the robot at the last taught pose (see the module docstring)."""
 
-    def __init__(self, registration: SideOffset, end: EndWatch, motion: np.ndarray, held: np.ndarray) -> None:
-        """``end``: the route's end by travel (its taught translation left from a position); ``motion``: (L-1, 2)
-        the taught motion of each gap (``localiser.taught_motion``); ``held``: (L,) whether the teach turned in
-        place into each subgoal (into the last one, the floor is not asked)."""
-        self.registration, self.end = registration, end
+    def __init__(self, registration: SideOffset, motion: np.ndarray, held: np.ndarray) -> None:
+        """``motion``: (L-1, 2) the taught motion of each gap (``localiser.taught_motion``); ``held``: (L,)
+        whether the teach turned in place into each subgoal (into the last one, the floor is not asked)."""
+        self.registration = registration
+        self.route_m = np.concatenate([[0.0], np.cumsum(np.abs(motion[:, 0]))])  # the taught translation
         self.past_m = max(abs(float(motion[-1, 0])), PAST_M)
         self.turns_at_end = bool(held[-1])
         registration.tells_along(len(registration.poses) - 1)  # the end's floor checked once, with the route
 
     @classmethod
-    def of(
-        cls, registration: SideOffset | None, end: EndWatch, motion: np.ndarray, held: np.ndarray
-    ) -> FloorArrival | None:
+    def of(cls, registration: SideOffset | None, motion: np.ndarray, held: np.ndarray) -> FloorArrival | None:
         """The floor arrival of a route with a floor registration and a gap at least, else None."""
-        return None if registration is None or len(motion) < 1 else cls(registration, end, motion, held)
+        return None if registration is None or len(motion) < 1 else cls(registration, motion, held)
 
     def judge(self, view: np.ndarray, position: float, step_m: float) -> tuple[bool, str] | None:
         """Whether the floor places the robot at the last taught pose, and where (FINISHED's evidence); None
@@ -53,7 +51,7 @@ class FloorArrival:
         if self.turns_at_end or position < last - END_ZONE_GAPS:
             return None
         spacing = self.registration.along_step
-        short = max(self.end.left_from(position), 0.0) + self.past_m
+        short = max(route_left(self.route_m, position), 0.0) + self.past_m
         found = self.registration.along(view, last, np.arange(-short, self.past_m + spacing / 2, spacing))
         if found is None:
             return None

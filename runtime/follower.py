@@ -9,8 +9,9 @@ Each image:
 3. the end: the floor places the robot at the last taught pose (``runtime.arrival``) or, where the floor
    does not tell, the estimate is at the last subgoal and the view matches it as well as the teach's
    neighbouring views match each other; or, the view closest to it, the policy has stopped driving there:
-   FINISHED; or, after 4 and 5, by travel (``EndWatch``: the views cannot see the robot pass the end):
-   driven past what the route had left, within the settled bound FINISHED, else LOST with the evidence;
+   FINISHED; or, after 4 and 5, by travel (``EndWatch``: the views cannot see the robot pass the end, nor
+   turn past the end of a final turn in place): moved past what the route had left, within the settled bound
+   FINISHED, else LOST with the evidence;
 4. blocked: the camera sees the way ahead blocked (``runtime.obstruction``: the floor just ahead, warped from
    the taught view to the estimated pose, stops matching in a region that grew while the robot was
    commanded forward): BLOCKED with the evidence, for as long as the detector says so. It is not an end:
@@ -138,8 +139,8 @@ class Follower:
         window = self.cfg.localiser.window_behind + self.cfg.localiser.window_ahead
         #: images and commanded translation since the last evidence of where the robot is (``_stalled``)
         self.progress = ProgressWatch(window * self._steps)
-        self.end = EndWatch(np.concatenate([[0.0], np.cumsum(np.abs(motion[:, 0]))]))  # the end by travel
-        self.arrival = FloorArrival.of(self._floor_side, self.end, motion, self._held)  # the end by the floor
+        self.end = EndWatch(self.localiser.travelled, motion, self._held)  # the end by travel (a turn's too)
+        self.arrival = FloorArrival.of(self._floor_side, motion, self._held)  # the end by the floor
         self._idle, self._finished = 0, False
 
     @classmethod
@@ -182,7 +183,7 @@ class Follower:
         self._speed, self._step_m = v, abs(v) * dt
         self._moved = self._moved or moving(v, w)
         self.progress.commanded(v, dt)
-        self.end.commanded(v, dt)
+        self.end.commanded(v, w, dt, self.localiser.travel(v, w, dt))
         self.localiser.predict(v, w, dt)
 
     def relocalise(self) -> None:

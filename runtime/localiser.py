@@ -222,6 +222,21 @@ class RouteLocaliser:
         move = np.array([v * dt, self.cfg.turn_length_m * w * dt])
         return float(move @ self._motion[gap] / norm)
 
+    def travel(self, v: float, w: float, dt: float) -> float:
+        """The taught travel (m, a turn counted at ``turn_length_m`` a radian) that the command (v, w) for
+        ``dt`` covers along the route where the robot is, either way: a drive on a straight counts its
+        distance, a turn in place its turn."""
+        if self.n < 2:
+            return 0.0
+        position = self.last.position if self.last is not None else self._mean()
+        gap = min(int(position), self.n - 2)
+        return abs(self.progress(v, w, dt, position)) * math.sqrt(self._motion_sq[gap])
+
+    @property
+    def travelled(self) -> np.ndarray:
+        """(n,) the taught travel (m, turns at ``turn_length_m`` a radian) from the first subgoal to each."""
+        return self._travelled
+
     def predict(self, v: float, w: float, dt: float) -> None:
         """The robot was commanded (v, w) for ``dt`` seconds: move the belief along the route."""
         if self.n < 2 or self._wide:

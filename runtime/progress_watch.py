@@ -68,14 +68,27 @@ class ProgressWatch:
         return None
 
 
+def route_left(route_m: np.ndarray, position: float) -> float:
+    """What ``route_m`` (L,: cumulative from the first subgoal to each) has left from ``position`` (subgoal
+    units, between subgoals interpolated) to the last subgoal."""
+    last = len(route_m) - 1
+    if last < 1:
+        return 0.0
+    k = min(max(int(math.floor(position)), 0), last - 1)
+    frac = min(max(position - k, 0.0), 1.0)
+    here = route_m[k] + frac * (route_m[k + 1] - route_m[k])
+    return float(route_m[last] - here)
+
+
 #: The end's zone (gaps before the last subgoal): a view that matched a subgoal in it is the evidence that the
 #: robot came to the end along the route, which the end by travel needs (``EndWatch``).
 END_ZONE_GAPS = 2.0
 
 
 class EndWatch:
-    """Commanded translation since the views first placed the robot at the route's end, against what the taught
-    route had left from there: past it, the robot drives beyond the route's end, where nothing was taught.
+    """Motion commanded since the views first placed the robot at the route's end, against what the taught
+    route had left from there: past it, the robot drives (or turns) beyond the route's end, where nothing was
+    taught.
 
     The localiser's grid ends at the last subgoal, and a view from past the end looks like one from as far
     short of it, so the estimate stays short of the end while the robot drives on (held-out set 15, gen_1617:
@@ -84,38 +97,54 @@ class EndWatch:
     give there, once a view has matched a subgoal in the end's zone (``END_ZONE_GAPS``): a robot whose views
     matched nothing near the end may be anywhere (dev gen_117, re-coloured floor: 0.32 m from the end, every
     view 1.4-1.9 thresholds off, the estimate carried to the end by the commanded motion), and the follower's
-    other rules judge it as before."""
+    other rules judge it as before.
 
-    def __init__(self, route_m: np.ndarray) -> None:
-        """``route_m``: (L,) the taught translation (m) from the first subgoal to each."""
+    Motion is counted along the route as the localiser counts it (``RouteLocaliser.travel``: a turn at
+    ``turn_length_m`` a radian, projected on the taught motion where the robot is), so a route that ends with
+    a turn in place ends when the taught turn has been turned: there the views can stop matching too (a
+    changed light or wall), the belief stays short of the end and a robot replaying the taught turn spun
+    whole turns on the spot (dev gen_176, moved furniture: 3 mm from the end, passing the taught heading with
+    the view 0.47 against 0.40, then turning a full circle until lost). The whole of such a turn is at the
+    end's place, so the end's zone starts where the turn starts."""
+
+    def __init__(self, route_m: np.ndarray, motion: np.ndarray, held: np.ndarray | None = None) -> None:
+        """``route_m``: (L,) the taught travel (m, a turn counted at the localiser's ``turn_length_m`` a radian:
+        ``RouteLocaliser.travelled``) from the first subgoal to each; ``motion``: (L-1, 2) the taught motion of
+        each gap (m, rad: for the evidence's wording); ``held``: (L,) whether the teach turned in place into
+        each subgoal (the end's zone starts where a final turn in place starts, where that is further back)."""
         self.route_m = np.asarray(route_m, dtype=np.float64)
-        self.driven = 0.0
+        parts = np.abs(np.asarray(motion, dtype=np.float64).reshape(-1, 2))
+        self._parts = np.concatenate([np.zeros((1, 2)), np.cumsum(parts, axis=0)])  # translation, turn
+        last = len(self.route_m) - 1
+        turn_from = last  # where the route's final turn in place starts (the last subgoal: it has none)
+        while held is not None and turn_from > 0 and held[turn_from]:
+            turn_from -= 1
+        self.zone_from = min(last - END_ZONE_GAPS, float(turn_from))
+        self.driven = 0.0  # along the route (``route_m``'s units)
+        self._moved = np.zeros(2)  # translation (m) and turn (rad) commanded, either way
         self.reset()
 
     def reset(self) -> None:
         self.start: float | None = None  # ``driven`` when the views first placed the robot at the end
-        self.left = 0.0  # the taught translation left from there (m)
+        self.left = 0.0  # the taught travel left from there (``route_m``'s units)
+        self._start_moved, self._left_parts = np.zeros(2), np.zeros(2)
         self.matched = False  # a view matched a subgoal in the end's zone
 
-    def commanded(self, v: float, dt: float) -> None:
-        """The robot was commanded ``v`` (m/s, either way) for ``dt`` seconds."""
-        self.driven += abs(v) * dt
+    def commanded(self, v: float, w: float, dt: float, along: float) -> None:
+        """The robot was commanded (v, w) for ``dt`` seconds, which covers ``along`` of the route (``route_m``'s
+        units, either way: ``RouteLocaliser.travel``)."""
+        self.driven += along
+        self._moved += (abs(v) * dt, abs(w) * dt)
 
     def left_from(self, position: float) -> float:
-        """The taught translation (m) from ``position`` (subgoal units) to the last subgoal."""
-        last = len(self.route_m) - 1
-        if last < 1:
-            return 0.0
-        k = min(max(int(math.floor(position)), 0), last - 1)
-        frac = min(max(position - k, 0.0), 1.0)
-        here = self.route_m[k] + frac * (self.route_m[k + 1] - self.route_m[k])
-        return float(self.route_m[last] - here)
+        """The taught travel (``route_m``'s units) from ``position`` (subgoal units) to the last subgoal."""
+        return route_left(self.route_m, position)
 
     def judge(self, position: float, at_end: bool, matched: bool) -> str | None:
         """One view: ``at_end`` whether the views place the robot at the end, ``matched`` whether the view matched
-        a subgoal under its threshold. None while the robot has driven no further than the taught route had
-        left when the views first placed it at the end (after a match in the end's zone), else what it drove."""
-        if position < len(self.route_m) - 1 - END_ZONE_GAPS:  # back along the route: count afresh at the end
+        a subgoal under its threshold. None while the robot has gone no further than the taught route had left
+        when the views first placed it at the end (after a match in the end's zone), else what it did."""
+        if position < self.zone_from:  # back along the route: count afresh at the end
             self.reset()
             return None
         self.matched = self.matched or matched
@@ -123,10 +152,15 @@ class EndWatch:
             if not (at_end and self.matched):
                 return None
             self.start, self.left = self.driven, self.left_from(position)
-        beyond = self.driven - self.start
-        if beyond <= self.left:
+            self._start_moved = self._moved.copy()
+            self._left_parts = np.array([route_left(self._parts[:, k], position) for k in range(2)])
+        if self.driven - self.start <= self.left:
             return None
-        return f"drove {beyond:.2f} m since the views placed it at the route's end ({self.left:.2f} m of route left)"
+        (m, turn), (left_m, left_turn) = self._moved - self._start_moved, self._left_parts
+        return (
+            f"drove {m:.2f} m and turned {math.degrees(turn):.0f} deg since the views placed it at the route's "
+            f"end (the route had {left_m:.2f} m and {math.degrees(left_turn):.0f} deg left)"
+        )
 
 
-__all__ = ["END_ZONE_GAPS", "PROGRESS_GAPS", "STALL_WINDOWS", "EndWatch", "ProgressWatch"]
+__all__ = ["END_ZONE_GAPS", "PROGRESS_GAPS", "STALL_WINDOWS", "EndWatch", "ProgressWatch", "route_left"]

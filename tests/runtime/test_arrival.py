@@ -10,7 +10,6 @@ from floor_fakes import CAM, floor_view
 from vtr.runtime.arrival import FloorArrival
 from vtr.runtime.contracts import Observation
 from vtr.runtime.controller import ControllerConfig
-from vtr.runtime.progress_watch import EndWatch
 from vtr.runtime.repeater import RepeatConfig, Repeater, RepeatStatus
 from vtr.runtime.route import Route
 from vtr.runtime.side_offset import SideOffset
@@ -53,10 +52,9 @@ def arrival(tilt: float = TILT, turns_at_end: bool = False) -> FloorArrival:
     subgoal."""
     views, poses = route(tilt=tilt)
     motion = np.diff(poses[:, :2], axis=0)[:, :1].repeat(2, axis=1) * (1.0, 0.0)
-    end = EndWatch(np.concatenate([[0.0], np.cumsum(motion[:, 0])]))
     held = np.zeros(len(poses), dtype=bool)
     held[-1] = turns_at_end
-    return FloorArrival(SideOffset(views, poses, CAM), end, motion, held)
+    return FloorArrival(SideOffset(views, poses, CAM), motion, held)
 
 
 def test_arrived_once_stopping_now_is_no_further_from_the_end_than_one_more_step():

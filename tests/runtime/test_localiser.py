@@ -44,6 +44,22 @@ def test_commanded_motion_moves_the_estimate_by_the_taught_share_of_a_gap():
     assert loc.progress(-0.25, 0.0, 0.1, 2.0) == pytest.approx(-0.5)  # backwards counts back
 
 
+def test_a_command_s_travel_along_the_route_is_its_motion_projected_on_the_taught_one():
+    """The end by travel (``EndWatch``) counts motion as the filter does: on a taught straight a drive counts
+    its distance either way and a turn in place nothing; in a taught turn in place, the turn."""
+    loc = _localiser()
+    loc.update(_view(0.1))
+    assert loc.travel(0.25, 0.0, 0.1) == pytest.approx(0.025)
+    assert loc.travel(-0.25, 0.0, 0.1) == pytest.approx(0.025)
+    assert loc.travel(0.0, 1.0, 0.1) == pytest.approx(0.0)
+    assert loc.travelled[-1] == pytest.approx(0.6)
+    turning = RouteLocaliser(
+        loc.feats, loc.matcher, np.array([[0.0, 0.2]] * (loc.n - 1)), 1.0, LocaliserConfig(turn_length_m=0.2)
+    )
+    assert turning.travel(0.0, -0.5, 0.1) == pytest.approx(0.2 * 0.05)  # either way
+    assert turning.travel(0.1, 0.0, 0.1) == pytest.approx(0.0)  # driving in a turn in place does not get on
+
+
 def test_a_view_that_does_not_move_holds_the_estimate_whatever_is_commanded():
     """Commands say the robot drove 3 gaps; the camera keeps seeing subgoal 2: the views win."""
     loc = _localiser()

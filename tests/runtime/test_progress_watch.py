@@ -73,8 +73,15 @@ def test_a_small_move_back_and_forth_is_no_progress():
     assert watch.judge(3.0, matched=False, window_m=10.0) is not None
 
 
-def _end_watch() -> EndWatch:
-    return EndWatch(np.array([0.0, 0.1, 0.2, 0.25, 0.3]))  # 5 subgoals, the last gaps 0.05 m
+def _end_watch(held: np.ndarray | None = None) -> EndWatch:
+    """5 subgoals on a straight, the last gaps 0.05 m (``held``: as if the teach had turned in place into
+    those subgoals instead, a turn counted at 0.2 m a radian)."""
+    motion = np.array([[0.1, 0.0], [0.1, 0.0], [0.05, 0.0], [0.05, 0.0]])
+    if held is not None:
+        motion[held[1:]] = (0.0, 0.25)
+    return EndWatch(
+        np.concatenate([[0.0], np.cumsum(np.hypot(motion[:, 0], 0.2 * motion[:, 1]))]), motion, held
+    )
 
 
 def test_the_route_left_is_interpolated_between_subgoals():
@@ -87,24 +94,25 @@ def test_the_route_left_is_interpolated_between_subgoals():
 
 def test_driving_further_than_the_route_had_left_at_the_end_runs_out():
     watch = _end_watch()
-    watch.commanded(0.3, 1.0)  # before the end: not counted
+    watch.commanded(3.0, 0.0, 0.1, 0.3)  # before the end: not counted
     assert (
         watch.judge(2.6, at_end=False, matched=True) is None and watch.start is None
     )  # a match near the end
     assert watch.judge(3.0, at_end=True, matched=False) is None  # 0.05 m of route left from here
-    watch.commanded(0.4, 0.1)
+    watch.commanded(0.4, 0.0, 0.1, 0.04)
     assert watch.judge(3.4, at_end=False, matched=False) is None  # 0.04 m driven: still on the route
-    watch.commanded(-0.2, 0.1)  # backwards counts too
+    watch.commanded(-0.2, 0.0, 0.1, 0.02)  # backwards counts too
     note = watch.judge(3.6, at_end=True, matched=False)
-    assert note == "drove 0.06 m since the views placed it at the route's end (0.05 m of route left)"
+    assert note == (
+        "drove 0.06 m and turned 0 deg since the views placed it at the route's end (the route had 0.05 m and "
+        "0 deg left)"
+    )
 
 
-def test_turning_at_the_end_costs_nothing_and_a_view_back_along_the_route_counts_afresh():
+def test_a_view_back_along_the_route_counts_afresh():
     watch = _end_watch()
     watch.judge(3.5, at_end=True, matched=True)
-    watch.commanded(0.0, 5.0)  # turning in place: no translation
-    assert watch.judge(3.5, at_end=True, matched=False) is None
-    watch.commanded(0.2, 0.1)
+    watch.commanded(0.2, 0.0, 0.1, 0.02)
     assert watch.judge(1.5, at_end=False, matched=False) is None and watch.start is None  # placed back
     assert watch.judge(3.5, at_end=True, matched=False) is None  # counting afresh needs a match again
     assert watch.start is None
@@ -116,8 +124,28 @@ def test_without_a_match_near_the_end_travel_decides_nothing():
     watch = _end_watch()
     assert watch.judge(1.5, at_end=False, matched=True) is None  # a match, but before the end's zone
     assert watch.judge(3.5, at_end=True, matched=False) is None
-    watch.commanded(1.0, 1.0)
+    watch.commanded(1.0, 0.0, 1.0, 1.0)
     assert watch.judge(3.6, at_end=True, matched=False) is None and watch.start is None
     assert watch.judge(3.7, at_end=True, matched=True) is None  # now armed: 0.015 m of route left
-    watch.commanded(0.1, 0.2)
+    watch.commanded(0.2, 0.0, 0.1, 0.02)
     assert watch.judge(3.7, at_end=True, matched=False) is not None
+
+
+def test_a_route_ending_with_a_turn_in_place_ends_when_the_taught_turn_is_turned():
+    """Dev gen_176 (moved furniture): the views placed the robot at the end of a final turn in place, a
+    quarter gap short, and no view matched there; the robot, replaying the taught turn, spun whole turns. The
+    turn counts as the localiser counts it (0.2 m a radian), and the whole turn is the end's zone: a match
+    anywhere in it arms the watch."""
+    held = np.array([False, False, True, True, True])  # the teach turned in place from subgoal 1 on
+    watch = _end_watch(held)
+    assert watch.zone_from == 1.0  # the turn's start, not 2 gaps before the end
+    assert watch.judge(1.6, at_end=False, matched=True) is None  # a match in the turn: the end's place
+    assert watch.judge(3.75, at_end=True, matched=False) is None  # a quarter gap left: 0.0625 rad
+    watch.commanded(0.0, 0.5, 0.1, 0.2 * 0.05)  # 0.05 rad
+    assert watch.judge(3.8, at_end=True, matched=False) is None
+    watch.commanded(0.0, 0.5, 0.1, 0.2 * 0.05)
+    note = watch.judge(3.8, at_end=True, matched=False)
+    assert note == (
+        "drove 0.00 m and turned 6 deg since the views placed it at the route's end (the route had 0.00 m and "
+        "4 deg left)"
+    )
