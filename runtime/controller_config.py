@@ -33,7 +33,7 @@ class ControllerConfig:
     feed_forward_turn: float = 0.0
     #: localiser: where the floor tells the side offset ``dy`` (runtime.side_offset), turn toward the taught
     #: path so that the robot heads for the path point ``side_lookahead`` metres ahead (pure pursuit): add
-    #: ``side_gain`` x atan(dy / side_lookahead) rad/s, at most ``follower.SIDE_TURN_MAX``. VelocityNet holds
+    #: ``side_gain`` x atan(dy / side_lookahead) rad/s, at most ``side_turn.SIDE_TURN_MAX``. VelocityNet holds
     #: the heading its view asks for at about 3.6 rad/s per rad (a fit of its turn on dev traces: -3.6 psi - 2.0
     #: dy), so this moves the heading it holds to the pursuit heading, at any pace; 0: VelocityNet alone
     #: (ablation ``after_no_side``). The earlier law (40 rad/s per m per m/s of speed) closed a 10 cm / 10 deg

@@ -31,7 +31,7 @@ Each image:
    (``Decision.prior``, blended by the repeat loop; faded out over the last control step of taught motion
    before the end, ``RouteLocaliser.left_to_end``) and no translation where the teach turned in place;
    where the teach drove forward, a turn back toward the taught path (``Decision.turn``, added by the
-   repeat loop) from the side offset the floor shows (``runtime.side_offset``: a pure pursuit of the path
+   repeat loop) from the side offset the floor shows (``runtime.side_turn``: a pure pursuit of the path
    point ``side_lookahead`` ahead, at most ``SIDE_TURN_MAX``). VelocityNet lines the view up with the
    subgoal's, which closes a side offset only over a few wall distances of travel.
 
@@ -64,6 +64,7 @@ from vtr.runtime.route_sensing import (
     side_offset,
 )
 from vtr.runtime.side_offset import SideEstimate
+from vtr.runtime.side_turn import SideTurn
 from vtr.runtime.thresholds import check_subgoals, lost_bounds, route_views
 
 if TYPE_CHECKING:
@@ -71,13 +72,6 @@ if TYPE_CHECKING:
 
 #: Commands under these (m/s, rad/s) count as the policy standing still at the end of the route.
 IDLE_SPEED, IDLE_TURN = 0.01, 0.02
-#: The most the side correction turns (rad/s): VelocityNet keeps the rest of the turn range, and holds a
-#: heading toward the path of this / 3.6 rad (16 deg; 0.5, 8 deg, left 10 cm starts 3 cm off after 1 m).
-SIDE_TURN_MAX = 1.0
-#: The side turn follows the median of this many floor estimates of views in a row while driving: one view's
-#: estimate can be wrong by centimetres (just after a turn in place, the taught floor warped to a pose the
-#: localiser has a little off), and a pursuit acts on it at any pace.
-SIDE_VIEWS = 3
 
 
 class Follower:
@@ -123,9 +117,7 @@ class Follower:
         self._floor_side = self.side or (
             side_offset(subgoals, travel_poses, camera) if self.obstruction else None
         )
-        #: Where the floor put the robot beside the taught path on the last command (None: it did not tell).
-        self.beside: SideEstimate | None = None
-        self._side_run: list[float] = []  # the side offsets of the last views in a row the floor told
+        self.side_turn = SideTurn(self.cfg.side_gain, self.cfg.side_lookahead)  # toward the taught path
         self.obstructed: ObstructionVerdict | None = None  # the detector's verdict on the last view
         self._speed, self._step_m = 0.0, 0.0  # the last forward speed commanded (m/s), its travel (m)
         self._moved = False  # commanded to drive or turn since the last view
@@ -276,26 +268,18 @@ class Follower:
             turn=self._side_turn(floor_side, gap, driving=not hold and last > 0),
         )
 
+    @property
+    def beside(self) -> SideEstimate | None:
+        """Where the floor put the robot beside the taught path on the last command (None: it did not tell)."""
+        return self.side_turn.beside
+
     def _side_turn(self, floor_side: FloorSide | None, gap: int, driving: bool) -> float:
-        """The turn (rad/s) toward the taught path that the floor's side offset asks for: a pure pursuit of the
-        path point ``side_lookahead`` ahead, ``side_gain`` x atan(dy / side_lookahead) (see ControllerConfig),
-        at most SIDE_TURN_MAX, ``dy`` the median of the last SIDE_VIEWS views' estimates; none until that many
-        views in a row told it, nor where the teach or the robot did not drive forward (turning closes no side
-        offset on the spot) or the floor does not tell (``runtime.side_offset``)."""
+        """The turn (rad/s) toward the taught path that the floor's side offset asks for (``runtime.side_turn``);
+        none where the teach or the robot did not drive forward (turning closes no side offset on the spot) or
+        the floor does not tell (``runtime.side_offset``)."""
         speed = min(float(self.commands[gap, 0]), self._speed)  # the pace the robot is driving at
-        run, self.beside = self._side_run, None
-        if driving and self.side is not None and floor_side is not None and speed > FORWARD_SPEED:
-            self.beside = floor_side()
-        if self.beside is None:
-            run.clear()
-            return 0.0
-        run.append(self.beside.dy)
-        del run[:-SIDE_VIEWS]
-        if len(run) < SIDE_VIEWS:
-            return 0.0
-        dy = sorted(run)[len(run) // 2]
-        turn = -self.cfg.side_gain * math.atan(dy / self.cfg.side_lookahead)
-        return max(-SIDE_TURN_MAX, min(SIDE_TURN_MAX, turn))
+        asked = driving and self.side is not None and floor_side is not None and speed > FORWARD_SPEED
+        return self.side_turn.turn(floor_side() if asked and floor_side is not None else None)
 
     def _blocked(self, image: Frame, est: Estimate, floor_side: FloorSide | None) -> Decision | None:
         """BLOCKED while the obstruction detector sees the way ahead blocked (None: go on)."""

@@ -172,7 +172,7 @@ def test_the_side_turn_waits_for_views_in_a_row_and_one_wrong_view_does_not_turn
     assert turns[5] == pytest.approx(-cfg.side_gain * math.atan(0.02 / cfg.side_lookahead))
     assert (
         follower._side_turn(floor_side_of(follower._floor_side, views[2], 2.0), 2, driving=False) == 0.0
-        and follower._side_run == []
+        and follower.side_turn.run == []
     )
 
 
