@@ -80,6 +80,15 @@ def route_left(route_m: np.ndarray, position: float) -> float:
     return float(route_m[last] - here)
 
 
+def final_turn_start(held: np.ndarray) -> int:
+    """The subgoal where a route's final turn in place starts (``held``: (L,) whether the teach turned in place
+    into each subgoal); the last subgoal where the route ends driving."""
+    start = len(held) - 1
+    while start > 0 and held[start]:
+        start -= 1
+    return start
+
+
 #: The end's zone (gaps before the last subgoal): a view that matched a subgoal in it is the evidence that the
 #: robot came to the end along the route, which the end by travel needs (``EndWatch``).
 END_ZONE_GAPS = 2.0
@@ -116,9 +125,7 @@ class EndWatch:
         parts = np.abs(np.asarray(motion, dtype=np.float64).reshape(-1, 2))
         self._parts = np.concatenate([np.zeros((1, 2)), np.cumsum(parts, axis=0)])  # translation, turn
         last = len(self.route_m) - 1
-        turn_from = last  # where the route's final turn in place starts (the last subgoal: it has none)
-        while held is not None and turn_from > 0 and held[turn_from]:
-            turn_from -= 1
+        turn_from = last if held is None else final_turn_start(held)
         self.zone_from = min(last - END_ZONE_GAPS, float(turn_from))
         self.driven = 0.0  # along the route (``route_m``'s units)
         self._moved = np.zeros(2)  # translation (m) and turn (rad) commanded, either way
@@ -163,4 +170,12 @@ class EndWatch:
         )
 
 
-__all__ = ["END_ZONE_GAPS", "PROGRESS_GAPS", "STALL_WINDOWS", "EndWatch", "ProgressWatch", "route_left"]
+__all__ = [
+    "END_ZONE_GAPS",
+    "PROGRESS_GAPS",
+    "STALL_WINDOWS",
+    "EndWatch",
+    "ProgressWatch",
+    "final_turn_start",
+    "route_left",
+]
