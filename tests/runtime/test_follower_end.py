@@ -276,12 +276,12 @@ def turn_view(x: float, yaw: float) -> np.ndarray:
 
 
 def turning_end_route() -> Route:
-    xs = np.concatenate([np.arange(0.0, TURN_AT, 0.05), np.full(6, TURN_AT)])
+    xs = np.concatenate([np.arange(0.0, TURN_AT, 0.05), np.full(6, TURN_AT)])  # the turn: the last 5 gaps
     yaws = np.concatenate([np.zeros(len(xs) - 6), np.linspace(0.0, TURN, 6)])
     poses = np.stack([xs, np.zeros_like(xs), yaws], axis=1)
     commands = np.zeros((len(xs), 2))
-    commands[: len(xs) - 7, 0] = 0.25
-    commands[len(xs) - 7 : -1, 1] = 0.5
+    commands[: len(xs) - 6, 0] = 0.25  # the command from each subgoal to the next: drive, then turn
+    commands[len(xs) - 6 : -1, 1] = 0.5
     images = np.stack([turn_view(x, yaw) for x, yaw in zip(xs, yaws, strict=True)])
     return Route(images=images, poses=poses, commands=commands, name="turning end", dt=0.1)
 
