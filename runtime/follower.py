@@ -175,8 +175,7 @@ class Follower:
         self._speed, self._step_m = v, abs(v) * dt
         self._moved = self._moved or moving(v, w)
         self.progress.commanded(v, dt)
-        self.end.commanded(v, w, dt, self.localiser.travel(v, w, dt))
-        self.localiser.predict(v, w, dt)
+        self.end.commanded(v, w, dt, self.localiser.predict(v, w, dt))
 
     def relocalise(self) -> None:
         """Search the whole route on the next image (after a robot restart)."""
@@ -278,8 +277,9 @@ class Follower:
         none where the teach or the robot did not drive forward (turning closes no side offset on the spot) or
         the floor does not tell (``runtime.side_offset``)."""
         speed = min(float(self.commands[gap, 0]), self._speed)  # the pace the robot is driving at
-        asked = driving and self.side is not None and floor_side is not None and speed > FORWARD_SPEED
-        return self.side_turn.turn(floor_side() if asked and floor_side is not None else None)
+        if driving and self.side is not None and floor_side is not None and speed > FORWARD_SPEED:
+            return self.side_turn.turn(floor_side())
+        return self.side_turn.turn(None)
 
     def _blocked(self, image: Frame, est: Estimate, floor_side: FloorSide | None) -> Decision | None:
         """BLOCKED while the obstruction detector sees the way ahead blocked (None: go on)."""

@@ -165,8 +165,9 @@ class RouteLocaliser:
         rho = self.cfg.turn_length_m
         self._motion = np.asarray(motion, dtype=np.float64).reshape(-1, 2) * (1.0, rho)
         self._motion_sq = np.einsum("ij,ij->i", self._motion, self._motion)
-        # the taught travel from the first subgoal to each (m, turns at ``rho`` a radian): window_travel's sums
-        self._travelled = np.concatenate([[0.0], np.cumsum(np.sqrt(self._motion_sq))])
+        self._gap_m = np.sqrt(self._motion_sq)  # each gap's taught travel (m, turns at ``rho`` a radian)
+        # the taught travel from the first subgoal to each: window_travel's sums, the end by travel's route
+        self._travelled = np.concatenate([[0.0], np.cumsum(self._gap_m)])
         # per subgoal: whether the teach drove on without turning much on either side (register_turn)
         turn = np.abs(np.asarray(motion, dtype=np.float64).reshape(-1, 2)[:, 1])
         before, after = np.concatenate([[0.0], turn]), np.concatenate([turn, [0.0]])
@@ -222,27 +223,32 @@ class RouteLocaliser:
         move = np.array([v * dt, self.cfg.turn_length_m * w * dt])
         return float(move @ self._motion[gap] / norm)
 
+    def _command(self, v: float, w: float, dt: float) -> tuple[float, float]:
+        """The share of the taught gap where the robot is that the command (v, w) for ``dt`` covers, and the
+        taught travel (m, either way) that is."""
+        position = self.last.position if self.last is not None else self._mean()
+        shift = self.progress(v, w, dt, position)
+        return shift, abs(shift) * float(self._gap_m[min(int(position), self.n - 2)])
+
     def travel(self, v: float, w: float, dt: float) -> float:
         """The taught travel (m, a turn counted at ``turn_length_m`` a radian) that the command (v, w) for
         ``dt`` covers along the route where the robot is, either way: a drive on a straight counts its
-        distance, a turn in place its turn."""
-        if self.n < 2:
-            return 0.0
-        position = self.last.position if self.last is not None else self._mean()
-        gap = min(int(position), self.n - 2)
-        return abs(self.progress(v, w, dt, position)) * math.sqrt(self._motion_sq[gap])
+        distance, a turn in place its turn (what :meth:`predict` returns)."""
+        return 0.0 if self.n < 2 else self._command(v, w, dt)[1]
 
     @property
     def travelled(self) -> np.ndarray:
         """(n,) the taught travel (m, turns at ``turn_length_m`` a radian) from the first subgoal to each."""
         return self._travelled
 
-    def predict(self, v: float, w: float, dt: float) -> None:
-        """The robot was commanded (v, w) for ``dt`` seconds: move the belief along the route."""
-        if self.n < 2 or self._wide:
-            return
-        position = self.last.position if self.last is not None else self._mean()
-        shift = self.progress(v, w, dt, position)
+    def predict(self, v: float, w: float, dt: float) -> float:
+        """The robot was commanded (v, w) for ``dt`` seconds: move the belief along the route. Returns the
+        taught travel the command covered (:meth:`travel`)."""
+        if self.n < 2:
+            return 0.0
+        shift, travelled = self._command(v, w, dt)
+        if self._wide:
+            return travelled
         k = self.cfg.cells_per_gap
         std = (self.cfg.motion_noise * abs(shift) + self.cfg.motion_floor) * k  # in cells
         moved = _shifted(self.belief, shift * k)
@@ -250,6 +256,7 @@ class RouteLocaliser:
         taps = np.exp(-0.5 * (np.arange(-half, half + 1) / max(std, 1e-6)) ** 2)
         self.belief = np.convolve(moved, taps / taps.sum(), mode="same")
         self._normalise()
+        return travelled
 
     def _normalise(self) -> None:
         total = self.belief.sum()

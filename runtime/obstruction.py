@@ -68,7 +68,7 @@ from vtr.runtime.floor_view import (
 )
 from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.matching import MatchConfig, Matcher, pooled_sums
-from vtr.runtime.obstruction_decision import Growth, ObstructionConfig, ObstructionVerdict
+from vtr.runtime.obstruction_decision import Growth, ObstructionConfig, ObstructionVerdict, once
 
 #: Commands faster than this (m/s) count as driving forward, or turning faster than this (rad/s) as turning:
 #: either moves the robot (``update``'s ``moved``).
@@ -97,18 +97,6 @@ def beside(offset: Offset, dy: float, psi: float) -> Offset:
     taught view), relative to that view."""
     ahead, left, turn = offset
     return ahead - math.sin(turn) * dy, left + math.cos(turn) * dy, turn + psi
-
-
-def _once(fn: SideFn) -> SideFn:
-    """``fn``, called at most once."""
-    memo: list[tuple[float, float] | None] = []
-
-    def call() -> tuple[float, float] | None:
-        if not memo:
-            memo.append(fn())
-        return memo[0]
-
-    return call
 
 
 class ObstructionDetector:
@@ -375,7 +363,7 @@ class ObstructionDetector:
         does not tell), asked once, only when some tiles match no taught view at the taught pose: the
         taught floor warped to that pose too lines up with the floor where the robot truly is (a robot
         10 cm beside the path sees the floor 0.3 m ahead 10 pooled pixels across, past the shifts)."""
-        self._side = _once(side) if side is not None else None
+        self._side = once(side) if side is not None else None
         try:
             share, hidden = self.shares(self.scores(view, position))
             if not self.weights.any():

@@ -9,9 +9,25 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TypeVar
 
 #: The floor beside the path region in one view: its (unmatched, judged) tiles (ObstructionDetector.beside_tiles).
 Elsewhere = Callable[[], "tuple[int, int]"]
+
+T = TypeVar("T")
+
+
+def once(fn: Callable[[], T]) -> Callable[[], T]:
+    """``fn``, called at most once: later calls give its first answer (a view's evidence, asked lazily and maybe
+    twice)."""
+    memo: list[T] = []
+
+    def call() -> T:
+        if not memo:
+            memo.append(fn())
+        return memo[0]
+
+    return call
 
 
 @dataclass(frozen=True)
@@ -188,12 +204,8 @@ class Growth:
         judged tiles of the floor beside the path region in this view, asked only when everything else says
         blocked (or on the first view, unmatched)."""
         cfg = self.cfg
-        verdicts: list[bool] = []
-
-        def floor_changed() -> bool:  # the view's tiles pooled once, however often it is asked
-            if not verdicts:
-                verdicts.append(elsewhere is not None and self._floor_changed(elsewhere))
-            return verdicts[0]
+        # the view's tiles pooled once, however often it is asked
+        floor_changed = once(lambda: elsewhere is not None and self._floor_changed(elsewhere))
 
         if self.blocked:
             clear = share <= cfg.clear_fraction or hidden <= cfg.clear_hidden
@@ -239,4 +251,4 @@ class Growth:
         )
 
 
-__all__ = ["Elsewhere", "Growth", "ObstructionConfig", "ObstructionVerdict"]
+__all__ = ["Elsewhere", "Growth", "ObstructionConfig", "ObstructionVerdict", "once"]

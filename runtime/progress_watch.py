@@ -128,20 +128,22 @@ class EndWatch:
         turn_from = last if held is None else final_turn_start(held)
         self.zone_from = min(last - END_ZONE_GAPS, float(turn_from))
         self.driven = 0.0  # along the route (``route_m``'s units)
-        self._moved = np.zeros(2)  # translation (m) and turn (rad) commanded, either way
+        self.drove = self.turned = 0.0  # translation (m) and turn (rad) commanded, either way
         self.reset()
 
     def reset(self) -> None:
         self.start: float | None = None  # ``driven`` when the views first placed the robot at the end
         self.left = 0.0  # the taught travel left from there (``route_m``'s units)
-        self._start_moved, self._left_parts = np.zeros(2), np.zeros(2)
+        self._started = (0.0, 0.0)  # ``drove`` and ``turned`` then
+        self._left_parts = (0.0, 0.0)  # the taught translation (m) and turn (rad) left then
         self.matched = False  # a view matched a subgoal in the end's zone
 
     def commanded(self, v: float, w: float, dt: float, along: float) -> None:
         """The robot was commanded (v, w) for ``dt`` seconds, which covers ``along`` of the route (``route_m``'s
         units, either way: ``RouteLocaliser.travel``)."""
         self.driven += along
-        self._moved += (abs(v) * dt, abs(w) * dt)
+        self.drove += abs(v) * dt
+        self.turned += abs(w) * dt
 
     def left_from(self, position: float) -> float:
         """The taught travel (``route_m``'s units) from ``position`` (subgoal units) to the last subgoal."""
@@ -159,11 +161,15 @@ class EndWatch:
             if not (at_end and self.matched):
                 return None
             self.start, self.left = self.driven, self.left_from(position)
-            self._start_moved = self._moved.copy()
-            self._left_parts = np.array([route_left(self._parts[:, k], position) for k in range(2)])
+            self._started = (self.drove, self.turned)
+            self._left_parts = (
+                route_left(self._parts[:, 0], position),
+                route_left(self._parts[:, 1], position),
+            )
         if self.driven - self.start <= self.left:
             return None
-        (m, turn), (left_m, left_turn) = self._moved - self._start_moved, self._left_parts
+        m, turn = self.drove - self._started[0], self.turned - self._started[1]
+        left_m, left_turn = self._left_parts
         return (
             f"drove {m:.2f} m and turned {math.degrees(turn):.0f} deg since the views placed it at the route's "
             f"end (the route had {left_m:.2f} m and {math.degrees(left_turn):.0f} deg left)"
