@@ -46,23 +46,26 @@ class FloorArrival:
         behind a robot passing the end, held-out set 24's gen_2021 at 81.4 of 83), a floor that does not match,
         or a turn in place into the end (there the floor's offset along and beside is off by centimetres: dev
         gen_158, moved furniture, +39 mm along with the robot 75 mm from the pose; gen_176, +31 mm with it 3 mm
-        from it). Arrived only on a clear reading (``SideConfig.along_margin``): where offsets centimetres apart
-        match about as well, the best of them is where noise put it (dev house random:970: "finished" 73 mm
-        short). ``position``: the localiser's estimate; ``step_m``: the last command's travel (m)."""
+        from it). Arrived only where no offset that puts the robot short matches nearly as well
+        (``SideConfig.along_margin``): where offsets centimetres apart match about as well, the best of them is
+        where noise put it (dev house random:970: "finished" 73 mm short). ``position``: the localiser's
+        estimate; ``step_m``: the last command's travel (m)."""
         last = len(self.registration.poses) - 1
         if self.turns_at_end or position < last - END_ZONE_GAPS:
             return None
         spacing = self.registration.along_step
         short = max(route_left(self.route_m, position), 0.0) + self.past_m
-        found = self.registration.along(view, last, np.arange(-short, self.past_m + spacing / 2, spacing))
+        # arrived: stopping now leaves the robot no further from the pose than one more step would
+        least = -0.5 * abs(step_m)
+        candidates = np.arange(-short, self.past_m + spacing / 2, spacing)
+        found = self.registration.along(view, last, candidates, rivals_below=least)
         if found is None:
             return None
         along, beside = found.dx * 1e3, found.dy * 1e3
         where = f"the floor places the robot {along:+.0f} mm along, {beside:+.0f} mm beside the end"
-        # stopping now: no further from it than one more step; on a clear reading only (an unclear one still
-        # says "not yet": a robot it puts short was short on dev routes, where the view ended it a step early)
+        # and no offset short of that nearly as good: where one is, the floor cannot tell that it has arrived
         clear = found.margin >= self.registration.cfg.along_margin
-        return clear and found.dx >= -0.5 * abs(step_m), where
+        return clear and found.dx >= least, where
 
 
 __all__ = ["PAST_M", "FloorArrival"]

@@ -51,11 +51,12 @@ class SideConfig:
     #: Rows whose shift is this far off the fitted line, as an angle (rad), are dropped and the line fitted
     #: again (1.5 pooled pixels of the 90 deg, 128 px camera).
     outlier_rad: float = 1.5 / 32
-    #: A registration along the route (:meth:`SideOffset.along`) is clear where its best offset scores this
-    #: much under every offset two or more steps from it (median row, as ``distinct``); only a clear one ends
-    #: a run (``runtime.arrival``). Where the floor tells little the scores lie within a few hundredths of each
-    #: other and the lowest is where noise put it: on dev houses 900-999, of the readings that ended a run, 5
-    #: of 33 with margins under 0.06 were 3-7 cm off the robot, none of 68 over 0.06 more than 2 cm.
+    #: A registration along the route (:meth:`SideOffset.along`) tells the robot has arrived only where its best
+    #: offset scores this much under every offset two or more steps from it that would put the robot short
+    #: (median row, as ``distinct``; ``runtime.arrival``). Where the floor tells little the scores lie within a
+    #: few hundredths of each other and the lowest is where noise put it: on dev houses 900-999, of the
+    #: readings that ended a run, 5 of 33 with margins under 0.06 were 3-7 cm off the robot, none of 68 over
+    #: 0.06 more than 2 cm.
     along_margin: float = 0.07
 
 
@@ -64,8 +65,8 @@ class SideEstimate:
     """The robot's offset from the taught pose at the estimate: ``dy`` metres to the left, ``psi`` radians
     turned to the left; ``rows``: the floor rows that agreed; ``dx``: metres ahead of that pose, where the
     floor was registered along the route too (:meth:`SideOffset.along`; else 0, the localiser's estimate), and
-    ``margin``: by how much the best offset along scored under every offset two or more steps from it (one
-    clear valley, or the lowest of a flat row of scores: ``SideConfig.along_margin``)."""
+    ``margin``: by how much the best offset along scored under its rivals (inf where it has none: one clear
+    valley, or the lowest of a flat row of scores: ``SideConfig.along_margin``)."""
 
     dy: float
     psi: float
@@ -159,12 +160,15 @@ class SideOffset:
         taught = self._band(k)  # seen from the taught pose at the position (between subgoals k and k + 1)
         return self._fit(self._table(self._current(view), self._taught_rows(taught, offset)))
 
-    def along(self, view: np.ndarray, k: int, ahead: np.ndarray) -> SideEstimate | None:
+    def along(
+        self, view: np.ndarray, k: int, ahead: np.ndarray, rivals_below: float = math.inf
+    ) -> SideEstimate | None:
         """The offset of ``view`` from taught pose ``k`` along its heading as well as beside it: the floor of
         subgoal ``k`` warped to each of ``ahead`` (m, ascending, evenly spaced; negative: short of the pose),
         the one whose rows match best (the median row's best score, refined between candidates) taken as
-        ``dx``, and ``(dy, psi)`` fitted there, with the ``margin`` by which it stands out; None where the best
-        is at an end of ``ahead`` or the floor does not tell. A robot
+        ``dx``, and ``(dy, psi)`` fitted there, with the ``margin`` by which it scores under its rivals (the
+        offsets two or more steps from it, those under ``rivals_below`` only); None where the best is at an end
+        of ``ahead`` or the floor does not tell. A robot
         ``dx`` ahead sees the floor the teach saw ``X`` ahead at ``X - dx``: the near rows move by pixels per
         centimetre (1.3 cm a pooled pixel 0.35 m ahead on the 90 deg, 128 px camera)."""
         if not self.tells_along(k):
@@ -182,8 +186,8 @@ class SideOffset:
         found = self._fit(tables[i])
         if found is None:
             return None
-        away = np.concatenate([scores[: i - 1], scores[i + 2 :]])  # two or more steps from the best
-        margin = float(away.min()) - float(scores[i]) if away.size else 0.0
+        rivals = scores[(np.abs(np.arange(len(ahead)) - i) >= 2) & (ahead < rivals_below)]
+        margin = float(rivals.min()) - float(scores[i]) if rivals.size else math.inf
         dx = float(ahead[i] + frac * (ahead[1] - ahead[0]))
         return SideEstimate(found.dy, found.psi, found.rows, dx, margin)
 
