@@ -55,8 +55,8 @@ class SideConfig:
     #: offset scores this much under every offset two or more steps from it that would put the robot short
     #: (median row, as ``distinct``; ``runtime.arrival``). Where the floor tells little the scores lie within a
     #: few hundredths of each other and the lowest is where noise put it: on dev houses 900-999, of the
-    #: readings that ended a run, 5 of 33 with margins under 0.06 were 3-7 cm off the robot, none of 68 over
-    #: 0.06 more than 2 cm.
+    #: readings that ended a run, 5 of 33 with margins (over every offset two or more steps away) under 0.06
+    #: were 3-7 cm off the robot, none of 68 over 0.06 more than 2 cm.
     along_margin: float = 0.07
 
 
@@ -168,9 +168,9 @@ class SideOffset:
         the one whose rows match best (the median row's best score, refined between candidates) taken as
         ``dx``, and ``(dy, psi)`` fitted there, with the ``margin`` by which it scores under its rivals (the
         offsets two or more steps from it, those under ``rivals_below`` only); None where the best is at an end
-        of ``ahead`` or the floor does not tell. A robot
-        ``dx`` ahead sees the floor the teach saw ``X`` ahead at ``X - dx``: the near rows move by pixels per
-        centimetre (1.3 cm a pooled pixel 0.35 m ahead on the 90 deg, 128 px camera)."""
+        of ``ahead`` or the floor does not tell. A robot ``dx`` ahead sees the floor the teach saw ``X`` ahead
+        at ``X - dx``: the near rows move by pixels per centimetre (1.3 cm a pooled pixel 0.35 m ahead on the
+        90 deg, 128 px camera)."""
         if not self.tells_along(k):
             return None
         cur, band = self._current(view), self._band(k)
