@@ -141,8 +141,12 @@ class SideOffset:
         dx, dy, turn = offset
         if not (dx or dy or turn):
             return band[:, self.rows]
+        return self._warped_rows(band, np.array([dx], np.float32), dy, turn)[0]
+
+    def _warped_rows(self, band: np.ndarray, dx: np.ndarray, dy: float, turn: float) -> np.ndarray:
+        """(D, 3, rows, cols): :meth:`_taught_rows` at each of the float32 ``dx`` with ``dy`` and ``turn``."""
         c, s = np.float32(math.cos(turn)), np.float32(math.sin(turn))
-        ahead = self._ahead[:, None] * (c + s * self._side[None, :]) + np.float32(dx)
+        ahead = (self._ahead[:, None] * (c + s * self._side[None, :]))[None] + dx[:, None, None]
         inverse = 1.0 / np.maximum(ahead, np.float32(1e-3))
         left = (self._ahead[:, None] * (s - c * self._side[None, :]) + np.float32(dy)) * inverse
         rows, cols = band.shape[1:]
@@ -151,7 +155,11 @@ class SideOffset:
         col = np.minimum(np.maximum(left * -self.focal + cols / 2, 0), cols - 1).astype(np.intp)
         row *= cols
         row += col
-        return band.reshape(3, -1)[:, row]
+        # one gather into C-ordered (D, 3, rows, cols), each channel's plane rows * cols further on: each row's
+        # columns contiguous, as _normalised and _table reduce them (a channels-innermost layout made both 1.5-8x
+        # slower)
+        planes = np.arange(0, 3 * rows * cols, rows * cols)[:, None, None]
+        return np.take(band.reshape(-1), row[:, None] + planes)
 
     def estimate(self, view: np.ndarray, position: float) -> SideEstimate | None:
         """The offset of ``view`` (a frame or an image) from the taught pose at route ``position`` (subgoal
@@ -177,8 +185,8 @@ class SideOffset:
         # every candidate: a floor that tells little can score as well 6 cm away as at the best one (dev house
         # random:970, a robot 6 cm short: 0.128 there against 0.123 at the pose), and every other candidate
         # scored can miss that second valley
-        tables = [self._ahead_table(cur, band, float(dx)) for dx in ahead]
-        scores = np.array([self._row_score(table) for table in tables])
+        tables = self._ahead_tables(cur, band, ahead)
+        scores = self._row_score(tables).astype(np.float64)  # each a float32 score, as a Python float before
         i = int(scores.argmin())
         if not 0 < i < len(ahead) - 1:
             return None
@@ -198,38 +206,47 @@ class SideOffset:
         ends, 20 cm squares laid along the path 0.06-0.08)."""
         if k not in self._along_told:
             cur, band = self._current(self.subgoals[k]), self._band(k)
-            self._along_told[k] = all(
-                self._row_score(self._ahead_table(cur, band, dx)) > self.cfg.distinct
-                for dx in (-2 * self.along_step, 2 * self.along_step)
-            )
+            two = np.array([-2 * self.along_step, 2 * self.along_step])
+            scores = self._row_score(self._ahead_tables(cur, band, two))
+            self._along_told[k] = bool((scores > self.cfg.distinct).all())
         return self._along_told[k]
 
-    def _ahead_table(self, cur: np.ndarray, band: np.ndarray, dx: float) -> np.ndarray:
-        """:meth:`_table` of the current rows against a taught band as seen ``dx`` m ahead of its pose."""
-        return self._table(cur, self._taught_rows(band, (dx, 0.0, 0.0)))
+    def _ahead_tables(self, cur: np.ndarray, band: np.ndarray, ahead: np.ndarray) -> np.ndarray:
+        """(D, shifts, rows) scores (:meth:`_table`) of the current rows against a taught band as seen from each
+        of ``ahead`` (m, straight on), in one batch: the values one by one would give, without D rounds of small
+        array calls (``along`` asks for 9)."""
+        rows = self._warped_rows(band, np.asarray(ahead, np.float32), 0.0, 0.0)
+        rows[ahead == 0] = band[:, self.rows]  # the pose itself: its rows as they are (_taught_rows)
+        return self._table(cur, rows)
 
     @staticmethod
-    def _row_score(table: np.ndarray) -> float:
-        """The median floor row's best score of a (shifts, rows) table: how well the floor matches as a whole."""
-        best = table.min(axis=0)
-        return float(np.partition(best, len(best) // 2)[len(best) // 2])
+    def _row_score(table: np.ndarray) -> np.ndarray:
+        """The median floor row's best score of a (..., shifts, rows) table: how well the floor matches as a
+        whole (one per leading index)."""
+        best = table.min(axis=-2)
+        middle = best.shape[-1] // 2
+        return np.partition(best, middle, axis=-1)[..., middle]
 
     def _current(self, view: np.ndarray) -> np.ndarray:
         """The kept floor rows of ``view``, normalised."""
         return self._normalised(self.floor.pool(view)[:, self.rows])
 
     def _table(self, cur: np.ndarray, taught_rows: np.ndarray) -> np.ndarray:
-        """(shifts, rows) scores of the current rows against the taught ones under each shift, from -s_max."""
+        """(..., shifts, rows) scores of the current rows against the taught ones (..., 3, rows, cols) under each
+        shift, from -s_max."""
         ref = self._normalised(taught_rows)
         s_max, m = self.shifts, self._cols
         # the current rows' middle columns against every window of the taught rows: window i is a shift of
         # s_max - i (the current column c against the taught c - s); the strided view is what
         # sliding_window_view makes, without its ~50 us of Python checks
         middle = cur[:, :, s_max : s_max + m]
-        step = ref.strides[2]
-        windows = as_strided(ref, (*ref.shape[:2], 2 * s_max + 1, m), (*ref.strides[:2], step, step), False)
+        step = ref.strides[-1]
+        windows = as_strided(ref, (*ref.shape[:-1], 2 * s_max + 1, m), (*ref.strides[:-1], step, step), False)
         diff = np.subtract(windows, middle[:, :, None, :])
-        return np.abs(diff, out=diff).sum(axis=(0, 3))[:, ::-1].T / (3 * m)
+        # summed over colours and columns per (row, shift), each row's columns pairwise: the same bits with
+        # or without the leading offsets
+        table = np.abs(diff, out=diff).sum(axis=(-4, -1))[..., ::-1]
+        return np.swapaxes(table, -1, -2) / (3 * m)
 
     def _fit(self, table: np.ndarray) -> SideEstimate | None:
         """``(dy, psi)`` from a (shifts, rows) table: each row's best shift, refined to a fraction, and the line
