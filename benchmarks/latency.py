@@ -33,7 +33,7 @@ import numpy as np
 
 from vtr.benchmarks.backends import bench_backends
 from vtr.benchmarks.hardware import all_cores, child_env
-from vtr.benchmarks.latency_report import STEP_VARIANTS, TAUGHT_VARIANT, format_report, ratios
+from vtr.benchmarks.latency_report import END_VARIANT, STEP_VARIANTS, TAUGHT_VARIANT, format_report, ratios
 from vtr.benchmarks.results import write_json
 from vtr.benchmarks.timing import summarise, time_interleaved
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
@@ -114,12 +114,13 @@ def bench_stages(
     """The runtime's own stages at cfg.threads, and the whole step: the real ``Repeater.step``, with the
     raw error, with patch matching, without the zero command, and with light matching too; and, given the
     route's taught ``poses``, the light-matched step on the route with them (``whole_step_taught``: the
-    obstruction detector and the side estimate at work, as on every forward step of a real route).
+    obstruction detector and the side estimate at work, as on every forward step of a real route), and in its
+    end zone (``whole_step_end``: the floor registered along the route too, as on a real route's last steps).
 
     The stages are timed round-robin in one loop. Each whole-step variant is timed in its own loop,
     round-robin with inference on its own policy (``pairs``; its ratio is judged against that inference):
     a daemon runs one onnxruntime session, not four taking turns in the cache."""
-    from vtr.benchmarks.step_bench import BenchStep
+    from vtr.benchmarks.step_bench import BenchStep, sample_end_view
     from vtr.runtime.frame import Frame, as_frame
     from vtr.runtime.light import LightMatchedPolicy
     from vtr.runtime.matching import MatchConfig
@@ -136,6 +137,10 @@ def bench_stages(
     if poses is not None:
         variants[TAUGHT_VARIANT] = BenchStep(
             cfg.model, cfg.threads, current, route, match_light=True, poses=poses
+        )
+        end_view = sample_end_view(*route.shape[1:3], poses, route)
+        variants[END_VARIANT] = BenchStep(
+            cfg.model, cfg.threads, end_view, route, match_light=True, poses=poses, hold_at=len(route) - 1.5
         )
     step = variants["whole_step"]
     robot, policy = step.robot, step.policy

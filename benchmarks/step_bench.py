@@ -127,6 +127,22 @@ def sample_taught(
     return np.ascontiguousarray(current), np.ascontiguousarray(np.stack(frames)), np.array(poses, np.float64)
 
 
+def sample_end_view(height: int, width: int, poses: np.ndarray, route: np.ndarray) -> np.ndarray:
+    """A view from half a control step of :data:`DRIVE` short of the last of :func:`sample_taught`'s ``poses``
+    (the simulator's); the route's last-but-one image where the simulator is missing."""
+    v, _, dt = DRIVE
+    try:
+        from vtr.sim2d import CameraConfig, Pose, SimConfig, Simulator
+
+        sim = Simulator(SimConfig(camera=CameraConfig(width=width, height=height), noise=0.0))
+        x, y, yaw = (float(p) for p in poses[-1])
+        back = 0.5 * v * dt
+        view = sim.reset(pose=Pose(x - back * np.cos(yaw), y - back * np.sin(yaw), yaw), seed=0)
+    except Exception:  # simulator missing: the timings do not depend on content
+        view = route[-2]
+    return np.ascontiguousarray(view)
+
+
 class BenchStep:
     """``Repeater.step`` on a ``LoopbackRobot`` showing ``current`` while steering to ``route[0]``.
 
@@ -141,7 +157,10 @@ class BenchStep:
     poses (from :func:`sample_taught`), with :data:`DRIVE` as its taught command everywhere: the step of a
     real route, whose obstruction detector warps the taught floor ahead and whose side estimate registers
     the floor rows on every forward step; without them (all poses zero, no taught motion) neither has any
-    floor to judge, and the step leaves both out.
+    floor to judge, and the step leaves both out. ``hold_at``: the route position (subgoal units) the route
+    localiser's belief is put back to before each call, so that every step is judged there: in the end's
+    zone (``runtime.arrival``), the floor registered along the route as well, as on a real route's last
+    steps (with ``current`` from :func:`sample_end_view`).
     """
 
     name = "runtime.repeater.Repeater.step on a loopback link (protocol decode/encode, no socket)"
@@ -156,6 +175,7 @@ class BenchStep:
         match_light: bool = False,
         match: MatchConfig | None = None,
         poses: np.ndarray | None = None,
+        hold_at: float | None = None,
     ) -> None:
         from vtr.runtime.controller import ControllerConfig
         from vtr.runtime.policy import OnnxPolicy
@@ -201,6 +221,7 @@ class BenchStep:
         #: time the process waited for a core (a busy machine) does not count in.
         self.compute_cpu_ms: list[float] = []
         self._cpu_ns = 0
+        self.hold_at = hold_at
         rep = self.repeater
         rep.controller.judge = self._on_cpu(rep.controller.judge)  # type: ignore[method-assign]
         rep.policy = self._on_cpu(rep.policy)
@@ -228,6 +249,10 @@ class BenchStep:
             # the repeat after its window's taught travel, as it should on a robot; counted afresh each call
             # (its check still runs in the step), the bench's repeat goes on
             progress.reset()
+        if self.hold_at is not None:  # the view never moves, nor should the belief: judged at the same place
+            localiser = self.repeater.controller.localiser
+            localiser.start_at(self.hold_at)
+            localiser.last = None
         record = self.repeater.step()
         if not record.commanded:  # the identical frame matched the subgoal: cannot happen, say so
             raise RuntimeError(f"the benchmark's repeat ended: {record.status}")

@@ -87,10 +87,14 @@ def test_latency_smoke_run(tiny_model: Path, tmp_path: Path) -> None:
         "whole_step_continuous": "patch",
         "whole_step_match_light": "patch",
         "whole_step_taught": "patch",
+        "whole_step_end": "patch",
     }
-    # the step on the route with its taught poses is reported beside the budget's
+    # the step on the route with its taught poses, and in its end zone, are reported beside the budget's
     taught = result["stages"]["compute"][latency_report.TAUGHT_VARIANT]["step_compute"]
     assert result["ratios"]["taught_step_compute_p99_ms"] == taught["p99_ms"]
+    end = result["stages"]["compute"][latency_report.END_VARIANT]["step_compute"]
+    assert result["ratios"]["end_step_compute_p99_ms"] == end["p99_ms"]
+    assert "in its end zone" in latency_report.format_report(result)
     on_disk = json.loads((tmp_path / "lat.json").read_text())
     assert on_disk["gflop"] == pytest.approx(result["gflop"])
     # each whole step's compute apart from its link, and the budget judged on vtr repeat's default step
@@ -176,3 +180,32 @@ def test_the_taught_step_goes_on_for_as_many_steps_as_the_bench_times(tmp_path: 
     for _ in range(150):
         assert step().commanded
     assert len(step.compute_ms) == 150
+
+
+def test_the_end_step_registers_the_floor_along_the_route_on_every_call(tmp_path: Path) -> None:
+    """The end variant holds the belief in the route's end zone, where the floor arrival registers the taught
+    floor along the route on every step (the costliest judgement of a real route); mid-route it never does."""
+    from vtr.benchmarks.step_bench import BenchStep, sample_end_view, sample_taught
+
+    meta = ModelMeta(image_height=128, image_width=128, horizon=2)
+    model = make_standin_velocitynet(tmp_path / "m.onnx", meta=meta, widths=(4, 8))
+    current, route, poses = sample_taught(128, 128)
+    end_view = sample_end_view(128, 128, poses, route)
+    counts = {}
+    for name, step in (
+        (
+            "end",
+            BenchStep(model, 1, end_view, route, match_light=True, poses=poses, hold_at=len(route) - 1.5),
+        ),
+        ("taught", BenchStep(model, 1, current, route, match_light=True, poses=poses)),
+    ):
+        arrival = step.repeater.controller.arrival
+        assert arrival is not None
+        calls = counts[name] = []
+        along = arrival.registration.along
+        arrival.registration.along = lambda *a, calls=calls, along=along, **k: (
+            calls.append(1) or along(*a, **k)
+        )
+        for _ in range(20):
+            assert step().commanded  # the view half a step short: not arrived, every step commands
+    assert len(counts["end"]) == 20 and not counts["taught"]
