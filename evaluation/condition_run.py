@@ -155,6 +155,41 @@ def start_pose(pose: np.ndarray, offset: tuple[float, float], seed: int) -> tupl
     return (x - math.sin(yaw) * lateral, y + math.cos(yaw) * lateral, yaw + dyaw)
 
 
+def step_compute(compute_ms: list[float]) -> dict[str, float] | None:
+    """A run's step compute (ms: the Repeater's judgement, policy and limits of each commanded step, the link
+    and the simulator apart): p50, p99 and the largest; None for a run that commanded nothing."""
+    if not compute_ms:
+        return None
+    p50, p99 = np.percentile(compute_ms, [50, 99])
+    return {"p50": round(float(p50), 4), "p99": round(float(p99), 4), "max": round(max(compute_ms), 4)}
+
+
+def step_compute_summary(runs: list[dict[str, Any]]) -> dict[str, float] | None:
+    """Over runs: the median of their step compute p50 and p99, the largest p99 and the steps' largest (ms)."""
+    timed = [r["step_compute_ms"] for r in runs if r.get("step_compute_ms")]
+    if not timed:
+        return None
+    return {
+        "runs": len(timed),
+        "p50": float(np.median([t["p50"] for t in timed])),
+        "p99": float(np.median([t["p99"] for t in timed])),
+        "worst_p99": max(t["p99"] for t in timed),
+        "max": max(t["max"] for t in timed),
+    }
+
+
+def step_compute_line(summary: dict[str, float] | None, workers: int) -> str:
+    """The tables' line on the real step's cost (``step_compute_summary``)."""
+    if summary is None:
+        return "Step compute: no run commanded a step."
+    return (
+        f"Step compute (the runtime's judgement, policy and limits of each commanded step; the simulator and the "
+        f"link apart; this machine, {workers} worker(s) at once): per run p50 {summary['p50']:.2f} ms and p99 "
+        f"{summary['p99']:.2f} ms (medians over {summary['runs']} runs); worst run's p99 "
+        f"{summary['worst_p99']:.2f} ms, slowest step {summary['max']:.2f} ms."
+    )
+
+
 def switch_lag(taught: np.ndarray, switch_poses: dict[int, tuple[float, float, float]]) -> float | None:
     """Mean along-track offset (m) of the robot from each subgoal's taught pose when the controller
     switched past it: negative = the robot was still short of the subgoal (the index ran ahead)."""
@@ -265,5 +300,6 @@ def run_once(
         "final_position_m": s["final_pose_error"]["position_m"],
         "final_yaw_deg": abs(s["final_pose_error"]["yaw_deg"]),
         "switch_lag_m": switch_lag(route.poses, log.switch_poses),
+        "step_compute_ms": step_compute(log.compute_ms),
         **({"path": np.round(np.asarray(log.poses)[:, :2], 3).tolist()} if keep_path else {}),
     }

@@ -26,7 +26,13 @@ from typing import Any
 
 import numpy as np
 
-from vtr.evaluation.condition_run import CONDITIONS, CONTROLLERS, cached_policy, run_once
+from vtr.evaluation.condition_run import (
+    CONDITIONS,
+    CONTROLLERS,
+    cached_policy,
+    run_once,
+    step_compute_summary,
+)
 from vtr.evaluation.condition_tables import markdown
 from vtr.evaluation.metrics import off_path
 from vtr.evaluation.sensor_conditions import SENSORS
@@ -206,6 +212,7 @@ def run(cfg: SuiteConfig) -> dict[str, Any]:
         "config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
         "routes": [p.stem for p in paths],
         "table": aggregate(runs),
+        "step_compute": step_compute_summary(runs),
         "runs": runs,
         "wall_s": time.perf_counter() - t0,
     }

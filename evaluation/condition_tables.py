@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from vtr.evaluation.condition_run import step_compute_line
 from vtr.evaluation.metrics import OFF_PATH_M
 
 
@@ -46,6 +47,8 @@ def markdown(result: dict[str, Any]) -> str:
             f"| {f(r['cross_track_m'], 1e3)} | {f(r['final_position_m'], 1e3)} / {f(r['final_yaw_deg'], 1, 1)} "
             f"| {r['runs_with_contact']} | {f(r['steps_per_taught_step'], 1, 2)} | {fails} |"
         )
+    if "step_compute" in result:  # results before session 18: none
+        lines += ["", step_compute_line(result["step_compute"], cfg["workers"])]
     return "\n".join(lines) + "\n"
 
 

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from vtr.evaluation.condition_run import CONTROLLERS
+from vtr.evaluation.condition_run import CONTROLLERS, step_compute_summary
 from vtr.evaluation.metrics import off_path
 from vtr.runtime.status_line import Progress
 
@@ -219,6 +219,9 @@ def _result(cfg: HouseSuiteConfig, routes: list[dict[str, Any]], total: int, t0:
     out = {
         "config": {k: (str(v) if isinstance(v, Path) else v) for k, v in asdict(cfg).items()},
         "summary": summarise(routes, cfg.houses),
+        "step_compute": step_compute_summary(
+            [r for route in routes for r in route.get("runs", []) if r.get("method") != "pose_oracle"]
+        ),
         "routes": routes,
         "wall_s": time.perf_counter() - t0,
     }

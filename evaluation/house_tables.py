@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from vtr.evaluation.condition_run import step_compute_line
 from vtr.evaluation.metrics import OFF_PATH_M
 
 #: Issue 9's target for held-out houses (noise 0.05, the shipped model, no retraining).
@@ -83,6 +84,7 @@ def markdown(result: dict[str, Any]) -> str:
         f"{'met' if ok_c else 'not met'} ({_pct(o)}); mean nearest-point error <= {TARGET_ERROR_MM:.0f} mm: "
         f"{'met' if ok_e else 'not met'} ({_num(o['mean_error_mm'], '.1f')} mm). "
         f"Runs with a contact: {o['runs_with_contact']}. Wall time {result['wall_s']:.0f} s.",
+        *([step_compute_line(result["step_compute"], cfg["workers"])] if "step_compute" in result else []),
         "",
     ]
     if oracle:

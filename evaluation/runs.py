@@ -38,6 +38,8 @@ class RunLog:
     outcome: str = ""
     detail: str = ""  # how the repeat ended, in words (Summary.detail)
     policy_ms: list[float] = field(default_factory=list)
+    #: each commanded step's compute (the Repeater's judgement, policy and limits; the link apart), ms
+    compute_ms: list[float] = field(default_factory=list)
     e_m: float | None = None
     waited_steps: int = 0  # zero steps held while something was in the way (Summary.waited_steps)
 
@@ -126,6 +128,7 @@ def repeat_closed_loop(
         if record.commanded:
             log.commands.append((record.v, record.w))
             log.policy_ms.append(record.latency_ms["policy"])
+            log.compute_ms.append(record.latency_ms["compute"])
             log.poses.append(robot.last.pose)
             log.collisions += int(robot.last.collided)
 

@@ -102,9 +102,18 @@ def test_suite_runs_every_combination_and_reports_per_condition(small_model, tmp
         assert run["completed"] or run["cause"]
     for row in result["table"]:
         assert row["runs"] == 2 and row["completed"] + sum(row["failure_causes"].values()) == 2
+        # the real step's cost, per run: every commanded step timed (the link and the simulator apart)
+        timed = run["step_compute_ms"]
+        assert 0 < timed["p50"] <= timed["p99"] <= timed["max"]
+    cost = result["step_compute"]
+    assert cost["runs"] == len(result["runs"])
+    assert cost["worst_p99"] == max(r["step_compute_ms"]["p99"] for r in result["runs"])
+    assert cost["max"] == max(r["step_compute_ms"]["max"] for r in result["runs"])
     saved = json.loads((tmp_path / "suite.json").read_text())
     assert saved["routes"] == ["ho_study_arc"]
-    assert "| after | fp32 | bright_0.6 |" in (tmp_path / "suite.md").read_text()
+    md = (tmp_path / "suite.md").read_text()
+    assert "| after | fp32 | bright_0.6 |" in md
+    assert f"worst run's p99 {cost['worst_p99']:.2f} ms" in md and "1 worker(s)" in md
 
 
 def test_suite_config_refuses_unknown_names(small_model):

@@ -98,10 +98,14 @@ def test_run_teaches_repeats_and_writes_json_markdown_and_picture(small_model: P
     overall, oracle = result["summary"]["overall"], result["summary"]["pose_oracle"]["overall"]
     assert overall["runs"] == 2 and overall["completed"] == sum(r["completed"] for r in route["runs"][:2])
     assert oracle["runs"] == 2 and oracle["completed"] == sum(r["completed"] for r in route["runs"][2:])
+    # the real step's cost over VelocityNet's runs (the oracle's steer is not the runtime's)
+    assert result["step_compute"]["runs"] == 2
+    assert result["step_compute"]["max"] == max(r["step_compute_ms"]["max"] for r in route["runs"][:2])
     saved = json.loads((tmp_path / "houses.json").read_text())
     assert saved["summary"] == result["summary"]
     md = (tmp_path / "houses.md").read_text()
     assert "| random:900 |" in md and "| **all** |" in md and "Pose oracle" in md and md == markdown(saved)
+    assert "Step compute (the runtime's judgement, policy and limits" in md
     assert (tmp_path / "houses.png").stat().st_size > 1000
 
 
