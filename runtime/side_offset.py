@@ -158,7 +158,7 @@ class SideOffset:
         # one gather into (D, rows, cols, 3), each channel's plane rows * cols further on, read as (D, 3, rows,
         # cols): the layout (colours innermost) one offset's fancy index of the planes made, which _normalised
         # and _table reduce in its own order, so each offset's scores keep their bits (C-ordered rows are
-        # ~30% cheaper to score but change the last bits, and with them some closed-loop runs: dev routes
+        # about 25% cheaper to score but change the last bits, and with them some closed-loop runs: dev routes
         # 1544 -> 1543 of 1584, houses 185 -> 183 of 200, as noise moves them)
         planes = np.arange(0, 3 * rows * cols, rows * cols)
         return np.take(band.reshape(-1), row[..., None] + planes).transpose(0, 3, 1, 2)
@@ -216,7 +216,7 @@ class SideOffset:
     def _ahead_tables(self, cur: np.ndarray, band: np.ndarray, ahead: np.ndarray) -> np.ndarray:
         """(D, shifts, rows) scores (:meth:`_table`) of the current rows against a taught band as seen from each
         of ``ahead`` (m, straight on), in one batch: the values one by one would give, without D rounds of small
-        array calls (``along`` asks for 9)."""
+        array calls (``along`` asks for 9-13)."""
         tables = np.empty((len(ahead), 2 * self.shifts + 1, len(self.rows)), np.float32)
         off = ahead != 0
         if off.any():
@@ -249,8 +249,8 @@ class SideOffset:
         step = ref.strides[-1]
         windows = as_strided(ref, (*ref.shape[:-1], 2 * s_max + 1, m), (*ref.strides[:-1], step, step), False)
         diff = np.subtract(windows, middle[:, :, None, :])
-        # summed over colours and columns per (row, shift), each row's columns pairwise: the same bits with
-        # or without the leading offsets
+        # summed over colours and columns per (row, shift), in the order the rows' layout gives numpy: the same
+        # bits with or without the leading offsets (tests/runtime/test_arrival.py holds them)
         table = np.abs(diff, out=diff).sum(axis=(-4, -1))[..., ::-1]
         return np.swapaxes(table, -1, -2) / (3 * m)
 
