@@ -155,13 +155,11 @@ class SideOffset:
         col = np.minimum(np.maximum(left * -self.focal + cols / 2, 0), cols - 1).astype(np.intp)
         row *= cols
         row += col
-        # one gather into (D, rows, cols, 3), each channel's plane rows * cols further on, read as (D, 3, rows,
-        # cols): the layout (colours innermost) one offset's fancy index of the planes made, which _normalised
-        # and _table reduce in its own order, so each offset's scores keep their bits (C-ordered rows are
-        # about 25% cheaper to score but change the last bits, and with them some closed-loop runs: dev routes
-        # 1544 -> 1543 of 1584, houses 185 -> 183 of 200, as noise moves them)
-        planes = np.arange(0, 3 * rows * cols, rows * cols)
-        return np.take(band.reshape(-1), row[..., None] + planes).transpose(0, 3, 1, 2)
+        # one fancy index of the planes for every offset, read as (D, 3, rows, cols): colours innermost in memory,
+        # the layout one offset's index made, which _normalised and _table reduce in its own order, so each
+        # offset's scores keep their bits (C-ordered rows are about 25% cheaper to score but change the last
+        # bits, and with them some closed-loop runs: dev routes 1544 -> 1543 of 1584, houses 185 -> 183 of 200)
+        return band.reshape(3, -1)[:, row].transpose(1, 0, 2, 3)
 
     def estimate(self, view: np.ndarray, position: float) -> SideEstimate | None:
         """The offset of ``view`` (a frame or an image) from the taught pose at route ``position`` (subgoal
