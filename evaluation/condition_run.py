@@ -155,17 +155,8 @@ def start_pose(pose: np.ndarray, offset: tuple[float, float], seed: int) -> tupl
     return (x - math.sin(yaw) * lateral, y + math.cos(yaw) * lateral, yaw + dyaw)
 
 
-def step_compute(compute_ms: list[float]) -> dict[str, float] | None:
-    """A run's step compute (ms: the Repeater's judgement, policy and limits of each commanded step, the link
-    and the simulator apart): p50, p99 and the largest; None for a run that commanded nothing."""
-    if not compute_ms:
-        return None
-    p50, p99 = np.percentile(compute_ms, [50, 99])
-    return {"p50": round(float(p50), 4), "p99": round(float(p99), 4), "max": round(max(compute_ms), 4)}
-
-
 def step_compute_summary(runs: list[dict[str, Any]]) -> dict[str, float] | None:
-    """Over runs: the median of their step compute p50 and p99, the largest p99 and the steps' largest (ms)."""
+    """Over runs (each with ``scoring.score``'s ``step_compute_ms``): the median of their step compute p50 and p99, the largest p99 and the steps' largest (ms)."""
     timed = [r["step_compute_ms"] for r in runs if r.get("step_compute_ms")]
     if not timed:
         return None
@@ -300,6 +291,6 @@ def run_once(
         "final_position_m": s["final_pose_error"]["position_m"],
         "final_yaw_deg": abs(s["final_pose_error"]["yaw_deg"]),
         "switch_lag_m": switch_lag(route.poses, log.switch_poses),
-        "step_compute_ms": step_compute(log.compute_ms),
+        "step_compute_ms": s.get("step_compute_ms"),  # p50, p99, largest (scoring.score); None: no command
         **({"path": np.round(np.asarray(log.poses)[:, :2], 3).tolist()} if keep_path else {}),
     }
