@@ -29,7 +29,8 @@ Each image:
 6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
    ahead, rounded up to a subgoal), with the taught command at the estimated position as feed-forward
    (``Decision.prior``, blended by the repeat loop; faded out over the last control step of taught motion
-   before the end, ``RouteLocaliser.left_to_end``) and no translation where the teach turned in place;
+   before the end, ``RouteLocaliser.left_to_end``) and no translation where the teach turned in place (from
+   where the floor places the robot at the turn's pose, where it tells: ``runtime.pivot``);
    where the teach drove forward, a turn back toward the taught path (``Decision.turn``, added by the
    repeat loop) from the side offset the floor shows (``runtime.side_turn``: a pure pursuit of the path
    point ``side_lookahead`` ahead, at most ``SIDE_TURN_MAX``). VelocityNet lines the view up with the
@@ -55,6 +56,7 @@ from vtr.runtime.floor_view import Camera
 from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
 from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionVerdict, SideFn, moving
+from vtr.runtime.pivot import PivotArrival
 from vtr.runtime.progress_watch import EndWatch, ProgressWatch
 from vtr.runtime.route_sensing import (
     FloorSide,
@@ -133,6 +135,7 @@ class Follower:
         self.progress = ProgressWatch(window * self._steps)
         self.end = EndWatch(self.localiser.travelled, motion, self._held)  # the end by travel (a turn's too)
         self.arrival = FloorArrival.of(self._floor_side, motion, self._held)  # the end by the floor
+        self.pivot = PivotArrival.of(self._floor_side, motion, self._held)  # a turn in place's start by it
         self._idle, self._finished = 0, False
 
     @classmethod
@@ -175,6 +178,7 @@ class Follower:
         self._speed, self._step_m = v, abs(v) * dt
         self._moved = self._moved or moving(v, w)
         self.progress.commanded(v, dt)
+        self.pivot.commanded(v, dt)
         self.end.commanded(v, w, dt, self.localiser.predict(v, w, dt))
 
     def relocalise(self) -> None:
@@ -184,6 +188,7 @@ class Follower:
         self.end.reset()
         if self.obstruction is not None:
             self.obstruction.reset()
+        self.pivot.reset()
 
     def judge(self, image: Frame | np.ndarray, collided: bool = False) -> Verdict:
         """The decision on ``image`` (a frame; an array is checked here, once), with the subgoal changes it
@@ -242,8 +247,16 @@ class Follower:
         past = self._past_end(est, at_end, matched, close, final_error)
         if past is not None:
             return past
-        target = min(last, int(math.floor(est.position + self.cfg.lead)) + 1)
         gap = min(int(est.position), last - 1) if last > 0 else 0
+        # in a taught turn in place: the turn's pose, where the floor places the robot short of it (the belief
+        # weighed by that): drive on into it as the teach did (runtime.pivot)
+        pose = (
+            self.pivot.place(image, gap, self._step_m, self.localiser) if self.holds_turn(gap + 1) else None
+        )
+        if pose is not None:
+            est = self.estimate = self.localiser.last or est
+            gap = min(gap, pose - 1)
+        target = min(last, int(math.floor(est.position + self.cfg.lead)) + 1, pose or last)
         hold = self.holds_turn(gap + 1)  # the teach turned on the spot where the robot is
         # In a taught turn in place the route's turn is replayed as taught until the views place the robot past
         # it: the policy, aiming at the view after the turn, eased off before the estimate got there and both

@@ -13,6 +13,7 @@ subgoal 3 to subgoal 4), held as a belief over a grid of ``cells_per_gap`` cells
   taught images' distances to each subgoal of the window, and between subgoals they are interpolated. A
   repeat-time change (light, a shifted start, a moved chair) raises every distance alike, so each position
   is scored by its residuals after the best common offset; that offset is the match's quality.
+- **observe** (:meth:`RouteLocaliser.observe`): where the floor places the robot (``runtime.pivot``) weighs it too.
 
 Sequence matching of this kind (the view's distances to several neighbouring subgoals at once, against the
 profile the teach itself shows) tells "just before subgoal 4" from "just after it" where one distance
@@ -23,7 +24,7 @@ here advances by time or by rule; the estimate moves because the commanded motio
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -196,16 +197,14 @@ class RouteLocaliser:
             band[k, lo - k + span : hi - k + span] = self.matcher.distances(self.feats[k], self.feats[lo:hi])
         return band
 
-    # ------------------------------------------------------------------ the belief
     def start_at(self, position: float | None) -> None:
         """A belief at ``position`` (subgoal units), or spread over the whole route (None: start anywhere)."""
-        if position is None or self.n < 2:
+        self._wide = position is None or self.n < 2
+        if position is None or self._wide:
             self.belief[:] = 1.0 / len(self.belief)
-            self._wide = True
             return
         self.belief[:] = np.exp(-0.5 * ((self.cells - position) / 0.25) ** 2)
         self.belief /= self.belief.sum()
-        self._wide = False
 
     @property
     def wide(self) -> bool:
@@ -224,8 +223,7 @@ class RouteLocaliser:
         return float(move @ self._motion[gap] / norm)
 
     def _command(self, v: float, w: float, dt: float) -> tuple[float, float]:
-        """The share of the taught gap where the robot is that the command (v, w) for ``dt`` covers, and the
-        taught travel (m, either way) that is."""
+        """:meth:`progress` where the robot is, and the taught travel (m, either way) that is."""
         position = self.last.position if self.last is not None else self._mean()
         shift = self.progress(v, w, dt, position)
         return shift, abs(shift) * float(self._gap_m[min(int(position), self.n - 2)])
@@ -242,12 +240,9 @@ class RouteLocaliser:
         return self._travelled
 
     def predict(self, v: float, w: float, dt: float) -> float:
-        """The robot was commanded (v, w) for ``dt`` seconds: move the belief along the route. Returns the
-        taught travel the command covered (:meth:`travel`)."""
-        if self.n < 2:
-            return 0.0
-        shift, travelled = self._command(v, w, dt)
-        if self._wide:
+        """Move the belief by the command (v, w) for ``dt`` s; returns the taught travel it covered (:meth:`travel`)."""
+        shift, travelled = self._command(v, w, dt) if self.n > 1 else (0.0, 0.0)
+        if self._wide or self.n < 2:
             return travelled
         k = self.cfg.cells_per_gap
         std = (self.cfg.motion_noise * abs(shift) + self.cfg.motion_floor) * k  # in cells
@@ -261,8 +256,7 @@ class RouteLocaliser:
     def _normalise(self) -> None:
         total = self.belief.sum()
         if not (math.isfinite(total) and total > 0):
-            self.belief[:] = 1.0
-            total = float(len(self.belief))
+            self.belief[:], total = 1.0, float(len(self.belief))
         self.belief /= total
         m = self.cfg.mixing
         self.belief = (1 - m) * self.belief + m / len(self.belief)
@@ -336,14 +330,7 @@ class RouteLocaliser:
         self.belief *= weights
         self._normalise()
         self._wide = False
-        mode = int(self.belief.argmax())
-        span = int(round(3 * k))
-        a, b = max(0, mode - span), min(len(self.belief), mode + span + 1)
-        local = self.belief[a:b] / self.belief[a:b].sum()
-        mean = float(local @ self.cells[a:b])
-        std = math.sqrt(max(float(local @ (self.cells[a:b] - mean) ** 2), 0.0))
-        near = int(round(CONFIDENT_SPAN * k))
-        confidence = float(self.belief[max(0, mode - near) : mode + near + 1].sum())
+        mean, std, confidence = self._spread()
         at = min(max(round(mean * k), lo), hi - 1) - lo
         self.last = Estimate(
             position=mean,
@@ -355,6 +342,27 @@ class RouteLocaliser:
             first=win.start,
             errors=errors,
         )
+        return self.last
+
+    def _spread(self) -> tuple[float, float, float]:
+        """The belief's mean near its mode, its spread there, and the mass within ``CONFIDENT_SPAN`` of the mode."""
+        k = self.cfg.cells_per_gap
+        mode = int(self.belief.argmax())
+        span = int(round(3 * k))
+        a, b = max(0, mode - span), min(len(self.belief), mode + span + 1)
+        local = self.belief[a:b] / self.belief[a:b].sum()
+        mean = float(local @ self.cells[a:b])
+        std = math.sqrt(max(float(local @ (self.cells[a:b] - mean) ** 2), 0.0))
+        near = int(round(CONFIDENT_SPAN * k))
+        return mean, std, float(self.belief[max(0, mode - near) : mode + near + 1].sum())
+
+    def observe(self, position: float, std: float) -> Estimate:
+        """After :meth:`update`: weigh the belief by where the floor places the robot (``position`` give or take
+        ``std``, subgoal units; ``runtime.pivot``). The view's distances in the estimate stay as they were."""
+        self.belief *= np.exp(-0.5 * ((self.cells - position) / max(std, 1e-6)) ** 2)
+        self._normalise()
+        mean, spread, confidence = self._spread()
+        self.last = replace(self.last, position=mean, std=spread, confidence=confidence)
         return self.last
 
     def _registers(self, frame: Frame) -> bool:
