@@ -135,7 +135,7 @@ class Follower:
         self.progress = ProgressWatch(window * self._steps)
         self.end = EndWatch(self.localiser.travelled, motion, self._held)  # the end by travel (a turn's too)
         self.arrival = FloorArrival.of(self._floor_side, motion, self._held)  # the end by the floor
-        self.pivot = PivotArrival.of(self._floor_side, motion, self._held)  # a turn in place's start by it
+        self.pivot = PivotArrival(self._floor_side, motion, self._held)  # a turn in place's start by it
         self._idle, self._finished = 0, False
 
     @classmethod

@@ -33,13 +33,13 @@ class PivotArrival:
     """Where the floor places the robot short of a taught turn in place's pose (see the module docstring)."""
 
     def __init__(self, registration: SideOffset | None, motion: np.ndarray, held: np.ndarray) -> None:
-        """``registration``: the route's floor (None: none, no turn is judged); ``motion``: (L-1, 2) the taught
-        motion of each gap (``localiser.taught_motion``); ``held``: (L,) whether the teach turned in place into
-        each subgoal."""
+        """``registration``: the route's floor (None: none, and every turn starts where the estimate gets to it,
+        as on a route with no turn in place after a drive); ``motion``: (L-1, 2) the taught motion of each gap
+        (``localiser.taught_motion``); ``held``: (L,) whether the teach turned in place into each subgoal."""
         self.registration = registration
         n = len(held) if registration is not None else 0
         drive = np.abs(motion[:, 0])
-        #: per subgoal: where the teach stopped driving to turn in place (the turn's pose), else -1
+        #: per gap: the subgoal where the teach stopped driving to turn in place (the turn's pose), else -1
         self.pivot_of = np.full(n, -1)
         for k in range(1, n - 1):
             if held[k + 1] and not held[k] and drive[k - 1] > 1e-3:
@@ -51,15 +51,8 @@ class PivotArrival:
         before = np.concatenate([[0.0], drive])[: len(drive)]  # the gap before each
         self._span = SHORT_GAPS * np.maximum(drive, before)  # searched short of each gap's end (m)
         self._done: set[int] = set()  # turns started (or given up on): not asked again
-        self._driven: dict[
-            int, float
-        ] = {}  # per pose: translation (m) commanded since the floor placed it short
-
-    @classmethod
-    def of(cls, registration: SideOffset | None, motion: np.ndarray, held: np.ndarray) -> PivotArrival:
-        """The pivot arrival of a route; with no floor registration (or no turn in place after a drive) it never
-        places the robot, and every turn starts where the estimate gets to it."""
-        return cls(registration, motion, held)
+        # per turn's pose: the translation (m) commanded since the floor placed the robot short of it
+        self._driven: dict[int, float] = {}
 
     def place(self, view: np.ndarray, gap: int, step_m: float, localiser: RouteLocaliser) -> int | None:
         """Where the estimate is in gap ``gap`` of a taught turn in place: the turn's pose (a subgoal) if the floor

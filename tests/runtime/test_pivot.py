@@ -36,7 +36,7 @@ def route() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 def pivot() -> PivotArrival:
     views, poses, _, held = route()
     motion = np.diff(poses, axis=0)[:, [0, 2]]
-    return PivotArrival.of(SideOffset(views, poses, CAM), motion, held)
+    return PivotArrival(SideOffset(views, poses, CAM), motion, held)
 
 
 def test_the_turn_s_pose_is_the_subgoal_where_the_teach_stopped_driving():
@@ -73,11 +73,11 @@ def test_no_turn_is_judged_on_a_route_without_one_after_a_drive_nor_without_a_fl
     motion = np.diff(poses, axis=0)[:, [0, 2]]
     short = floor_view(GAP * (DRIVE - 1) - 0.05, tilt=TILT)
     for p in (
-        PivotArrival.of(SideOffset(views, poses, CAM), motion, np.zeros_like(held)),
-        PivotArrival.of(None, motion, held),
+        PivotArrival(SideOffset(views, poses, CAM), motion, np.zeros_like(held)),
+        PivotArrival(None, motion, held),
     ):
         assert (p.pivot_of < 0).all() and p.short_of(short, DRIVE - 1, 0.025) is None
-    assert PivotArrival.of(None, motion[:0], held[:1]).short_of(short, 0, 0.025) is None  # one subgoal
+    assert PivotArrival(None, motion[:0], held[:1]).short_of(short, 0, 0.025) is None  # one subgoal
 
 
 def test_the_follower_drives_on_to_the_turn_s_pose_where_the_estimate_got_there_early():
