@@ -348,8 +348,7 @@ class RouteLocaliser:
         """The belief's mean near its mode, its spread there, and the mass within ``CONFIDENT_SPAN`` of the mode."""
         k = self.cfg.cells_per_gap
         mode = int(self.belief.argmax())
-        span = int(round(3 * k))
-        a, b = max(0, mode - span), min(len(self.belief), mode + span + 1)
+        a, b = max(0, mode - 3 * k), min(len(self.belief), mode + 3 * k + 1)  # three gaps either side
         local = self.belief[a:b] / self.belief[a:b].sum()
         mean = float(local @ self.cells[a:b])
         std = math.sqrt(max(float(local @ (self.cells[a:b] - mean) ** 2), 0.0))
@@ -359,6 +358,7 @@ class RouteLocaliser:
     def observe(self, position: float, std: float) -> Estimate:
         """After :meth:`update`: weigh the belief by where the floor places the robot (``position`` give or take
         ``std``, subgoal units; ``runtime.pivot``). The view's distances in the estimate stay as they were."""
+        assert self.last is not None, "observe follows update"
         self.belief *= np.exp(-0.5 * ((self.cells - position) / max(std, 1e-6)) ** 2)
         self._normalise()
         mean, spread, confidence = self._spread()

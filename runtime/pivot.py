@@ -20,6 +20,7 @@ import math
 import numpy as np
 
 from vtr.runtime.arrival import PAST_M
+from vtr.runtime.frame import Frame
 from vtr.runtime.localiser import RouteLocaliser
 from vtr.runtime.side_offset import SideOffset
 
@@ -54,7 +55,9 @@ class PivotArrival:
         # per turn's pose: the translation (m) commanded since the floor placed the robot short of it
         self._driven: dict[int, float] = {}
 
-    def place(self, view: np.ndarray, gap: int, step_m: float, localiser: RouteLocaliser) -> int | None:
+    def place(
+        self, view: Frame | np.ndarray, gap: int, step_m: float, localiser: RouteLocaliser
+    ) -> int | None:
         """Where the estimate is in gap ``gap`` of a taught turn in place: the turn's pose (a subgoal) if the floor
         places the robot short of it, after weighing ``localiser``'s belief by where; else None, and the turn
         starts (its pose is not asked again)."""
@@ -65,7 +68,7 @@ class PivotArrival:
         localiser.observe(placed, OBSERVED_STD)
         return int(math.ceil(placed))
 
-    def short_of(self, view: np.ndarray, gap: int, step_m: float) -> float | None:
+    def short_of(self, view: Frame | np.ndarray, gap: int, step_m: float) -> float | None:
         """The route position (subgoal units) the floor places the robot at, where the estimate is in gap ``gap``
         of a taught turn in place whose pose the floor places the robot short of (by more than half of
         ``step_m``, the last command's translation); None where it is not short, the floor does not tell, or the
