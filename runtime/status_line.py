@@ -26,6 +26,9 @@ T = TypeVar("T")
 
 #: Seconds between rewrites of the line (a lockstep simulator steps far faster than anyone reads).
 REFRESH_S = 0.1
+#: On a stream that is not a terminal (a log file), :class:`Progress` writes a plain line at most this often (s):
+#: a long job run under nohup shows how far it got, a short one writes nothing.
+LOG_EVERY_S = 60.0
 #: Below this |v| (m/s) or |w| (rad/s) a command prints as 0.
 _TINY = 5e-4
 
@@ -203,7 +206,8 @@ def progress_text(
 
 
 class Progress:
-    """Done/total of a long job on a :class:`LiveLine` (stderr, a terminal only; ``quiet`` silences it).
+    """Done/total of a long job on a :class:`LiveLine` (stderr; ``quiet`` silences it). On a stream that is not
+    a terminal, a plain line every ``log_every_s`` seconds instead, and the last one at the end if any was.
 
     ``advance(what)`` after each finished piece; ``start(what)`` before a long one; ``close()`` at the end (or
     use it as a context manager). ``eta``: say the time left, for pieces that take about as long as each other."""
@@ -215,11 +219,15 @@ class Progress:
         quiet: bool = False,
         stream: TextIO | None = None,
         eta: bool = True,
+        log_every_s: float = LOG_EVERY_S,
     ) -> None:
         self.label, self.total, self.done, self.eta = label, total, 0, eta
         self.line = LiveLine(stream, enabled=False if quiet else None)
         self._t0 = time.monotonic()
         self._what = ""
+        # a log, not a terminal: plain lines, the first after log_every_s
+        self._log_every = log_every_s if not (quiet or self.line.enabled) else math.inf
+        self._logged, self._unlogged, self.logged_lines = self._t0, "", 0
         self.line.show(progress_text(label, 0, total, 0.0), force=True)
 
     def advance(self, what: str = "", n: int = 1) -> None:
@@ -232,9 +240,12 @@ class Progress:
     def show(self, what: str | None = None, force: bool = False) -> None:
         """The line now (``what`` None: the last one said, with the clock moved on)."""
         self._what = self._what if what is None else what
-        elapsed = time.monotonic() - self._t0
-        text = progress_text(self.label, self.done, self.total, elapsed, self._what, self.eta)
+        now = time.monotonic()
+        text = progress_text(self.label, self.done, self.total, now - self._t0, self._what, self.eta)
         self.line.show(text, force=force)
+        self._unlogged = text
+        if now - self._logged >= self._log_every:
+            self._log(now)
 
     def as_completed(self, futures: Iterable[Future[T]], every_s: float = 1.0) -> Iterator[Future[T]]:
         """``futures`` as they finish, the clock on the line moving on while none does (pool workers)."""
@@ -245,7 +256,18 @@ class Progress:
                 self.show()
             yield from done
 
+    def _log(self, now: float) -> None:
+        self._logged, self.logged_lines = now, self.logged_lines + 1
+        try:
+            self.line.stream.write(self._unlogged + "\n")
+            self.line.stream.flush()
+        except (OSError, ValueError):  # a closed log must not end the job
+            self._log_every = math.inf
+        self._unlogged = ""
+
     def close(self) -> None:
+        if self._unlogged and self.logged_lines:  # a long job's log ends with where it ended
+            self._log(time.monotonic())
         self.line.close()
 
     def __enter__(self) -> Progress:

@@ -141,6 +141,22 @@ def test_progress_text_and_its_line():
     assert quiet.getvalue() == ""
 
 
+def test_a_log_gets_plain_progress_lines_only_from_a_long_job():
+    log = io.StringIO()  # not a terminal: a nohup log
+    with Progress("vtr eval", 3, stream=log, log_every_s=0.0) as progress:
+        progress.advance("a")
+        progress.start("b")
+        progress.advance("b")
+    lines = log.getvalue().splitlines()
+    assert "\r" not in log.getvalue() and "\x1b" not in log.getvalue()
+    assert lines[0].startswith("vtr eval: 1/3 (33%)") and lines[-1].startswith("vtr eval: 2/3 (67%)")
+    short = io.StringIO()  # a job shorter than the interval writes nothing
+    with Progress("vtr eval", 2, stream=short) as progress:
+        progress.advance("a")
+        progress.advance("b")
+    assert short.getvalue() == ""
+
+
 @pytest.fixture(scope="module")
 def policy_path(tmp_path_factory):
     return build_velocitynet_onnx(str(tmp_path_factory.mktemp("model") / "tiny.onnx"))
