@@ -55,9 +55,8 @@ def score(route: Any, log: RunLog, open_loop: bool = False) -> dict[str, Any]:
             "p99": float(np.percentile(ms, 99)),
             "mean": float(ms.mean()),
         }
-    if (
-        log.compute_ms
-    ):  # each commanded step's compute (judgement, policy, limits; the link and simulator apart)
+    # each commanded step's compute (judgement, policy, limits; the link and simulator apart)
+    if log.compute_ms:
         p50, p99 = np.percentile(log.compute_ms, [50, 99])
         out["step_compute_ms"] = {
             "p50": round(float(p50), 4),

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vtr.runtime.progress_watch import END_ZONE_GAPS, route_left
+from vtr.runtime.progress_watch import END_ZONE_GAPS, route_left, taught_translation
 from vtr.runtime.side_offset import SideOffset
 
 #: The least distance (m) past the last pose the registration searches: a robot a control step past it at
@@ -30,7 +30,7 @@ class FloorArrival:
         """``motion``: (L-1, 2) the taught motion of each gap (``localiser.taught_motion``); ``held``: (L,)
         whether the teach turned in place into each subgoal (into the last one, the floor is not asked)."""
         self.registration = registration
-        self.route_m = np.concatenate([[0.0], np.cumsum(np.abs(motion[:, 0]))])  # the taught translation
+        self.route_m = taught_translation(motion)
         self.past_m = max(abs(float(motion[-1, 0])), PAST_M)
         self.turns_at_end = bool(held[-1])
         registration.tells_along(len(registration.poses) - 1)  # the end's floor checked once, with the route

@@ -22,6 +22,7 @@ import numpy as np
 from vtr.runtime.arrival import PAST_M
 from vtr.runtime.frame import Frame
 from vtr.runtime.localiser import RouteLocaliser
+from vtr.runtime.progress_watch import taught_translation
 from vtr.runtime.side_offset import SideOffset
 
 #: How far short of the turn's pose the floor is searched: this many of the wider of the two gaps driven into it.
@@ -48,7 +49,7 @@ class PivotArrival:
                 while j < n and held[j]:
                     self.pivot_of[j - 1] = k
                     j += 1
-        self._route_m = np.concatenate([[0.0], np.cumsum(drive)])  # the taught translation to each subgoal
+        self._route_m = taught_translation(motion)
         before = np.concatenate([[0.0], drive])[: len(drive)]  # the gap before each
         self._span = SHORT_GAPS * np.maximum(drive, before)  # searched short of each gap's end (m)
         self._done: set[int] = set()  # turns started (or given up on): not asked again
@@ -73,7 +74,7 @@ class PivotArrival:
         of a taught turn in place whose pose the floor places the robot short of (by more than half of
         ``step_m``, the last command's translation); None where it is not short, the floor does not tell, or the
         turn's pose was judged before."""
-        k = int(self.pivot_of[gap]) if 0 <= gap < len(self.pivot_of) else -1
+        k = self._pose(gap)
         if k < 0 or k in self._done or self.registration is None:
             return None
         span = float(self._span[k - 1])
@@ -100,8 +101,12 @@ class PivotArrival:
 
     def started(self, gap: int) -> None:
         """The turn in place of gap ``gap`` has started: its pose is not asked again."""
-        if 0 <= gap < len(self.pivot_of) and self.pivot_of[gap] >= 0:
-            self._done.add(int(self.pivot_of[gap]))
+        if (k := self._pose(gap)) >= 0:
+            self._done.add(k)
+
+    def _pose(self, gap: int) -> int:
+        """The turn's pose of gap ``gap`` (-1: not a taught turn in place after a drive)."""
+        return int(self.pivot_of[gap]) if 0 <= gap < len(self.pivot_of) else -1
 
     def reset(self) -> None:
         """Every turn is asked again (a relocalised robot may come to them anew)."""

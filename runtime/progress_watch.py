@@ -68,6 +68,12 @@ class ProgressWatch:
         return None
 
 
+def taught_translation(motion: np.ndarray) -> np.ndarray:
+    """(L,) the taught translation (m, either way) from the first subgoal to each, from the (L-1, 2) taught
+    motion of each gap (``localiser.taught_motion``): the ``route_m`` the floor's registrations place along."""
+    return np.concatenate([[0.0], np.cumsum(np.abs(motion[:, 0]))])
+
+
 def route_left(route_m: np.ndarray, position: float) -> float:
     """What ``route_m`` (L,: cumulative from the first subgoal to each) has left from ``position`` (subgoal
     units, between subgoals interpolated) to the last subgoal."""
@@ -184,4 +190,5 @@ __all__ = [
     "ProgressWatch",
     "final_turn_start",
     "route_left",
+    "taught_translation",
 ]
