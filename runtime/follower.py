@@ -231,7 +231,7 @@ class Follower:
         threshold = float(self.thresholds[last])
         close = final_error <= self.cfg.jump_factor * threshold  # the settled bound, the end by travel's too
         floor = None if self.arrival is None else self.arrival.judge(image, est.position, self._step_m)
-        view_end = self.arrival is None or self.arrival.view_may_end(est.position, self._step_m)  # as the floor
+        view_end = self.arrival is None or self.arrival.view_may_end(est.position, self._step_m)
         arrived, note = floor or (near_end and final_error <= threshold and view_end, "")
         if arrived or at_end and self._idle >= 2 and close:  # the evidence in the note (the run's summary)
             self._finished = True
