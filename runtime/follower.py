@@ -7,8 +7,9 @@ Each image:
 2. the localiser (``runtime.localiser``) weighs its belief by the view: where along the route the robot
    is (``position``, in subgoal units) and how sure (``confidence``, ``match``);
 3. the end: the floor places the robot at the last taught pose (``runtime.arrival``) or, where the floor
-   does not tell, the estimate is at the last subgoal and the view matches it as well as the teach's
-   neighbouring views match each other; or, the view closest to it, the policy has stopped driving there:
+   does not tell, the estimate is at the last subgoal (where the end's floor tells no distance, within half
+   a step of it: ``FloorArrival.view_may_end``) and the view matches it as well as the teach's neighbouring
+   views match each other; or, the view closest to it, the policy has stopped driving there:
    FINISHED; or, after 4 and 5, by travel (``EndWatch``: the views cannot see the robot pass the end, nor
    turn past the end of a final turn in place): moved past what the route had left, within the settled bound
    FINISHED, else LOST with the evidence;
