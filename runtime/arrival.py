@@ -74,7 +74,7 @@ class FloorArrival:
         once the estimate leaves no more of the route than half the last command's travel (``step_m``), the
         floor's own rule. There the view alone decides, and on a fast last stretch it matches under its
         threshold half a gap short (dev house random:959: "finished" 52 mm short, the estimate 0.62 gaps
-        short): the estimate, the views and the commanded motion together, places the robot better."""
+        short); the estimate, which weighs the views with the commanded motion, places the robot better."""
         if self.turns_at_end or self.registration.tells_along(len(self.registration.poses) - 1):
             return True
         return route_left(self.route_m, position) <= 0.5 * abs(step_m)

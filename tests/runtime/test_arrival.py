@@ -77,6 +77,14 @@ def test_the_floor_is_not_asked_before_the_last_gap_nor_where_the_teach_turned_i
     assert arrival(tilt=0.0).judge(floor_view(1.1), 10.8, 0.025) is None
 
 
+def test_where_the_end_s_floor_tells_no_distance_a_view_may_end_a_run_only_within_half_a_step_of_the_end():
+    planks = arrival(tilt=0.0)  # squares laid along the path: the end's floor tells no distance
+    assert planks.view_may_end(10.5, 0.025) is False  # 5 cm left, more than half a 2.5 cm step
+    assert planks.view_may_end(10.9, 0.025) is True  # 1 cm left
+    assert arrival().view_may_end(10.5, 0.025) is True  # the floor tells: it ends the run, the view stands in
+    assert arrival(tilt=0.0, turns_at_end=True).view_may_end(10.5, 0.025) is True  # a turn into the end
+
+
 class FloorRobot:
     """A robot driving straight along x over the floor of :func:`route` laid ``tilt`` rad to it, from ``x``."""
 
