@@ -33,7 +33,8 @@ class FloorArrival:
         self.route_m = taught_translation(motion)
         self.past_m = max(abs(float(motion[-1, 0])), PAST_M)
         self.turns_at_end = bool(held[-1])
-        registration.tells_along(len(registration.poses) - 1)  # the end's floor checked once, with the route
+        # the end's floor checked once, with the route: whether it tells a distance along it
+        self.end_tells = registration.tells_along(len(registration.poses) - 1)
 
     @classmethod
     def of(cls, registration: SideOffset | None, motion: np.ndarray, held: np.ndarray) -> FloorArrival | None:
@@ -75,9 +76,7 @@ class FloorArrival:
         floor's own rule. There the view alone decides, and on a fast last stretch it matches under its
         threshold half a gap short (dev house random:959: "finished" 52 mm short, the estimate 0.62 gaps
         short); the estimate, which weighs the views with the commanded motion, places the robot better."""
-        if self.turns_at_end or self.registration.tells_along(len(self.registration.poses) - 1):
-            return True
-        return route_left(self.route_m, position) <= 0.5 * abs(step_m)
+        return self.turns_at_end or self.end_tells or route_left(self.route_m, position) <= 0.5 * abs(step_m)
 
 
 __all__ = ["PAST_M", "FloorArrival"]

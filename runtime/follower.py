@@ -232,8 +232,9 @@ class Follower:
         threshold = float(self.thresholds[last])
         close = final_error <= self.cfg.jump_factor * threshold  # the settled bound, the end by travel's too
         floor = None if self.arrival is None else self.arrival.judge(image, est.position, self._step_m)
-        view_end = self.arrival is None or self.arrival.view_may_end(est.position, self._step_m)
-        arrived, note = floor or (near_end and final_error <= threshold and view_end, "")
+        by_view = near_end and final_error <= threshold  # asked of the arrival only then (every step is not)
+        by_view = by_view and (self.arrival is None or self.arrival.view_may_end(est.position, self._step_m))
+        arrived, note = floor or (by_view, "")
         if arrived or at_end and self._idle >= 2 and close:  # the evidence in the note (the run's summary)
             self._finished = True
             note = note or f"the view {final_error:.3f} from the last subgoal's (threshold {threshold:.3f})"
