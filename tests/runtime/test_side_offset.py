@@ -45,6 +45,47 @@ def test_a_floor_unlike_the_taught_one_tells_nothing():
     assert side_offset().estimate(floor_view(0.3, 0.05, seed=7), 3.0) is None
 
 
+def tilted_route(tilt: float = 0.8) -> tuple[np.ndarray, np.ndarray]:
+    """A straight route along x over squares laid ``tilt`` rad to it: their edges cross each floor row at a slant,
+    so a view from a few centimetres further back shows each row's colours shifted sideways."""
+    poses = np.array([[0.1 * k, 0.0, 0.0] for k in range(8)])
+    return np.stack([floor_view(x, tilt=tilt) for x, _, _ in poses]), poses
+
+
+@pytest.mark.parametrize("dy", [0.0, 0.05])
+@pytest.mark.parametrize("behind", [0.02, 0.04, -0.04, 0.1])
+def test_a_robot_off_the_estimate_along_the_route_is_registered_where_it_is(dy, behind):
+    # dev house random:993: the localiser 4-13 cm ahead of the robot, the floor read the robot 30-77 mm left
+    # while it was 40-90 mm right, and the side turn steered it further off until a false stop
+    views, poses = tilted_route()
+    view = floor_view(0.3 - behind, dy, tilt=0.8)  # short of subgoal 3 (or past it), where the estimate is
+    at_estimate = SideOffset(views, poses, CAM, SideConfig(along_search=0)).estimate(view, 3.0)
+    # the failure: the slant read as a side offset, or no reading
+    assert at_estimate is None or abs(at_estimate.dy - dy) > 0.015
+    searched = SideOffset(views, poses, CAM).estimate(view, 3.0)
+    assert searched is not None
+    assert searched.dy == pytest.approx(dy, abs=0.01)
+    assert searched.dx == pytest.approx(-behind, abs=0.01)
+
+
+def test_a_robot_further_off_along_than_the_search_reaches_gets_no_side_offset():
+    views, poses = tilted_route()
+    side = SideOffset(views, poses, CAM)
+    cfg = side.cfg
+    assert (cfg.along_search, cfg.along_reach) == (2, 6)  # the first search, then two more steps twice
+    view = floor_view(0.3 - (cfg.along_reach + 1) * side.along_step, 0.0, tilt=0.8)
+    assert side.estimate(view, 3.0) is None
+    assert side.estimate(floor_view(0.3 - (cfg.along_reach - 1) * side.along_step, tilt=0.8), 3.0) is not None
+
+
+def test_a_floor_the_same_along_the_path_tells_the_side_off_the_estimate_too():
+    # squares laid along the path show the same rows over their length: no search, and nothing to mislead
+    side = side_offset()
+    assert not side.tells_along(3)
+    est = side.estimate(floor_view(0.24, 0.05), 3.0)
+    assert est is not None and est.dy == pytest.approx(0.05, abs=0.01) and est.dx == 0.0
+
+
 class SideRobot:
     """A unicycle over the floor of floor_fakes, started ``dy`` m to the left of the route along x."""
 
