@@ -183,9 +183,8 @@ class SideOffset:
         n = self.cfg.along_search
         if not n or not self.tells_along(k):  # a floor the same along the path tells the side wherever
             return self._fit(self._table(self._current(view), self._taught_rows(taught, offset)))
-        # elsewhere a robot a few centimetres off the estimate along the route sees other floor in each row, which
-        # a textured floor can fit as a side offset: on dev houses the side offset's error grew from 11 mm (rms)
-        # with the estimate within 1 cm of the robot to 43 mm 4-8 cm off it, a mirror of the true offset at 10 cm
+        # elsewhere a robot a few centimetres off the estimate along the route sees other floor in each row (see
+        # the module docstring): read it where the floor matches best along the route
         ahead, left, turn = offset
         cur = self._current(view)
 
@@ -197,9 +196,8 @@ class SideOffset:
         at = np.arange(-n, n + 1)
         tables, scores = scored(at)
         i = int(scores.argmin())
-        while (
-            i in (0, len(at) - 1) and abs(at[i]) < self.cfg.along_reach
-        ):  # the best at an end: look on that way
+        # the best the furthest tried: the robot may be further off that way, so look on, up to along_reach steps
+        while i in (0, len(at) - 1) and abs(at[i]) < self.cfg.along_reach:
             more = at[i] + np.sign(at[i]) * np.arange(1, min(n, self.cfg.along_reach - abs(at[i])) + 1)
             more_tables, more_scores = scored(more)
             order = np.argsort(np.concatenate([at, more]))
