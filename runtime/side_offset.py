@@ -200,9 +200,10 @@ class SideOffset:
         while i in (0, len(at) - 1) and abs(at[i]) < self.cfg.along_reach:
             more = at[i] + np.sign(at[i]) * np.arange(1, min(n, self.cfg.along_reach - abs(at[i])) + 1)
             more_tables, more_scores = scored(more)
-            order = np.argsort(np.concatenate([at, more]))
-            at = np.concatenate([at, more])[order]
-            tables, scores = (
+            at = np.concatenate([at, more])
+            order = np.argsort(at)  # ``more`` lies past one end: keep the offsets ascending
+            at, tables, scores = (
+                at[order],
                 np.concatenate([tables, more_tables])[order],
                 np.concatenate([scores, more_scores])[order],
             )

@@ -34,10 +34,13 @@ def floor_view(
     return out.astype(np.uint8)
 
 
-def straight_route(n: int = 24, gap: float = 0.1, cam: Camera = CAM) -> tuple[np.ndarray, np.ndarray]:
-    """The views (seen by ``cam``) and poses of a straight route along x, a subgoal every ``gap`` m."""
+def straight_route(
+    n: int = 24, gap: float = 0.1, cam: Camera = CAM, tilt: float = 0.0
+) -> tuple[np.ndarray, np.ndarray]:
+    """The views (seen by ``cam``) and poses of a straight route along x, a subgoal every ``gap`` m, over squares
+    laid ``tilt`` rad to it (:func:`floor_view`)."""
     poses = np.array([[gap * k, 0.0, 0.0] for k in range(n)])
-    return np.stack([floor_view(x, cam=cam) for x, _, _ in poses]), poses
+    return np.stack([floor_view(x, cam=cam, tilt=tilt) for x, _, _ in poses]), poses
 
 
 def with_blob(image: np.ndarray, rows: slice, cols: slice) -> np.ndarray:

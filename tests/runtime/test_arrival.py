@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from floor_fakes import CAM, floor_view
+from floor_fakes import CAM, floor_view, straight_route
 
 from vtr.runtime.arrival import FloorArrival
 from vtr.runtime.contracts import Observation
@@ -20,8 +20,7 @@ TILT = 0.3  # squares laid across the path at an angle, as sim2d's mosaic has ed
 
 
 def route(n: int = 12, gap: float = 0.1, tilt: float = TILT) -> tuple[np.ndarray, np.ndarray]:
-    poses = np.array([[gap * k, 0.0, 0.0] for k in range(n)])
-    return np.stack([floor_view(x, tilt=tilt) for x, _, _ in poses]), poses
+    return straight_route(n, gap, tilt=tilt)
 
 
 def registration(tilt: float = TILT) -> SideOffset:
