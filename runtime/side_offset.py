@@ -13,7 +13,9 @@ offset (dev houses: 11 mm rms error with the estimate within a centimetre of the
 a mirror of the true offset further on, which the side turn then widened). So where the floor tells a
 distance along the route, the taught rows are warped to a few offsets along it around the estimate, searched
 further where the best is the furthest tried, and ``(dy, psi)`` is fitted where the floor matches best
-(``SideConfig.along_search``); a best at the furthest reach tells nothing.
+(``SideConfig.along_search``); a best at the furthest reach tells nothing, and nor does one that an offset
+further along matches nearly as well while reading another side offset (planks laid at a slant to the path,
+where a step along the route looks as a step beside it does).
 
 Why the follower needs it: VelocityNet turns until the view lines up with the subgoal's, and the walls it
 lines up have no known distance, so a view ``dy`` to the side looks like one turned by ``dy / D`` for walls
@@ -72,6 +74,14 @@ class SideConfig:
     #: where the best is still the furthest tried, the floor tells no side offset. 0: at the estimate.
     along_search: int = 2
     along_reach: int = 6
+    #: ... and the best must score under every offset two or more steps from it (those within ``along_search``
+    #: of the estimate and every ``along_search``-th out to ``along_reach``); where one scores within
+    #: ``along_distinct`` of it and reads a side offset more than ``rival_side_m`` from the best's, the floor
+    #: tells none: a floor that repeats along the path (planks at a slant) matches nearly as well at other
+    #: offsets, each with its own side offset (dev house random:943: readings 30-50 mm off, read at whichever
+    #: offset noise favoured).
+    along_distinct: float = 0.08
+    rival_side_m: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -187,34 +197,56 @@ class SideOffset:
         # the module docstring): read it where the floor matches best along the route
         ahead, left, turn = offset
         cur = self._current(view)
+        reach = self.cfg.along_reach
+        found: dict[int, tuple[np.ndarray, float]] = {}  # offset along (steps) -> its table and score
 
-        def scored(at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            rows = self._warped_rows(taught, (ahead + at * self.along_step).astype(np.float32), left, turn)
-            table = self._table(cur, rows)
-            return table, self._row_score(table)
+        def score(offsets: range | list[int]) -> None:
+            new = np.array([a for a in offsets if a not in found], dtype=np.intp)
+            if new.size:
+                rows = self._warped_rows(
+                    taught, (ahead + new * self.along_step).astype(np.float32), left, turn
+                )
+                tables = self._table(cur, rows)
+                found.update(
+                    zip(new.tolist(), zip(tables, self._row_score(tables).tolist(), strict=True), strict=True)
+                )
 
-        at = np.arange(-n, n + 1)
-        tables, scores = scored(at)
-        i = int(scores.argmin())
-        # the best the furthest tried: the robot may be further off that way, so look on, up to along_reach steps
-        while i in (0, len(at) - 1) and abs(at[i]) < self.cfg.along_reach:
-            more = at[i] + np.sign(at[i]) * np.arange(1, min(n, self.cfg.along_reach - abs(at[i])) + 1)
-            more_tables, more_scores = scored(more)
-            at = np.concatenate([at, more])
-            order = np.argsort(at)  # ``more`` lies past one end: keep the offsets ascending
-            at, tables, scores = (
-                at[order],
-                np.concatenate([tables, more_tables])[order],
-                np.concatenate([scores, more_scores])[order],
-            )
-            i = int(scores.argmin())
-        if not 0 < i < len(at) - 1:
+        # the offsets near the estimate, and every n-th out to the reach: the rivals a best must beat
+        score([*range(-n, n + 1), *(a for a in range(-reach, reach + 1, n) if abs(a) > n)])
+        lo, hi = -n, n
+        while True:  # the best near the estimate; where it is the furthest tried, look on that way
+            best = min(range(lo, hi + 1), key=lambda a: found[a][1])
+            if best == lo > -reach:
+                lo = max(-reach, lo - n)
+            elif best == hi < reach:
+                hi = min(reach, hi + n)
+            else:
+                break
+            score(range(lo, hi + 1))
+        if best in (lo, hi):  # the best at the furthest reach: the robot may be further off still
             return None
-        found = self._fit(tables[i])
-        if found is None:
+        # a floor that repeats along the path (planks laid across it at a slant) matches nearly as well at
+        # offsets further along, each with its own side offset: no reading where such a rival reads another one
+        rivals = [(a, s) for a, (_, s) in found.items() if abs(a - best) >= 2]
+        if min(s for _, s in rivals) < found[best][1]:
             return None
-        dx = float((at[i] + _vertex(*scores[i - 1 : i + 2].astype(np.float64))) * self.along_step)
-        return SideEstimate(found.dy, found.psi, found.rows, dx)
+        fit = self._fit(found[best][0])
+        if fit is None:
+            return None
+        for a, s in rivals:
+            if s - found[best][1] < self.cfg.along_distinct:
+                other = self._fit(found[a][0])
+                if other is not None and abs(other.dy - fit.dy) > self.cfg.rival_side_m:
+                    return None
+        frac = float(_vertex(*(np.float64(found[a][1]) for a in (best - 1, best, best + 1))))
+        # between the best offset and its neighbour toward the refined one, the fit moves with the offset
+        near = self._fit(found[best + (1 if frac > 0 else -1)][0]) if frac else None
+        dy, psi = (
+            (fit.dy, fit.psi)
+            if near is None
+            else (fit.dy + abs(frac) * (near.dy - fit.dy), fit.psi + abs(frac) * (near.psi - fit.psi))
+        )
+        return SideEstimate(dy, psi, fit.rows, float((best + frac) * self.along_step))
 
     def along(
         self, view: np.ndarray, k: int, ahead: np.ndarray, rivals_below: float = math.inf

@@ -13,12 +13,21 @@ CAM = Camera()
 
 
 def floor_view(
-    x: float, y: float = 0.0, yaw: float = 0.0, seed: int = 0, cam: Camera = CAM, tilt: float = 0.0
+    x: float,
+    y: float = 0.0,
+    yaw: float = 0.0,
+    seed: int = 0,
+    cam: Camera = CAM,
+    tilt: float = 0.0,
+    stripes: bool = False,
+    size: float = 0.2,
 ) -> np.ndarray:
     """What ``cam`` sees from (x, y, yaw) over a floor of 20 cm squares of random colours (grey above the
     horizon; sim2d's mosaic is coarser still), laid ``tilt`` rad to the x axis: laid along it (0), a floor
     row seen along x shows the same colours over the length of a square, which tells no distance along x
-    (as planks laid along the path do); sim2d's mosaic has edges at every angle."""
+    (as planks laid along the path do); sim2d's mosaic has edges at every angle. ``stripes``: 20 cm planks
+    instead, each of one colour along its length (which runs ``tilt`` rad from the y axis), so that a step
+    along x looks as a step along y does."""
     colours = np.random.default_rng(seed).integers(30, 220, (64, 64, 3))
     f = cam.focal_px
     rows, cols = np.mgrid[0 : cam.height, 0 : cam.width] + 0.5
@@ -28,19 +37,27 @@ def floor_view(
         fx = x + math.cos(yaw) * ahead + math.sin(yaw) * right * ahead
         fy = y + math.sin(yaw) * ahead - math.cos(yaw) * right * ahead
         fx, fy = math.cos(tilt) * fx + math.sin(tilt) * fy, math.cos(tilt) * fy - math.sin(tilt) * fx
-        i, j = np.floor(fx / 0.2).astype(int) % 64, np.floor(fy / 0.2).astype(int) % 64
+        i, j = np.floor(fx / size).astype(int) % 64, np.floor(fy / size).astype(int) % 64
+        j = j * (not stripes)
     out = colours[np.where(down > 0, i, 0), np.where(down > 0, j, 0)]
     out[down <= 0] = 128
     return out.astype(np.uint8)
 
 
 def straight_route(
-    n: int = 24, gap: float = 0.1, cam: Camera = CAM, tilt: float = 0.0
+    n: int = 24,
+    gap: float = 0.1,
+    cam: Camera = CAM,
+    tilt: float = 0.0,
+    stripes: bool = False,
+    size: float = 0.2,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The views (seen by ``cam``) and poses of a straight route along x, a subgoal every ``gap`` m, over squares
-    laid ``tilt`` rad to it (:func:`floor_view`)."""
+    (or ``stripes``) laid ``tilt`` rad to it (:func:`floor_view`)."""
     poses = np.array([[gap * k, 0.0, 0.0] for k in range(n)])
-    return np.stack([floor_view(x, cam=cam, tilt=tilt) for x, _, _ in poses]), poses
+    return np.stack(
+        [floor_view(x, cam=cam, tilt=tilt, stripes=stripes, size=size) for x, _, _ in poses]
+    ), poses
 
 
 def with_blob(image: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
