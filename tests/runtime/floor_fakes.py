@@ -22,12 +22,12 @@ def floor_view(
     stripes: bool = False,
     size: float = 0.2,
 ) -> np.ndarray:
-    """What ``cam`` sees from (x, y, yaw) over a floor of 20 cm squares of random colours (grey above the
-    horizon; sim2d's mosaic is coarser still), laid ``tilt`` rad to the x axis: laid along it (0), a floor
-    row seen along x shows the same colours over the length of a square, which tells no distance along x
-    (as planks laid along the path do); sim2d's mosaic has edges at every angle. ``stripes``: 20 cm planks
-    instead, each of one colour along its length (which runs ``tilt`` rad from the y axis), so that a step
-    along x looks as a step along y does."""
+    """What ``cam`` sees from (x, y, yaw) over a floor of squares ``size`` m on a side (20 cm) in random colours
+    (grey above the horizon; sim2d's mosaic is coarser still), laid ``tilt`` rad to the x axis: laid along it
+    (0), a floor row seen along x shows the same colours over the length of a square, which tells no distance
+    along x (as planks laid along the path do); sim2d's mosaic has edges at every angle. ``stripes``: planks
+    ``size`` m wide instead, each of one colour along its length (which runs ``tilt`` rad from the y axis), so
+    that a step along x looks as a step along y does."""
     colours = np.random.default_rng(seed).integers(30, 220, (64, 64, 3))
     f = cam.focal_px
     rows, cols = np.mgrid[0 : cam.height, 0 : cam.width] + 0.5
@@ -38,7 +38,8 @@ def floor_view(
         fy = y + math.sin(yaw) * ahead - math.cos(yaw) * right * ahead
         fx, fy = math.cos(tilt) * fx + math.sin(tilt) * fy, math.cos(tilt) * fy - math.sin(tilt) * fx
         i, j = np.floor(fx / size).astype(int) % 64, np.floor(fy / size).astype(int) % 64
-        j = j * (not stripes)
+        if stripes:  # one colour along each plank's length
+            j = np.zeros_like(j)
     out = colours[np.where(down > 0, i, 0), np.where(down > 0, j, 0)]
     out[down <= 0] = 128
     return out.astype(np.uint8)
