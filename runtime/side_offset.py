@@ -227,14 +227,15 @@ class SideOffset:
             return None
         # a floor that repeats along the path (planks laid across it at a slant) matches nearly as well at
         # offsets further along, each with its own side offset: no reading where such a rival reads another one
+        table, least = found[best]
         rivals = [(a, s) for a, (_, s) in found.items() if abs(a - best) >= 2]
-        if min(s for _, s in rivals) < found[best][1]:
+        if min(s for _, s in rivals) < least:
             return None
-        fit = self._fit(found[best][0])
+        fit = self._fit(table)
         if fit is None:
             return None
         for a, s in rivals:
-            if s - found[best][1] < self.cfg.along_distinct:
+            if s - least < self.cfg.along_distinct:
                 other = self._fit(found[a][0])
                 if other is not None and abs(other.dy - fit.dy) > self.cfg.rival_side_m:
                     return None

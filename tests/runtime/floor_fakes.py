@@ -4,6 +4,7 @@ coloured squares sees, with a box drawn in front of it (the model runtime.floor_
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 
@@ -46,19 +47,12 @@ def floor_view(
 
 
 def straight_route(
-    n: int = 24,
-    gap: float = 0.1,
-    cam: Camera = CAM,
-    tilt: float = 0.0,
-    stripes: bool = False,
-    size: float = 0.2,
+    n: int = 24, gap: float = 0.1, cam: Camera = CAM, **floor: Any
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The views (seen by ``cam``) and poses of a straight route along x, a subgoal every ``gap`` m, over squares
-    (or ``stripes``) laid ``tilt`` rad to it (:func:`floor_view`)."""
+    """The views (seen by ``cam``) and poses of a straight route along x, a subgoal every ``gap`` m, over the
+    floor :func:`floor_view` lays with ``floor`` (``tilt``, ``stripes``, ``size``)."""
     poses = np.array([[gap * k, 0.0, 0.0] for k in range(n)])
-    return np.stack(
-        [floor_view(x, cam=cam, tilt=tilt, stripes=stripes, size=size) for x, _, _ in poses]
-    ), poses
+    return np.stack([floor_view(x, cam=cam, **floor) for x, _, _ in poses]), poses
 
 
 def with_blob(image: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
