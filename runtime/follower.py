@@ -345,10 +345,9 @@ class Follower:
         self, est: Estimate, at_end: bool, matched: bool, close: bool, error: float
     ) -> Decision | None:
         """The end by travel (``EndWatch``): FINISHED where the view matches the last subgoal within the settled
-        bound (``close``), else LOST with the evidence; None while the robot has route left. A changed scene (a
-        re-laid floor, furniture moved near the end) raises every distance alike: net of that common offset
-        (``est.match``), a view whose distances follow the teach's profile (``est.fit``) matched too, and the
-        end's such view is judged by the settled bound net of it (dev: runs drove on past the end, lost)."""
+        bound (``close``), else LOST with the evidence; None while the robot has route left. A changed scene
+        raises every distance alike: net of that offset (``est.match``) a view following the teach's profile
+        (``est.fit``) matched too, and is judged so at the end (dev: runs drove on past the end, lost)."""
         fits = est.fit <= 1.0  # as noisy about the profile as the localiser expects: a scene changed alike
         net = fits and est.best_error - est.match <= float(self.thresholds[est.best])
         if (spent := self.end.judge(est.position, at_end, matched or net)) is None:
