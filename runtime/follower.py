@@ -12,7 +12,7 @@ Each image:
    views match each other; or, the view closest to it, the policy has stopped driving there:
    FINISHED; or, after 4 and 5, by travel (``EndWatch``: the views cannot see the robot pass the end, nor
    turn past the end of a final turn in place): moved past what the route had left, within the settled bound
-   (net of a changed scene's common offset, the localiser's ``match``) FINISHED, else LOST with the evidence;
+   FINISHED, else LOST with the evidence;
 4. blocked: the camera sees the way ahead blocked (``runtime.obstruction``: the floor just ahead, warped from
    the taught view to the estimated pose, stops matching in a region that grew while the robot was
    commanded forward): BLOCKED with the evidence, for as long as the detector says so. It is not an end:
@@ -251,7 +251,8 @@ class Follower:
         if past is not None:
             return past
         gap = min(int(est.position), last - 1) if last > 0 else 0
-        # in a taught turn in place, the belief weighed by where the floor places the robot short of the turn's pose
+        # in a taught turn in place: the turn's pose, where the floor places the robot short of it (the belief
+        # weighed by that): drive on into it as the teach did (runtime.pivot)
         pose = (
             self.pivot.place(image, gap, self._step_m, self.localiser) if self.holds_turn(gap + 1) else None
         )
@@ -260,10 +261,13 @@ class Follower:
             gap = min(gap, pose - 1)
         target = min(last, int(math.floor(est.position + self.cfg.lead)) + 1, pose or last)
         hold = self.holds_turn(gap + 1)  # the teach turned on the spot where the robot is
-        # In a taught turn in place the turn is replayed as taught until the views place the robot past it (the
-        # policy, aiming past the turn, eased off and waited for the estimate); the drive after corrects the rest.
+        # In a taught turn in place the route's turn is replayed as taught until the views place the robot past
+        # it: the policy, aiming at the view after the turn, eased off before the estimate got there and both
+        # then waited for the other (a plain room; a held-out route's start); a heading off by the last bit of
+        # the turn is the policy's to correct on the drive that follows.
         turn = 1.0 if hold else self.cfg.feed_forward_turn
-        # the taught motion left to the end (control steps): its last is VelocityNet's (replayed, it overshot)
+        # the taught motion left to the end, in control steps: the last of it is VelocityNet's alone (the taught
+        # command into the last subgoal, replayed at the end, drove the robot past it)
         left = self.localiser.left_to_end(self._steps)
         prior = None
         if (self.cfg.feed_forward > 0 or turn > 0) and last > 0:
@@ -345,16 +349,12 @@ class Follower:
         self, est: Estimate, at_end: bool, matched: bool, close: bool, error: float
     ) -> Decision | None:
         """The end by travel (``EndWatch``): FINISHED where the view matches the last subgoal within the settled
-        bound (``close``), else LOST with the evidence; None while the robot has route left. A changed scene
-        raises every distance alike: net of that offset (``est.match``) a view following the teach's profile
-        (``est.fit``) matched too, and is judged so at the end (dev: runs drove on past the end, lost)."""
-        fits = est.fit <= 1.0  # as noisy about the profile as the localiser expects: a scene changed alike
-        net = fits and est.best_error - est.match <= float(self.thresholds[est.best])
-        if (spent := self.end.judge(est.position, at_end, matched or net)) is None:
+        bound (``close``), else LOST with the evidence; None while the robot has route left."""
+        if (spent := self.end.judge(est.position, at_end, matched)) is None:
             return None
         last = len(self) - 1
         threshold = float(self.thresholds[last])
-        if close or fits and error - est.match <= self.cfg.jump_factor * threshold:
+        if close:
             self._finished = True
             return Decision(Action.FINISHED, len(self), error, note=f"at the route's end: {spent}")
         return self._stop(

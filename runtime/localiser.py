@@ -81,8 +81,7 @@ class Estimate:
     ``confidence``: the belief mass within ``CONFIDENT_SPAN`` gaps of the mode (0..1); ``match``: the common
     offset of the view's distances at the estimate (matcher units: 0 when the view is as the teach saw it);
     ``best``, ``best_error``: the subgoal of the window the view is closest to, and that distance;
-    ``errors``: the window's distances, from subgoal ``first``; ``fit``: their rms about the teach's profile at
-    the estimate, less ``match``, in units of the filter's observation noise (1: as noisy as it expects).
+    ``errors``: the window's distances, from subgoal ``first``.
     """
 
     position: float
@@ -93,7 +92,6 @@ class Estimate:
     best_error: float
     first: int
     errors: np.ndarray
-    fit: float = math.nan
 
     def error_to(self, index: int) -> float:
         """The view's distance to subgoal ``index`` (nan when it was outside the window)."""
@@ -343,7 +341,6 @@ class RouteLocaliser:
             best_error=float(errors[best]),
             first=win.start,
             errors=errors,
-            fit=float(np.sqrt(sq[at])) / self.sigma,
         )
         return self.last
 
@@ -395,6 +392,8 @@ class RouteLocaliser:
         span = self._span
         a = self._band[k0[:, None], np.clip(cols - k0[:, None] + span, 0, 2 * span)]
         b = self._band[k0[:, None] + 1, np.clip(cols - k0[:, None] - 1 + span, 0, 2 * span)]
-        a = np.where(np.abs(cols - k0[:, None]) > span, np.nan, a)
-        b = np.where(np.abs(cols - k0[:, None] - 1) > span, np.nan, b)
+        far_a = np.abs(cols - k0[:, None]) > span
+        far_b = np.abs(cols - k0[:, None] - 1) > span
+        a = np.where(far_a, np.nan, a)
+        b = np.where(far_b, np.nan, b)
         return (1 - frac) * a + frac * b
