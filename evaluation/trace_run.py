@@ -6,7 +6,9 @@ i steered to, the error to i against its threshold, the error to i+1, and where 
 against subgoal i's taught pose (distance, yaw difference and the nearest point of the taught path), and
 the error the unchanged house would give at that same pose (``clean``: the camera without the change), and
 how far to the left of the nearest taught pose the robot truly is (``cross_mm``) against what the floor told
-the follower (``side_mm``, runtime.side_offset; NaN where it did not tell).
+the follower (``side_mm``, runtime.side_offset; NaN where it did not tell), and where the route localiser placed
+the robot (``pos``, subgoal units), how sure (``conf``) and the offset common to every subgoal's distance it
+took off (``match``: a changed scene raises it; NaN for the threshold rules, which have no localiser).
 A clean error under the threshold with the error above it is a matching failure (the change, not the pose,
 holds the robot); a clean error above it means the robot is off the pose: a steering (policy) failure. The simulator's true pose is used for this diagnosis
 only. ``--json`` writes the rows.
@@ -90,6 +92,7 @@ def trace(
             d = np.hypot(taught[:, 0] - x, taught[:, 1] - y)
             nx, ny, nyaw = taught[int(d.argmin())]
             beside = getattr(ctrl, "beside", None)
+            est = getattr(ctrl, "estimate", None)  # the route localiser's (the threshold rules have none)
             rows.append(
                 {
                     "step": rec.step,
@@ -107,6 +110,9 @@ def trace(
                     "nearest_k": int(d.argmin()),
                     "cross_mm": 1000 * ((y - ny) * math.cos(nyaw) - (x - nx) * math.sin(nyaw)),
                     "side_mm": math.nan if beside is None else 1000 * beside.dy,
+                    "position": math.nan if est is None else est.position,
+                    "confidence": math.nan if est is None else est.confidence,
+                    "match": math.nan if est is None else est.match,
                     "v": rec.v,
                     "w": rec.w,
                     "status": rec.status.value if rec.status else "",
@@ -170,13 +176,15 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(
         " step    i  action    error  clean  thresh  err_i+1  dist_mm  dyaw  near_mm near_k cross_mm side_mm"
+        "     pos  conf  match"
     )
     for k, r in enumerate(rows):
         if k % args.every == 0 or r["status"] or k == len(rows) - 1:
             print(
                 f"{r['step']:5d} {r['i']:4d}  {r['action'][:8]:8s} {r['error']:6.3f} {r['clean_error']:6.3f}  {r['threshold']:6.3f}  "
                 f"{r['error_next']:6.3f}  {r['dist_mm']:7.1f} {r['dyaw_deg']:5.1f}  {r['nearest_mm']:7.1f} "
-                f"{r['nearest_k']:5d}  {r['cross_mm']:7.1f} {r['side_mm']:7.1f}"
+                f"{r['nearest_k']:5d}  {r['cross_mm']:7.1f} {r['side_mm']:7.1f} {r['position']:7.2f} "
+                f"{r['confidence']:5.2f} {r['match']:6.3f}"
             )
     print(end)
     if args.json is not None:

@@ -36,6 +36,17 @@ def test_it_traces_the_follower_and_the_side_offset_it_sees():
     assert seen and abs(seen[0]["side_mm"] - seen[0]["cross_mm"]) < 30
 
 
+def test_it_traces_where_the_localiser_placed_the_robot():
+    """Each row carries the route localiser's estimate (position, confidence, the common offset), which
+    tells a matching failure from a localisation one without a script of one's own around the localiser."""
+    rows, end = trace(ROUTE, "noise_0.05", seed=0)
+    positions = np.array([r["position"] for r in rows])
+    assert np.isfinite(positions).all() and positions[-1] >= positions[0] + 10  # it moved along the route
+    assert all(0.0 <= r["confidence"] <= 1.0 and r["match"] >= 0.0 for r in rows)
+    near = [abs(r["position"] - r["nearest_k"]) for r in rows]
+    assert np.median(near) <= 1.0  # placed within a gap of the nearest taught pose
+
+
 def test_it_repeats_on_the_robot_the_suite_repeats_on(monkeypatch):
     """The trace built its own robot: no moving box, no box taken away, no sensor, the default camera, so a
     held-out run that touched the moving obstacle finished when traced. It now asks the suite's
