@@ -229,7 +229,7 @@ class SideOffset:
         # offsets further along, each with its own side offset: no reading where such a rival reads another one
         table, least = found[best]
         rivals = [(a, s) for a, (_, s) in found.items() if abs(a - best) >= 2]
-        if min(s for _, s in rivals) < least:
+        if min((s for _, s in rivals), default=math.inf) < least:  # none where the reach is a step
             return None
         fit = self._fit(table)
         if fit is None:
