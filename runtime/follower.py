@@ -381,8 +381,8 @@ class Follower:
         )
 
 
-def _dy_psi(found: SideEstimate | None) -> tuple[float, float] | None:
-    return None if found is None else (found.dy, found.psi)
+def _dy_psi(found: SideEstimate | None) -> tuple[float, float, float] | None:
+    return None if found is None else (found.dy, found.psi, found.dx)
 
 
 #: Either controller: the route localiser's (default) or the threshold rules' (``switching="rules"``).

@@ -14,10 +14,10 @@ compares (normalised per channel, so light drops out): a tile is *unmatched* whe
 where its colour, against the view's floor (which drops a colour cast and a light darker on one side), is
 also within ``colour_threshold`` of a taught view's (a plain box face on a plain floor cell of another
 colour). A robot further off (10 cm beside the path, turned 10 degrees: the floor 0.3 m ahead
-moves 10 pooled pixels) gets one more try, where the floor registration (runtime.side_offset, through
-``update``'s ``side``) places it beside the taught pose: the floor warped to there lines up again, what
-stands on it still does not. Floor the taught view never saw from that pose (past its edge) is no
-evidence either way.
+moves 10 pooled pixels; or a few centimetres ahead of or behind the estimate, which moves the near floor's
+rows) gets one more try, where the floor registration (runtime.side_offset, through ``update``'s ``side``)
+places it, beside the taught pose and along it: the floor warped to there lines up again, what stands on
+it still does not. Floor the taught view never saw from that pose (past its edge) is no evidence either way.
 
 Only the tiles where the path ahead appears count (:meth:`ObstructionDetector.region`): the floor within
 ``half_width_m`` of the taught path from ``s`` on, ``near_m`` to ``far_m`` along it, as it lies from the
@@ -88,15 +88,17 @@ def moving(v: float, w: float) -> bool:
     return v > FORWARD_SPEED or abs(w) > TURN_SPEED
 
 
-#: Where the floor puts the robot beside the taught pose: ``(dy, psi)`` (m left, rad turned left), or None.
-SideFn = Callable[[], "tuple[float, float] | None"]
+#: Where the floor puts the robot against the taught pose at the estimate: ``(dy, psi, dx)`` (m to the left,
+#: rad turned left, m ahead along the route; ``runtime.side_offset.SideEstimate``), or None.
+SideFn = Callable[[], "tuple[float, float, float] | None"]
 
 
-def beside(offset: Offset, dy: float, psi: float) -> Offset:
-    """The pose ``dy`` to the left of and turned ``psi`` from the taught pose at ``offset`` (relative to a
-    taught view), relative to that view."""
+def beside(offset: Offset, dy: float, psi: float, dx: float = 0.0) -> Offset:
+    """The pose ``dx`` ahead of, ``dy`` to the left of and turned ``psi`` from the taught pose at ``offset``
+    (relative to a taught view), relative to that view."""
     ahead, left, turn = offset
-    return ahead - math.sin(turn) * dy, left + math.cos(turn) * dy, turn + psi
+    c, s = math.cos(turn), math.sin(turn)
+    return ahead + c * dx - s * dy, left + s * dx + c * dy, turn + psi
 
 
 class ObstructionDetector:
@@ -320,7 +322,7 @@ class ObstructionDetector:
         band = self._band(k)
         warps = [offset]
         side = self._side() if self._side is not None else None
-        if side is not None:  # the robot is beside the taught pose: the floor as it looks from there
+        if side is not None:  # where the floor puts the robot, beside and along: the floor from there
             warps.append(beside(offset, *side))
         best_known = warps[-1]
         # the localiser places the robot up to a subgoal or two off along the route: the floor from there
@@ -358,10 +360,10 @@ class ObstructionDetector:
         self, view: np.ndarray, position: float, moved: bool, side: SideFn | None = None
     ) -> ObstructionVerdict:
         """Judge one view (see :meth:`scores`); ``moved``: the robot was commanded to move (forward or
-        turning, :func:`moving`) since the last view; ``side``: where the floor puts the robot beside the
-        taught pose at ``position`` (``(dy, psi)``: metres to the left, radians turned left; None where it
-        does not tell), asked once, only when some tiles match no taught view at the taught pose: the
-        taught floor warped to that pose too lines up with the floor where the robot truly is (a robot
+        turning, :func:`moving`) since the last view; ``side``: where the floor puts the robot against the
+        taught pose at ``position`` (``(dy, psi, dx)``: metres to the left, radians turned left, metres
+        ahead; None where it does not tell), asked once, only when some tiles match no taught view at the
+        taught pose: the taught floor warped to that pose too lines up with the floor where the robot truly is (a robot
         10 cm beside the path sees the floor 0.3 m ahead 10 pooled pixels across, past the shifts)."""
         self._side = once(side) if side is not None else None
         try:
