@@ -76,9 +76,9 @@ if TYPE_CHECKING:
 
 #: Commands under these (m/s, rad/s) count as the policy standing still at the end of the route.
 IDLE_SPEED, IDLE_TURN = 0.01, 0.02
-#: A view nearer the last subgoal's than the view before by more than this is still approaching it, and ends
-#: the run only once the estimate leaves half a control step of the route or less: not the first view under
-#: the threshold (dev house random:950 ended 37 mm short while each view still came nearer; 3 mm so).
+#: A view nearer the last subgoal's than the view before by more than this (the first near the end counts as
+#: nearer) is still approaching it, and ends the run only once the estimate leaves half a control step or
+#: less: not the first view under the threshold (dev random:950: 37 mm short while views came nearer; 3 mm).
 APPROACH_MARGIN = 0.005
 
 
@@ -302,7 +302,7 @@ class Follower:
         if self.obstruction is None:
             return None
         moved, self._moved = self._moved, False
-        side: SideFn | None = None if floor_side is None else lambda: _dy_psi(floor_side())
+        side: SideFn | None = None if floor_side is None else lambda: _floor_pose(floor_side())
         verdict = self.obstructed = self.obstruction.update(image, est.position, moved, side)
         if not verdict.blocked:
             return None
@@ -381,7 +381,7 @@ class Follower:
         )
 
 
-def _dy_psi(found: SideEstimate | None) -> tuple[float, float, float] | None:
+def _floor_pose(found: SideEstimate | None) -> tuple[float, float, float] | None:
     return None if found is None else (found.dy, found.psi, found.dx)
 
 

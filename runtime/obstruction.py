@@ -363,8 +363,9 @@ class ObstructionDetector:
         turning, :func:`moving`) since the last view; ``side``: where the floor puts the robot against the
         taught pose at ``position`` (``(dy, psi, dx)``: metres to the left, radians turned left, metres
         ahead; None where it does not tell), asked once, only when some tiles match no taught view at the
-        taught pose: the taught floor warped to that pose too lines up with the floor where the robot truly is (a robot
-        10 cm beside the path sees the floor 0.3 m ahead 10 pooled pixels across, past the shifts)."""
+        taught pose: the taught floor warped to that pose too lines up with the floor where the robot truly
+        is (a robot 10 cm beside the path sees the floor 0.3 m ahead 10 pooled pixels across, past the
+        shifts)."""
         self._side = once(side) if side is not None else None
         try:
             share, hidden = self.shares(self.scores(view, position))
