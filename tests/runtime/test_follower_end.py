@@ -354,10 +354,8 @@ def test_the_view_ends_a_run_at_the_bottom_of_its_approach_not_at_its_first_view
     """Dev house random:950 ended 37 mm short of its end: the first view under the last subgoal's threshold
     ended the run while each view still came nearer. Ended at its first such view (the margin infinite), this
     robot stops 2-3 cm short; at the bottom of its approach, within a step of the end."""
-    import vtr.runtime.follower as follower_module
-
     action, x = _approach(step_m)
     assert action is Action.FINISHED and abs(x - END) <= step_m + 1e-9
-    monkeypatch.setattr(follower_module, "APPROACH_MARGIN", float("inf"))
+    monkeypatch.setattr("vtr.runtime.follower.APPROACH_MARGIN", float("inf"))
     action, x = _approach(step_m)
     assert action is Action.FINISHED and END - x >= 0.02 - 1e-9
