@@ -15,12 +15,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from vtr.runtime.progress_watch import END_ZONE_GAPS, route_left, taught_translation
+from vtr.runtime.progress_watch import END_ZONE_GAPS, PAST_END_M, route_left, taught_translation
 from vtr.runtime.side_offset import SideOffset
 
 #: The least distance (m) past the last pose the registration searches: a robot a control step past it at
-#: 0.45 m/s and 0.1 s (the fastest taught segments) is 4.5 cm on.
-PAST_M = 0.05
+#: 0.45 m/s and 0.1 s (the fastest taught segments) is 4.5 cm on; the follower lets no robot drive further
+#: past the end without the views following (``progress_watch.PAST_END_M``).
+PAST_M = PAST_END_M
 
 
 class FloorArrival:

@@ -59,7 +59,7 @@ from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
 from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionVerdict, SideFn, moving
 from vtr.runtime.pivot import PivotArrival
-from vtr.runtime.progress_watch import EndWatch, ProgressWatch
+from vtr.runtime.progress_watch import EndWatch, ProgressWatch, taught_translation
 from vtr.runtime.route_sensing import (
     FloorSide,
     floor_camera,
@@ -138,7 +138,7 @@ class Follower:
         self._lost_count, self._lost_best = 0, math.inf
         window = self.cfg.localiser.window_behind + self.cfg.localiser.window_ahead
         #: images and commanded translation since the last evidence of where the robot is (``_stalled``)
-        self.progress = ProgressWatch(window * self._steps)
+        self.progress = ProgressWatch(window * self._steps, taught_translation(motion))
         self.end = EndWatch(self.localiser.travelled, motion, self._held)  # the end by travel (a turn's too)
         self.arrival = FloorArrival.of(self._floor_side, motion, self._held)  # the end by the floor
         self.pivot = PivotArrival(self._floor_side, motion, self._held)  # a turn in place's start by it

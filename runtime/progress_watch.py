@@ -29,14 +29,24 @@ PROGRESS_GAPS = 0.25
 #: finished went at most 15 images so, one 108 (moved furniture, closing in on the end); runs that never would
 #: finish 220-734, until the step limit (``benchmarks/results/ending_s5.md``).
 STALL_WINDOWS = 8.0
+#: How far past the last taught pose the end's evidence still reaches (m): the floor registration searches
+#: this far past it (runtime.arrival.PAST_M, which takes it from here).
+PAST_END_M = 0.05
 
 
 class ProgressWatch:
     """Counts images and commanded translation since the last evidence of where the robot is."""
 
-    def __init__(self, window_images: float) -> None:
-        """``window_images``: the images the teach took for the localiser's window."""
+    def __init__(self, window_images: float, route_m: np.ndarray | None = None) -> None:
+        """``window_images``: the images the teach took for the localiser's window; ``route_m``: (L,) the
+        taught translation from the first subgoal to each (:func:`taught_translation`): near the end no more
+        than the route has left may be driven without progress (:meth:`judge`)."""
         self.stall_images = max(1, int(round(STALL_WINDOWS * window_images)))
+        self.route_m = None if route_m is None else np.asarray(route_m, dtype=np.float64)
+        steps = np.diff(self.route_m) if self.route_m is not None else np.zeros(0)
+        #: a gap's taught translation (the median of those that drive): the estimate's lag behind a robot
+        #: driving past the end is about half of one (``EndWatch``)
+        self.gap_m = float(np.median(steps[steps > 1e-6])) if (steps > 1e-6).any() else 0.0
         self.reset()
 
     def reset(self) -> None:
@@ -64,6 +74,16 @@ class ProgressWatch:
             return (
                 f"no progress past {self.reach:.2f} over {self.travel:.2f} m driven (the window spans "
                 f"{window_m:.2f} m)"
+            )
+        # nor past the route's end: what is left of the route from the furthest the views placed the robot, a
+        # gap for the estimate's lag and the reach of the end's floor registration past the last pose
+        # (runtime.arrival.PAST_M) is all that can be driven without the views following
+        known = self.route_m is not None and math.isfinite(self.reach)
+        left = route_left(self.route_m, self.reach) if known else math.inf  # type: ignore[arg-type]
+        if self.travel > left + self.gap_m + PAST_END_M:
+            return (
+                f"no progress past {self.reach:.2f} over {self.travel:.2f} m driven (the route had {left:.2f} m "
+                "left)"
             )
         return None
 

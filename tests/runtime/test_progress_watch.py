@@ -57,6 +57,31 @@ def test_a_matching_view_lets_the_robot_stand_but_not_drive_on_without_progress(
     assert notes[:10] == [None] * 10 and notes[10] is not None and "0.55 m driven" in notes[10]
 
 
+def test_no_more_than_the_route_has_left_is_driven_without_progress():
+    """Dev house random:935 at a 80 deg / 0.45 m camera: the robot passed 2 mm from the last pose with the view
+    1.4 thresholds off, the estimate held 1.1-1.3 gaps short, and the robot drove on 0.27 m into a wall
+    (`collided`), well inside the window's 0.25 m of driving without progress. Past the route's end there is
+    nothing the views can follow: what the route has left from the furthest the views placed the robot,
+    a gap for the estimate's lag and the 5 cm past the end the floor registration still searches
+    (``PAST_END_M``) is all it may drive so."""
+    route_m = np.array([0.0, 0.05, 0.1, 0.15, 0.2])  # 5 cm gaps, the last subgoal at 4
+    for end_cap, expect_after in ((False, 6), (True, 3)):
+        watch = ProgressWatch(100.0, route_m if end_cap else None)
+        assert watch.judge(3.0, matched=False, window_m=0.25) is None  # 0.05 m of route left from here
+        notes = []
+        for _ in range(8):
+            watch.commanded(0.4, 0.1)  # 4 cm a step, the estimate held
+            notes.append(watch.judge(3.0, matched=False, window_m=0.25))
+        fired = next(i for i, n in enumerate(notes) if n is not None) if any(notes) else None
+        assert fired == expect_after  # the window: 0.28 m driven; the end: 0.16 m, past 0.05 + 0.05 + 0.05
+    assert notes[3] == "no progress past 3.00 over 0.16 m driven (the route had 0.05 m left)"
+    # mid-route the window decides, as before
+    watch = ProgressWatch(100.0, np.arange(0.0, 2.0, 0.05))
+    watch.judge(3.0, matched=False, window_m=0.25)
+    watch.commanded(0.24, 1.0)
+    assert watch.judge(3.0, matched=False, window_m=0.25) is None
+
+
 def test_a_match_back_along_the_route_measures_progress_from_there():
     watch = ProgressWatch(100.0)
     watch.judge(5.0, matched=False, window_m=0.5)
