@@ -9,7 +9,10 @@ drive: past the taught travel across the localiser's window, a robot that had mo
 have left every view the localiser compares with (held-out set 14, gen_1514: a fine-tuned model drove 1.9 m
 at 0.25 m/s from near the route's end into a wall, its view 2.5-3x the threshold off, the estimate held at 46
 of 49; the example room's arc with the floor model crept on 10 cm past the end, its view matching the
-last-but-one subgoal at every image). Turning in place does not count: it sweeps no new floor, and robots
+last-but-one subgoal at every image), and near the end past what the route had left: there is nothing past
+the end for the views to follow (dev house random:935 at an 80 deg / 0.45 m camera: the robot passed 2 mm from
+the last pose, the estimate held 1.2 gaps short, and it drove 0.27 m on into a wall within one window's
+travel). Turning in place does not count: it sweeps no new floor, and robots
 that turned a full circle looking for the view found it and finished (dev gen_109, gen_113: 0.0-0.02 m
 driven in 100 images without evidence; the dev runs that touched something drove 1.1-1.2 windows' travel
 blind).
