@@ -2,6 +2,7 @@
 
     vtr export --checkpoint runs/default/velocitynet/model.pt --out models/velocitynet.onnx --force \
         [--int8 --data data/house.npz] [--viewnet runs/default/viewnet/model.pt --viewnet-out models/viewnet.onnx]
+        [--camera-range 65-105,0.2-0.45]
 
 The int8 model goes next to the fp32 one as ``<name>-int8.onnx``; it needs --data for calibration frames.
 ``--out`` is required and an existing file (fp32, int8 or ViewNet) is replaced only with ``--force``: an
@@ -21,6 +22,7 @@ from typing import Any
 from vtr.models import int8_path
 from vtr.runtime.cliargs import add_config_arguments, config_from_args, opt
 from vtr.runtime.contracts import CONTROL_DT
+from vtr.runtime.model_meta import CameraRange
 
 
 @dataclass
@@ -37,6 +39,11 @@ class ExportConfig:
     viewnet_out: str | None = opt(None, "where the ViewNet ONNX goes (default: viewnet.onnx next to --out)")
     dt: float | None = opt(None, "seconds each command lasts, for a checkpoint whose dataset records no dt")
     force: bool = opt(False, "replace output files that exist (without it they are refused)")
+    camera_range: str | None = opt(
+        None,
+        "the robot cameras the model takes, FOV0-FOV1,H0-H1 (deg, m), where measured on held-out routes "
+        "(default: the training data's range, or its one camera within 2 deg / 2 cm)",
+    )
 
     def __post_init__(self) -> None:
         if self.opset < 13:
@@ -49,6 +56,8 @@ class ExportConfig:
             raise ValueError(f"ExportConfig.calibration_pairs must be >= 1, got {self.calibration_pairs}")
         if self.dt is not None and not (math.isfinite(self.dt) and self.dt > 0):
             raise ValueError(f"--dt must be a positive number of seconds, got {self.dt!r}")
+        if self.camera_range is not None:
+            CameraRange.parse(self.camera_range)  # checked where it enters: one line, exit 2
 
 
 def model_dt(data_meta: dict[str, Any], given: float | None) -> float:
@@ -99,7 +108,10 @@ def run(cfg: ExportConfig, data: Any = None) -> dict[str, Any]:
         )
     data_meta = ckpt.get("data_meta") or {}
     dt = model_dt(data_meta, cfg.dt)
-    meta = velocitynet_meta(model.cfg, dt=dt, **camera_of(data_meta))
+    camera = camera_of(data_meta)
+    if cfg.camera_range is not None:  # measured: it replaces the data's range, the nominal camera stays
+        camera.update(CameraRange.parse(cfg.camera_range).props())
+    meta = velocitynet_meta(model.cfg, dt=dt, **camera)
     real = None
     if cfg.data and data is None:
         data = load_dataset(cfg.data, image_size=model.cfg.image_size)

@@ -137,3 +137,30 @@ def camera_of(data_meta: Mapping[str, Any]) -> dict[str, float]:
         else:
             out["camera_fov_deg"], out["camera_height_m"] = pairs[0]
     return out
+
+
+def stamp_camera_range(path: Path, rng: CameraRange) -> list[Path]:
+    """Record ``rng`` as the cameras an exported model takes (runtime.model_meta.CameraRange), in ``path`` and
+    its int8 twin beside it where there is one, nothing else changed: for a model measured on held-out
+    routes after its export (the shipped model's range, models/training-summary.json). Returns the files
+    written (each atomically)."""
+    import onnx
+
+    from vtr.models import int8_path
+    from vtr.runtime.atomic import write_bytes_atomic
+    from vtr.runtime.model_meta import ModelMeta
+
+    written = []
+    for file in (Path(path), int8_path(Path(path))):
+        if file != Path(path) and not file.exists():
+            continue
+        proto = onnx.load(str(file))
+        props = {p.key: p.value for p in proto.metadata_props}
+        props.update({PREFIX + k: str(v) for k, v in rng.props().items()})
+        ModelMeta.from_props(props)  # still a model the runtime reads
+        del proto.metadata_props[:]
+        for key, value in props.items():
+            proto.metadata_props.add(key=key, value=value)
+        write_bytes_atomic(file, proto.SerializeToString())
+        written.append(file)
+    return written

@@ -312,9 +312,10 @@ def route_camera(camera: Any) -> CameraSpec | None:
 
 
 def check_camera_range(robot: CameraSpec, model: Any, via: str = "") -> list[str]:
-    """A model trained across cameras (``model.camera_range``, runtime.model_meta) takes a robot whose field
-    of view and height lie inside that range (widened by the tolerances above); outside it, or with an image
-    size it was not made for, CameraMismatchError in one line naming the range and the fine-tune command."""
+    """A model with a camera range (``model.camera_range``, runtime.model_meta: trained across it, or measured
+    to work in it) takes a robot whose field of view and height lie inside that range (widened by the
+    tolerances above); outside it, or with an image size it was not made for, CameraMismatchError in one line
+    naming the range and the fine-tune command."""
     rng = model.camera_range
     _check_size(robot, "model", model.image_width, model.image_height)
     notes = []
@@ -326,7 +327,7 @@ def check_camera_range(robot: CameraSpec, model: Any, via: str = "") -> list[str
             notes.append(f"{label} of the robot unknown; not compared with the model's range ({rng})")
         elif not lo - tol <= value <= hi + tol:
             raise CameraMismatchError(
-                f"the robot's {label} is {value:.4g}{unit}{via}, outside the range the model was trained on ({rng}); "
+                f"the robot's {label} is {value:.4g}{unit}{via}, outside the cameras the model takes ({rng}); "
                 f"{FINE_TUNE_HINT}"
             )
     return notes

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 from vtr.runtime.contracts import CAMERA, CONTROL_DT, V_MAX, W_MAX, CameraSpec
@@ -32,7 +33,9 @@ OUTPUT_VELOCITIES = "velocities"  # (B, 2, N): row 0 = v (m/s), row 1 = w (rad/s
 
 @dataclass(frozen=True)
 class CameraRange:
-    """Fields of view (deg) and heights (m) a model was trained across, each (min, max)."""
+    """Fields of view (deg) and heights (m) of the robot cameras a model takes, each (min, max): the range its
+    training data spans (export/provenance.camera_of), or one it was measured to work in on held-out routes
+    (`vtr export --camera-range`; the shipped model's, models/training-summary.json)."""
 
     fov_deg: tuple[float, float]
     height_m: tuple[float, float]
@@ -49,6 +52,24 @@ class CameraRange:
             "camera_height_min_m": self.height_m[0],
             "camera_height_max_m": self.height_m[1],
         }
+
+    @classmethod
+    def parse(cls, text: str) -> CameraRange:
+        """``FOV0-FOV1,H0-H1`` (deg, m: ``65-120,0.2-0.45``); ValueError in one line naming the text."""
+        parts = [part.split("-") for part in text.split(",")]
+        try:
+            if len(parts) != 2 or any(len(part) != 2 for part in parts):
+                raise ValueError
+            (f0, f1), (h0, h1) = ((float(a), float(b)) for a, b in parts)
+        except ValueError:
+            raise ValueError(
+                f"camera range {text!r} is not FOV0-FOV1,H0-H1 (deg, m), e.g. 65-120,0.2-0.45"
+            ) from None
+        if not (0 < f0 <= f1 < 180 and 0 < h0 <= h1 and math.isfinite(h1)):
+            raise ValueError(
+                f"camera range {text!r}: needs 0 < fov min <= max < 180 deg and 0 < height min <= max m"
+            )
+        return cls((f0, f1), (h0, h1))
 
     @classmethod
     def of(cls, cameras: list[tuple[float, float]]) -> CameraRange:
@@ -72,8 +93,9 @@ class ModelMeta:
     #: The camera the training images came from (None: not recorded, as in models exported before it was).
     camera_fov_deg: float | None = CAMERA.fov_deg  # degrees, horizontal
     camera_height_m: float | None = CAMERA.height_m  # metres above the floor
-    #: The range of cameras the training images came from, for a model trained across cameras (None: one
-    #: camera, the one above; such a model keeps the 2 deg / 2 cm rule of runtime.hello).
+    #: The range of robot cameras the model takes (CameraRange): the training images', for a model trained
+    #: across cameras, or one measured on held-out routes (None: the camera above only, within the 2 deg /
+    #: 2 cm rule of runtime.hello).
     camera_fov_min_deg: float | None = None
     camera_fov_max_deg: float | None = None
     camera_height_min_m: float | None = None
@@ -86,8 +108,8 @@ class ModelMeta:
 
     @property
     def camera_range(self) -> CameraRange | None:
-        """The cameras the model was trained across (None: a model of one camera, or one exported before
-        ranges were recorded)."""
+        """The robot cameras the model takes (None: its one camera only, or exported before ranges were
+        recorded)."""
         bounds = (
             self.camera_fov_min_deg,
             self.camera_fov_max_deg,

@@ -233,3 +233,49 @@ def test_the_model_dt_is_the_datasets_or_given_or_the_control_step_said_aloud(
     assert model_dt({}, 0.05) == 0.05 and capsys.readouterr().err == ""
     assert model_dt({}, None) == 0.1
     assert "pass --dt" in capsys.readouterr().err
+
+
+def test_a_measured_camera_range_is_recorded_at_export_or_stamped_after(
+    exported: tuple[Path, VelocityNet, dict], tmp_path: Path
+) -> None:
+    """`vtr export --camera-range` writes the range the model was measured to work in; a model measured after
+    its export gets it stamped (fp32 and int8 twin), its graph and outputs untouched."""
+    import shutil
+
+    from vtr.export.provenance import stamp_camera_range
+    from vtr.runtime.model_meta import CameraRange
+
+    def meta(p: Path) -> ModelMeta:
+        return ModelMeta.from_props({q.key: q.value for q in onnx.load(p).metadata_props})
+
+    rng = CameraRange((65.0, 105.0), (0.2, 0.45))
+    path = tmp_path / "velocitynet.onnx"
+    shutil.copy(exported[0], path)
+    data = synthetic_dataset(frames=60, size=SIZE, episodes=3, seed=2)
+    quantize_int8(path, int8_path(path), *calibration_pairs(data.images, data.episodes, count=8, seed=0))
+    feeds = {
+        INPUT_CURRENT: np.random.default_rng(1).random((2, 3, SIZE, SIZE), dtype=np.float32),
+        INPUT_SUBGOAL: np.random.default_rng(2).random((2, 3, SIZE, SIZE), dtype=np.float32),
+    }
+    before = {p: ort.InferenceSession(str(p)).run(None, feeds)[0] for p in (path, int8_path(path))}
+    assert meta(path).camera_range is None
+    assert stamp_camera_range(path, rng) == [path, int8_path(path)]
+    for p, out in before.items():
+        assert meta(p).camera_range == rng and meta(p).camera_fov_deg == meta(exported[0]).camera_fov_deg
+        assert np.array_equal(ort.InferenceSession(str(p)).run(None, feeds)[0], out)
+    with pytest.raises(ValueError, match="is not FOV0-FOV1,H0-H1"):
+        ExportConfig(checkpoint="x.pt", out="y.onnx", camera_range="65,0.3")
+    net = _velocitynet()
+    ckpt = tmp_path / "velocitynet.pt"
+    save_checkpoint(
+        {
+            "kind": "velocitynet",
+            "model_config": to_dict(net.cfg),
+            "state_dict": net.state_dict(),
+            "data_meta": {"dt": 0.1},
+        },
+        ckpt,
+    )
+    out = tmp_path / "ranged.onnx"
+    export_run(ExportConfig(checkpoint=str(ckpt), out=str(out), camera_range="65-105,0.2-0.45"))
+    assert meta(out).camera_range == rng and meta(out).camera_fov_deg == 90.0

@@ -49,7 +49,7 @@ def test_a_model_trained_across_cameras_takes_any_crop_inside_its_range():
     wide, _ = fit_robot(_hello(640, 480, 170.0), None, meta)  # 161 deg after the square crop: narrowed
     assert wide.narrowed and wide.seen_fov_deg == pytest.approx(120.0)
     assert "wider than the model sees (120 deg)" in mapping_notes(wide)[0]
-    with pytest.raises(CameraMismatchError, match="outside the range the model was trained on"):
+    with pytest.raises(CameraMismatchError, match="outside the cameras the model takes"):
         fit_robot(_hello(160, 120, 60.0), None, meta)  # 47 deg after the crop
     with pytest.raises(CameraMismatchError, match="camera height is 0.7 m"):
         fit_robot(_hello(160, 120, 90.0, 0.7), None, meta)

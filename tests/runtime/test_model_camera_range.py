@@ -95,3 +95,19 @@ def test_export_writes_the_range_the_data_spans():
     assert ModelMeta(**many).camera_range == CameraRange((65.0, 105.0), (0.2, 0.5))
     with pytest.raises(ValueError, match="pairs"):
         camera_of({"cameras": [["x"]]})
+
+
+def test_a_range_is_read_from_text_or_refused_in_one_line():
+    assert CameraRange.parse("65-105,0.2-0.45") == CameraRange((65.0, 105.0), (0.2, 0.45))
+    for bad in (
+        "65-105",
+        "65,0.2",
+        "a-b,0.2-0.4",
+        "105-65,0.2-0.4",
+        "65-200,0.2-0.4",
+        "65-105,0.2-nan",
+        "65-105,0-0.4",
+    ):
+        with pytest.raises(ValueError) as err:
+            CameraRange.parse(bad)
+        assert repr(bad) in str(err.value) and "\n" not in str(err.value)
