@@ -55,7 +55,8 @@ from vtr.runtime.settings import BY_NAME, default
 from vtr.runtime.settings_cli import add_arguments as add_settings
 from vtr.runtime.settings_cli import from_text, resolve
 
-#: The shipped model's input and camera (its metadata's defaults), which the image check maps the robot's to.
+#: The shipped model's input and camera (its metadata's defaults), which the image check maps the robot's to
+#: where no --model names the model the robot will run.
 SHIPPED = ModelMeta()
 
 
@@ -174,13 +175,14 @@ def check_image(ctx: Context) -> tuple[str, str]:
     text = f"{width}x{height} rgb8, mean {image.mean():.0f}, std {image.std():.0f}"
     announced = ctx.hello is not None and "camera" not in ctx.hello_problems
     camera = ctx.hello.camera if announced else CameraSpec(width, height, None, None)  # type: ignore[union-attr]
+    which = "the shipped model" if ctx.model is None else "the model"
     try:
-        mapping, _ = fit_model(camera, SHIPPED)
+        mapping, notes = fit_model(camera, ctx.model or SHIPPED)
     except (CameraMismatchError, ValueError) as exc:
-        return WARN, f"{text}; the shipped model cannot take this camera: {exc}"
+        return WARN, f"{text}; {which} cannot take this camera: {exc}"
     if mapping.identity:
-        return PASS, f"{text}, the shipped model's input as it is"
-    return PASS, f"{text}; for the shipped model: {mapping.narrowing() or mapping.describe()}"
+        return PASS, "; ".join([f"{text}, {which}'s input as it is", *notes])
+    return PASS, "; ".join([f"{text}; for {which}: {mapping.narrowing() or mapping.describe()}", *notes])
 
 
 def check_scan(ctx: Context) -> tuple[str, str]:
@@ -287,10 +289,13 @@ def run_checks(
     endpoint: str,
     timeout_s: float = default("check-robot.timeout"),
     budget_s: float = default("check-robot.budget"),
+    model: ModelMeta | None = None,
 ) -> list[CheckResult]:
-    """Run every check against ``endpoint``; never raises for a misbehaving robot, never hangs."""
+    """Run every check against ``endpoint``; never raises for a misbehaving robot, never hangs. ``model``: the
+    metadata of the model the robot will run, whose cameras the image check compares with (None: the shipped
+    model's camera)."""
     link = Link(endpoint, timeout_s)
-    ctx = Context(link)
+    ctx = Context(link, model=model)
     results: list[CheckResult] = []
     passed: set[str] = set()
     deadline = time.monotonic() + budget_s
@@ -340,7 +345,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=argparse.SUPPRESS,
         help="the robot's endpoint, e.g. tcp://127.0.0.1:5555 (or address in the config file's [robot])",
     )
-    add_settings(parser, "check-robot", skip=("robot.address",))  # --config, --timeout, --budget
+    add_settings(parser, "check-robot", skip=("robot.address",))  # --config, --model, --timeout, --budget
     parser.add_argument("--json", default=None, help="also write the results to this JSON file")
 
 
@@ -354,8 +359,17 @@ def run_cli(args: argparse.Namespace) -> int:
     if addr is REQUIRED:
         print("vtr check-robot: needs ADDR (or address in the config file's [robot])", file=sys.stderr)
         return 2
+    model = None
+    if settings["repeat.model"] is not REQUIRED:
+        from vtr.runtime.policy import ModelMismatchError, OnnxPolicy
+
+        try:
+            model = OnnxPolicy(settings["repeat.model"]).meta
+        except (OSError, ValueError, ModelMismatchError) as exc:
+            print(f"vtr check-robot: --model {settings['repeat.model']}: {exc}", file=sys.stderr)
+            return 2
     t0 = time.monotonic()
-    results = run_checks(addr, settings["check-robot.timeout"], settings["check-robot.budget"])
+    results = run_checks(addr, settings["check-robot.timeout"], settings["check-robot.budget"], model)
     print(format_report(addr, results, time.monotonic() - t0))
     if args.json:
         from vtr.runtime.atomic import write_text_atomic

@@ -98,10 +98,12 @@ SETTINGS: tuple[Setting, ...] = (
         "repeat",
         "model",
         str,
-        "VelocityNet ONNX file",
+        "VelocityNet ONNX file (check-robot: the model whose cameras the image check compares with; without it, "
+        "the shipped model's camera)",
         path=True,
         metavar="PATH",
-        goes="RepeatRunConfig.model",
+        commands=("repeat", "check-robot"),
+        goes="RepeatRunConfig.model, check-robot's image check",
     ),
     Setting(
         "repeat",

@@ -97,6 +97,7 @@ CASES = {
     "eval: unknown route": (["eval", "--routes", "nowhere", "--quick"], "nowhere"),
     "eval: garbage route file": (["eval", "--routes", "{garbage.json}", "--quick"], "garbage.json"),
     "eval: garbage model": (["eval", "--model", "{garbage.onnx}", "--quick"], "garbage.onnx"),
+    "check-robot: garbage model": (["check-robot", NO_SERVER, "--model", "{garbage.onnx}"], "garbage.onnx"),
     "eval: noise 2": (["eval", "--noise", "2", "--quick"], "noise"),
     "bench latency: garbage model": (["bench", "latency", "--model", "{garbage.onnx}"], "garbage.onnx"),
     "bench latency: missing model": (["bench", "latency", "--model", "{tmp}/missing.onnx"], "missing.onnx"),

@@ -177,3 +177,20 @@ def test_the_image_check_reports_how_the_camera_maps_to_the_shipped_model(size, 
         found = {r.name: r for r in run_checks(server.endpoint, timeout_s=2.0)}
     image = found["image"]
     assert image.status == status and says in image.detail, image.detail
+
+
+def test_the_image_check_compares_with_the_model_the_robot_will_run() -> None:
+    """An 87 deg camera at 0.45 m is refused by the shipped model's one camera (2 deg / 2 cm) and taken by a
+    model whose metadata gives a range it lies in (runtime.model_meta.CameraRange): `vtr check-robot --model`
+    says what `vtr repeat --model` will do."""
+    from vtr.runtime.model_meta import CameraRange, ModelMeta
+    from vtr.sim2d.config import camera_config
+
+    ranged = ModelMeta(**CameraRange((85.0, 110.0), (0.2, 0.55)).props())
+    sim = Simulator(SimConfig(camera=camera_config(128, 128, (87.0, 0.45))))
+    sim.reset()
+    with ServerThread(sim, ServerConfig(bind="tcp://127.0.0.1:*", scan=False)) as server:
+        shipped = {r.name: r for r in run_checks(server.endpoint, timeout_s=2.0)}["image"]
+        model = {r.name: r for r in run_checks(server.endpoint, timeout_s=2.0, model=ranged)}["image"]
+    assert shipped.status == WARN and "the shipped model cannot take this camera" in shipped.detail
+    assert model.status == PASS and "the model's input as it is" in model.detail, model.detail
