@@ -55,9 +55,10 @@ from vtr.runtime.settings import BY_NAME, default
 from vtr.runtime.settings_cli import add_arguments as add_settings
 from vtr.runtime.settings_cli import from_text, resolve
 
-#: The shipped model's input and camera (its metadata's defaults), which the image check maps the robot's to
-#: where no --model names the model the robot will run.
-SHIPPED = ModelMeta()
+#: The metadata's defaults (the input and camera the shipped model was trained at), which the image check maps
+#: the robot's camera to where no --model names the model the robot will run (the runtime does not look for
+#: the shipped file, whose camera range may be wider: models/training-summary.json).
+TRAINED = ModelMeta()
 
 
 @dataclass
@@ -175,11 +176,12 @@ def check_image(ctx: Context) -> tuple[str, str]:
     text = f"{width}x{height} rgb8, mean {image.mean():.0f}, std {image.std():.0f}"
     announced = ctx.hello is not None and "camera" not in ctx.hello_problems
     camera = ctx.hello.camera if announced else CameraSpec(width, height, None, None)  # type: ignore[union-attr]
-    which = "the shipped model" if ctx.model is None else "the model"
+    which = "a model of the 90 deg / 0.30 m camera" if ctx.model is None else "the model"
     try:
-        mapping, notes = fit_model(camera, ctx.model or SHIPPED)
+        mapping, notes = fit_model(camera, ctx.model or TRAINED)
     except (CameraMismatchError, ValueError) as exc:
-        return WARN, f"{text}; {which} cannot take this camera: {exc}"
+        hint = "; pass --model to check with the model the robot will run" if ctx.model is None else ""
+        return WARN, f"{text}; {which} cannot take this camera: {exc}{hint}"
     if mapping.identity:
         return PASS, "; ".join([f"{text}, {which}'s input as it is", *notes])
     return PASS, "; ".join([f"{text}; for {which}: {mapping.narrowing() or mapping.describe()}", *notes])

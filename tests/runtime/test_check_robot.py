@@ -152,7 +152,7 @@ def test_a_bridge_written_for_the_first_protocol_text_passes_with_warnings(simul
             (160, 120),
             106.26,
             PASS,
-            "for the shipped model: camera 160x120 of 106.3 deg: the centre 120x120 -> ",
+            "for a model of the 90 deg / 0.30 m camera: camera 160x120 of 106.3 deg: the centre 120x120 -> ",
         ),
         (
             (640, 480),
@@ -164,11 +164,11 @@ def test_a_bridge_written_for_the_first_protocol_text_passes_with_warnings(simul
             (160, 120),
             90.0,
             WARN,
-            "the shipped model cannot take this camera: the robot's field of view is 73.74",
+            "a model of the 90 deg / 0.30 m camera cannot take this camera: the robot's field of view is 73.74",
         ),
     ],
 )
-def test_the_image_check_reports_how_the_camera_maps_to_the_shipped_model(size, fov, status, says) -> None:
+def test_the_image_check_reports_how_the_camera_maps_to_the_trained_camera(size, fov, status, says) -> None:
     from vtr.sim2d.config import camera_config
 
     sim = Simulator(SimConfig(camera=camera_config(*size, (fov, 0.3))))
@@ -180,9 +180,9 @@ def test_the_image_check_reports_how_the_camera_maps_to_the_shipped_model(size, 
 
 
 def test_the_image_check_compares_with_the_model_the_robot_will_run() -> None:
-    """An 87 deg camera at 0.45 m is refused by the shipped model's one camera (2 deg / 2 cm) and taken by a
-    model whose metadata gives a range it lies in (runtime.model_meta.CameraRange): `vtr check-robot --model`
-    says what `vtr repeat --model` will do."""
+    """An 87 deg camera at 0.45 m is refused by a model of the trained camera alone (2 deg / 2 cm) and taken by
+    a model whose metadata gives a range it lies in (runtime.model_meta.CameraRange, as the shipped one's does):
+    `vtr check-robot --model` says what `vtr repeat --model` will do."""
     from vtr.runtime.model_meta import CameraRange, ModelMeta
     from vtr.sim2d.config import camera_config
 
@@ -192,5 +192,6 @@ def test_the_image_check_compares_with_the_model_the_robot_will_run() -> None:
     with ServerThread(sim, ServerConfig(bind="tcp://127.0.0.1:*", scan=False)) as server:
         shipped = {r.name: r for r in run_checks(server.endpoint, timeout_s=2.0)}["image"]
         model = {r.name: r for r in run_checks(server.endpoint, timeout_s=2.0, model=ranged)}["image"]
-    assert shipped.status == WARN and "the shipped model cannot take this camera" in shipped.detail
+    assert shipped.status == WARN and "90 deg / 0.30 m camera cannot take this camera" in shipped.detail
+    assert shipped.detail.endswith("pass --model to check with the model the robot will run")
     assert model.status == PASS and "the model's input as it is" in model.detail, model.detail
