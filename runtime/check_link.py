@@ -169,7 +169,7 @@ class Context:
     resets: bool = False
     image: np.ndarray | None = None  # the last image seen
     noise_floor: float = 0.0  # mean abs difference between two frames of a robot at rest
-    model: Any = None  # the ModelMeta the image check compares the camera with (None: the shipped model's)
+    model: Any = None  # the ModelMeta the image check compares the camera with (None: the trained camera's)
     stamps: list[tuple[str, float]] = field(default_factory=list)  # (cmd, stamp) since the last reset
     stamp_problems: list[str] = field(default_factory=list)
 

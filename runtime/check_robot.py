@@ -176,7 +176,8 @@ def check_image(ctx: Context) -> tuple[str, str]:
     text = f"{width}x{height} rgb8, mean {image.mean():.0f}, std {image.std():.0f}"
     announced = ctx.hello is not None and "camera" not in ctx.hello_problems
     camera = ctx.hello.camera if announced else CameraSpec(width, height, None, None)  # type: ignore[union-attr]
-    which = "a model of the 90 deg / 0.30 m camera" if ctx.model is None else "the model"
+    trained = f"a model of the {TRAINED.camera_fov_deg:g} deg / {TRAINED.camera_height_m:.2f} m camera"
+    which = trained if ctx.model is None else "the model"
     try:
         mapping, notes = fit_model(camera, ctx.model or TRAINED)
     except (CameraMismatchError, ValueError) as exc:
@@ -294,8 +295,8 @@ def run_checks(
     model: ModelMeta | None = None,
 ) -> list[CheckResult]:
     """Run every check against ``endpoint``; never raises for a misbehaving robot, never hangs. ``model``: the
-    metadata of the model the robot will run, whose cameras the image check compares with (None: the shipped
-    model's camera)."""
+    metadata of the model the robot will run, whose cameras the image check compares with (None: the camera
+    the shipped model was trained at, ``TRAINED``)."""
     link = Link(endpoint, timeout_s)
     ctx = Context(link, model=model)
     results: list[CheckResult] = []

@@ -99,7 +99,7 @@ SETTINGS: tuple[Setting, ...] = (
         "model",
         str,
         "VelocityNet ONNX file (check-robot: the model whose cameras the image check compares with; without it, "
-        "the shipped model's camera)",
+        "the camera the shipped model was trained at)",
         path=True,
         metavar="PATH",
         commands=("repeat", "check-robot"),
