@@ -80,7 +80,7 @@ class ProgressWatch:
             )
         # nor past the route's end: what is left of the route from the furthest the views placed the robot, a
         # gap for the estimate's lag and the reach of the end's floor registration past the last pose
-        # (runtime.arrival.PAST_M) is all that can be driven without the views following
+        # (PAST_END_M) is all that can be driven without the views following
         known = self.route_m is not None and math.isfinite(self.reach)
         left = route_left(self.route_m, self.reach) if known else math.inf  # type: ignore[arg-type]
         if self.travel > left + self.gap_m + PAST_END_M:

@@ -58,7 +58,7 @@ def test_a_matching_view_lets_the_robot_stand_but_not_drive_on_without_progress(
 
 
 def test_no_more_than_the_route_has_left_is_driven_without_progress():
-    """Dev house random:935 at a 80 deg / 0.45 m camera: the robot passed 2 mm from the last pose with the view
+    """Dev house random:935 at an 80 deg / 0.45 m camera: the robot passed 2 mm from the last pose with the view
     1.4 thresholds off, the estimate held 1.1-1.3 gaps short, and the robot drove on 0.27 m into a wall
     (`collided`), well inside the window's 0.25 m of driving without progress. Past the route's end there is
     nothing the views can follow: what the route has left from the furthest the views placed the robot,
