@@ -18,11 +18,6 @@ import numpy as np
 from vtr.runtime.progress_watch import END_ZONE_GAPS, PAST_END_M, route_left, taught_translation
 from vtr.runtime.side_offset import SideOffset
 
-#: The least distance (m) past the last pose the registration searches: a robot a control step past it at
-#: 0.45 m/s and 0.1 s (the fastest taught segments) is 4.5 cm on; the follower lets no robot drive further
-#: past the end without the views following (``progress_watch.PAST_END_M``).
-PAST_M = PAST_END_M
-
 
 class FloorArrival:
     """Whether the floor places the robot at the last taught pose (see the module docstring)."""
@@ -32,7 +27,7 @@ class FloorArrival:
         whether the teach turned in place into each subgoal (into the last one, the floor is not asked)."""
         self.registration = registration
         self.route_m = taught_translation(motion)
-        self.past_m = max(abs(float(motion[-1, 0])), PAST_M)
+        self.past_m = max(abs(float(motion[-1, 0])), PAST_END_M)
         self.turns_at_end = bool(held[-1])
         # the end's floor checked once, with the route: whether it tells a distance along it
         self.end_tells = registration.tells_along(len(registration.poses) - 1)
@@ -80,4 +75,4 @@ class FloorArrival:
         return self.turns_at_end or self.end_tells or route_left(self.route_m, position) <= 0.5 * abs(step_m)
 
 
-__all__ = ["PAST_M", "FloorArrival"]
+__all__ = ["FloorArrival"]

@@ -19,10 +19,9 @@ import math
 
 import numpy as np
 
-from vtr.runtime.arrival import PAST_M
 from vtr.runtime.frame import Frame
 from vtr.runtime.localiser import RouteLocaliser
-from vtr.runtime.progress_watch import taught_translation
+from vtr.runtime.progress_watch import PAST_END_M, taught_translation
 from vtr.runtime.side_offset import SideOffset
 
 #: How far short of the turn's pose the floor is searched: this many of the wider of the two gaps driven into it.
@@ -83,7 +82,7 @@ class PivotArrival:
             return None
         spacing = self.registration.along_step
         least = -0.5 * abs(step_m)
-        ahead = np.arange(-span - spacing, PAST_M + spacing / 2, spacing)
+        ahead = np.arange(-span - spacing, PAST_END_M + spacing / 2, spacing)
         # a place, not only "short": the best offset must score under every other (two or more steps from it),
         # those past the pose too (dev gen_166, moved furniture: placed 23-30 mm short, with no rival short of
         # that in the search, of a pose the robot stood 6-13 mm from)
