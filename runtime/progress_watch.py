@@ -2,7 +2,7 @@
 progressing, or, for a robot that stands, a view matching a subgoal. Without them for too long the follower
 ends the run LOST (``runtime.follower``).
 
-Too long is measured two ways, one state: images without progress or a match end a crawl (moved furniture
+Too long is measured three ways, one state: images without progress or a match end a crawl (moved furniture
 near the end: dev runs hunted back and forth 2 cm from the end, or stood 33 cm past it with the estimate half
 a gap short, until the step limit); commanded translation without progress, a view matching or not, ends a
 drive: past the taught travel across the localiser's window, a robot that had moved along the route would
@@ -15,7 +15,9 @@ the last pose, the estimate held 1.2 gaps short, and it drove 0.27 m on into a w
 travel). Turning in place does not count: it sweeps no new floor, and robots
 that turned a full circle looking for the view found it and finished (dev gen_109, gen_113: 0.0-0.02 m
 driven in 100 images without evidence; the dev runs that touched something drove 1.1-1.2 windows' travel
-blind).
+blind); and images without new ground, views matching or not, end a stand or a rocking back and forth at one
+place (``STAND_WINDOWS``): progress is the estimate passing the furthest it has been, so advancing again over
+a stretch a matching view placed the robot back on does not count twice.
 """
 
 from __future__ import annotations
@@ -32,6 +34,14 @@ PROGRESS_GAPS = 0.25
 #: finished went at most 15 images so, one 108 (moved furniture, closing in on the end); runs that never would
 #: finish 220-734, until the step limit (``benchmarks/results/ending_s5.md``).
 STALL_WINDOWS = 8.0
+#: The images a robot may go without reaching new ground along the route (``PROGRESS_GAPS`` past the furthest
+#: the estimate has been), views matching or not, in the units of ``STALL_WINDOWS``: a matching view lets a
+#: robot stand where the views place it, not stand there for ever, nor rock back and forth over a stretch it
+#: has covered (held-out house random:8046: the view matched subgoal 29 at a taught turn, the estimate held at
+#: 28.5 and the robot stood 280 images to the step limit; set 12's gen_1317 on a wall-clock robot rocked at a
+#: turn in place for 750 steps, each advance to 101 after a match placed it back at 100 counting as progress).
+#: On dev houses 900-999 runs that finished went at most 101 images so.
+STAND_WINDOWS = 16.0
 #: How far past the last taught pose the end's evidence still reaches (m): the floor registration searches at
 #: least this far past it (runtime.arrival, runtime.pivot): a robot a control step past it at 0.45 m/s and
 #: 0.1 s (the fastest taught segments) is 4.5 cm on. No robot drives further past the end without the views
@@ -47,6 +57,7 @@ class ProgressWatch:
         taught translation from the first subgoal to each (:func:`taught_translation`): near the end no more
         than the route has left may be driven without progress (:meth:`judge`)."""
         self.stall_images = max(1, int(round(STALL_WINDOWS * window_images)))
+        self.stand_images = max(1, int(round(STAND_WINDOWS * window_images)))
         self.route_m = None if route_m is None else np.asarray(route_m, dtype=np.float64)
         steps = np.diff(self.route_m) if self.route_m is not None else np.zeros(0)
         #: a gap's taught translation (the median of those that drive): the estimate's lag behind a robot
@@ -57,6 +68,10 @@ class ProgressWatch:
     def reset(self) -> None:
         """Count afresh (a new start, the robot held for something in the way)."""
         self.reach, self.since, self.travel = -math.inf, 0, 0.0
+        self.furthest, self.quiet = (
+            -math.inf,
+            0,
+        )  # new ground: the furthest the estimate reached, images since
 
     def commanded(self, v: float, dt: float) -> None:
         """The robot was commanded ``v`` (m/s, either way) for ``dt`` seconds."""
@@ -66,6 +81,12 @@ class ProgressWatch:
         """One view: ``position`` the estimate, ``matched`` whether a subgoal matched the view, ``window_m``
         the taught travel across the localiser's window there. None while evidence is recent enough, else
         what was spent without it."""
+        if position >= self.furthest + PROGRESS_GAPS:
+            self.furthest, self.quiet = position, 0
+        else:
+            self.quiet += 1
+        if self.quiet >= self.stand_images:  # matched or not: stood, or rocked over ground already covered
+            return f"no progress past {self.furthest:.2f} for {self.quiet} images, views matching or not"
         if position >= self.reach + PROGRESS_GAPS:
             self.reach, self.since, self.travel = position, 0, 0.0
             return None

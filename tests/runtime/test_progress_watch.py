@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vtr.runtime.progress_watch import PROGRESS_GAPS, STALL_WINDOWS, EndWatch, ProgressWatch
+from vtr.runtime.progress_watch import PROGRESS_GAPS, STALL_WINDOWS, STAND_WINDOWS, EndWatch, ProgressWatch
 
 
 def test_the_image_budget_is_the_window_s_images_times_stall_windows():
@@ -47,14 +47,47 @@ def test_a_matching_view_lets_the_robot_stand_but_not_drive_on_without_progress(
     where the robot is, not that driving on gets it anywhere: it resets the images, not the travel."""
     watch = ProgressWatch(2.0)
     watch.judge(3.0, matched=False, window_m=0.5)
-    for _ in range(3 * watch.stall_images):  # standing with the view matched: never out of images
+    for _ in range(
+        watch.stand_images - 1
+    ):  # standing with the view matched: past the images without evidence
         assert watch.judge(3.0, matched=True, window_m=0.5) is None
-    assert watch.since == 0
+    assert watch.since == 0 and watch.stall_images < watch.stand_images - 1
+    watch = ProgressWatch(2.0)
+    watch.judge(3.0, matched=False, window_m=0.5)
     notes = []
     for _ in range(12):
         watch.commanded(0.05, 1.0)
         notes.append(watch.judge(3.1, matched=True, window_m=0.5))
     assert notes[:10] == [None] * 10 and notes[10] is not None and "0.55 m driven" in notes[10]
+
+
+def test_a_matching_view_does_not_let_the_robot_stand_for_ever():
+    """Held-out house random:8046 (session 25): at a taught turn the view matched subgoal 29 under its
+    threshold, the estimate held at 28.5, VelocityNet commanded nothing, and the robot stood until the step
+    limit (280 images). Standing where the views place it is allowed, for ``stand_images``, not for ever."""
+    watch = ProgressWatch(2.0)
+    assert watch.stand_images == int(STAND_WINDOWS * 2.0) > watch.stall_images
+    watch.judge(28.5, matched=False, window_m=0.5)
+    notes = [watch.judge(28.5, matched=True, window_m=0.5) for _ in range(watch.stand_images)]
+    assert notes[:-1] == [None] * (watch.stand_images - 1)
+    assert notes[-1] == f"no progress past 28.50 for {watch.stand_images} images, views matching or not"
+
+
+def test_rocking_over_the_same_stretch_is_no_progress():
+    """Set 12's gen_1317 on a wall-clock robot (session 26): at a taught turn in place the estimate advanced
+    to 101, a matching view placed it back at 100, and each advance counted as progress afresh: the robot
+    rocked there for 750 steps until the step limit. Only ground the estimate never reached is progress."""
+    watch = ProgressWatch(2.0)
+    watch.judge(100.0, matched=False, window_m=10.0)
+    notes = []
+    for _ in range(watch.stand_images):
+        notes.append(watch.judge(101.0, matched=False, window_m=10.0))
+        notes.append(watch.judge(100.0, matched=True, window_m=10.0))
+    fired = [i for i, n in enumerate(notes) if n is not None]
+    assert fired and fired[0] == watch.stand_images  # 101 was new ground once, at the first image
+    assert (
+        notes[fired[0]] == f"no progress past 101.00 for {watch.stand_images} images, views matching or not"
+    )
 
 
 def test_no_more_than_the_route_has_left_is_driven_without_progress():
