@@ -25,9 +25,9 @@ Each image:
    distance is over the lost bound there: the route's, or ``lost_factor`` times the taught gaps next to the
    estimate where those are wider, ``thresholds.lost_bounds``) and the match is not improving: LOST, with
    the evidence; or the estimate has not progressed for too many images while the view matched no subgoal
-   under its threshold, or, matched or not, while driven further than the taught route covers across the
-   localiser's window (``runtime.progress_watch``): LOST, with the evidence (a robot that does not get on,
-   which the lost bound alone let crawl on where taught views differ, or drive on blind);
+   under its threshold, or, matched or not, for twice as many without new ground or while driven further than
+   the taught route covers across the window (``runtime.progress_watch``): LOST, with the evidence (a robot
+   that does not get on, crawls on where taught views differ, drives on blind, or stands, rocks or spins);
 6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
    ahead, rounded up to a subgoal), with the taught command at the estimated position as feed-forward
    (``Decision.prior``, blended by the repeat loop; faded out over the last control step of taught motion
@@ -365,8 +365,8 @@ class Follower:
         )
 
     def _stalled(self, est: Estimate, matched: bool) -> Decision | None:
-        """LOST when the estimate has made no progress, and no view matched a subgoal under its threshold, for
-        too long (``runtime.progress_watch``). ``lost_steps`` <= 0 (no lost verdict at all) turns it off."""
+        """LOST when the estimate has made no progress for too long, views matching or not (the counts are
+        ``runtime.progress_watch``'s). ``lost_steps`` <= 0 (no lost verdict at all) turns it off."""
         if self.cfg.lost_steps <= 0:
             return None
         spent = self.progress.judge(est.position, matched, self.localiser.window_travel(est.position))
