@@ -40,7 +40,8 @@ STALL_WINDOWS = 8.0
 #: has covered (held-out house random:8046: the view matched subgoal 29 at a taught turn, the estimate held at
 #: 28.5 and the robot stood 280 images to the step limit; set 12's gen_1317 on a wall-clock robot rocked at a
 #: turn in place for 750 steps, each advance to 101 after a match placed it back at 100 counting as progress).
-#: On dev houses 900-999 runs that finished went at most 101 images so.
+#: On dev houses 900-999 runs that finished went at most 101 images so; at an 80 deg / 0.20 m camera one spun
+#: about 550 at a taught turn in place before a view matched (random:923), which now ends `lost`.
 STAND_WINDOWS = 16.0
 #: How far past the last taught pose the end's evidence still reaches (m): the floor registration searches at
 #: least this far past it (runtime.arrival, runtime.pivot): a robot a control step past it at 0.45 m/s and
