@@ -15,11 +15,12 @@ Each image:
    of a final turn in place): moved past what the route had left, within the settled bound FINISHED, else
    LOST with the evidence;
 4. blocked: the camera sees the way ahead blocked (``runtime.obstruction``: the floor just ahead, warped from
-   the taught view to the estimated pose, stops matching in a region that grew while the robot moved, and
-   the floor was not laid again: ``runtime.floor_relaid``): BLOCKED with the evidence while the detector says
-   so, not an end: the repeat loop holds the robot, resumes when the way clears, else ends ``blocked``. The
-   detector needs the taught (or dead-reckoned, ``Route.travel_poses``) poses: without them there is no camera
-   stop (the range scan's zones still apply); ``ControllerConfig.obstruction`` turns it off (ablations);
+   the taught view to the estimated pose, stops matching in a region that grew while the robot was
+   commanded forward): BLOCKED with the evidence, for as long as the detector says so. It is not an end:
+   the repeat loop holds the robot still and judges again, resumes when the way clears, and ends the run
+   as ``blocked`` after its wait. The detector needs the taught poses (or the route's dead-reckoned travel,
+   ``Route.travel_poses``) to warp the floor by: a route without them has no camera-only stop (the range
+   scan's zones in the repeat loop still apply); ``ControllerConfig.obstruction`` turns it off (ablations);
 5. lost: for ``lost_steps`` images in a row no subgoal near the estimate matches the view (the best
    distance is over the lost bound there: the route's, or ``lost_factor`` times the taught gaps next to the
    estimate where those are wider, ``thresholds.lost_bounds``) and the match is not improving: LOST, with
@@ -34,7 +35,8 @@ Each image:
    where the floor places the robot at the turn's pose, where it tells: ``runtime.pivot``);
    where the teach drove forward, a turn back toward the taught path (``Decision.turn``, added by the
    repeat loop) from the side offset the floor shows (``runtime.side_turn``: a pure pursuit of the path
-   point ``side_lookahead`` ahead, at most ``SIDE_TURN_MAX``): VelocityNet alone closes one over metres.
+   point ``side_lookahead`` ahead, at most ``SIDE_TURN_MAX``). VelocityNet lines the view up with the
+   subgoal's, which closes a side offset only over a few wall distances of travel.
 
 The subgoal steered to changes because the estimate moved (ADVANCE events when it moved past subgoals, a
 JUMP back when the views placed the robot behind); never by a timeout, a plateau or a jump on a stall.
@@ -52,7 +54,6 @@ from vtr.runtime.arrival import FloorArrival
 from vtr.runtime.controller import Controller
 from vtr.runtime.controller_config import ControllerConfig
 from vtr.runtime.decisions import Action, Decision, Verdict
-from vtr.runtime.floor_relaid import FloorRelaid
 from vtr.runtime.floor_view import Camera
 from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
@@ -73,7 +74,8 @@ from vtr.runtime.thresholds import check_subgoals, lost_bounds, route_views
 if TYPE_CHECKING:
     from vtr.runtime.route import Route
 
-IDLE_SPEED, IDLE_TURN = 0.01, 0.02  #: commands under these (m/s, rad/s): the policy stands still at the end
+#: Commands under these (m/s, rad/s) count as the policy standing still at the end of the route.
+IDLE_SPEED, IDLE_TURN = 0.01, 0.02
 #: A view nearer the last subgoal's than the view before by more than this (the first near the end counts as
 #: nearer) is still approaching it, and ends the run only once the estimate leaves half a control step or
 #: less: not the first view under the threshold (dev random:950: 37 mm short while views came nearer; 3 mm).
@@ -123,7 +125,6 @@ class Follower:
         self._floor_side = self.side or (
             side_offset(subgoals, travel_poses, camera) if self.obstruction else None
         )
-        self.relaid = FloorRelaid(self._floor_side)  # whether the last views' floor registered
         self.side_turn = SideTurn(self.cfg.side_gain, self.cfg.side_lookahead)  # toward the taught path
         self.obstructed: ObstructionVerdict | None = None  # the detector's verdict on the last view
         self._speed, self._step_m = 0.0, 0.0  # the last forward speed commanded (m/s), its travel (m)
@@ -131,7 +132,8 @@ class Follower:
         self.index = 0  # the subgoal steered to
         self.status: Action | None = None
         self.estimate: Estimate | None = None
-        self.jumps = self.plateaus = 0  # plateaus kept for the summary: none is ever accepted on a plateau
+        self.jumps = 0
+        self.plateaus = 0  # kept for the summary: this controller never accepts a subgoal on a plateau
         self.localised_to: int | None = None
         self._lost_count, self._lost_best = 0, math.inf
         window = self.cfg.localiser.window_behind + self.cfg.localiser.window_ahead
@@ -185,7 +187,6 @@ class Follower:
         if self.obstruction is not None:
             self.obstruction.reset()
         self.pivot.reset()
-        self.relaid.reset()
 
     def judge(self, image: Frame | np.ndarray, collided: bool = False) -> Verdict:
         """The decision on ``image`` (a frame; an array is checked here, once), with the subgoal changes it
@@ -238,7 +239,7 @@ class Follower:
             self._finished = True
             note = note or f"the view {final_error:.3f} from the last subgoal's (threshold {threshold:.3f})"
             return Decision(Action.FINISHED, len(self), final_error, note=note)
-        floor_side = floor_side_of(self._floor_side, image, est.position, self.relaid)  # one a view, lazily
+        floor_side = floor_side_of(self._floor_side, image, est.position)  # one registration a view, lazily
         blocked = self._blocked(image, est, floor_side)
         if blocked is not None:
             return blocked
@@ -302,8 +303,7 @@ class Follower:
             return None
         moved, self._moved = self._moved, False
         side: SideFn | None = None if floor_side is None else lambda: _floor_pose(floor_side())
-        relaid = self.relaid.relaid  # the floor registered in none of the last views: it was laid again
-        verdict = self.obstructed = self.obstruction.update(image, est.position, moved, side, relaid)
+        verdict = self.obstructed = self.obstruction.update(image, est.position, moved, side)
         if not verdict.blocked:
             return None
         # what spoils the match is in the way, not elsewhere; and a robot held still makes no progress

@@ -357,7 +357,7 @@ class ObstructionDetector:
         return self.shares(self.scores(view, position))[0]
 
     def update(
-        self, view: np.ndarray, position: float, moved: bool, side: SideFn | None = None, relaid: bool = False
+        self, view: np.ndarray, position: float, moved: bool, side: SideFn | None = None
     ) -> ObstructionVerdict:
         """Judge one view (see :meth:`scores`); ``moved``: the robot was commanded to move (forward or
         turning, :func:`moving`) since the last view; ``side``: where the floor puts the robot against the
@@ -365,8 +365,7 @@ class ObstructionDetector:
         ahead; None where it does not tell), asked once, only when some tiles match no taught view at the
         taught pose: the taught floor warped to that pose too lines up with the floor where the robot truly
         is (a robot 10 cm beside the path sees the floor 0.3 m ahead 10 pooled pixels across, past the
-        shifts); ``relaid``: the floor registration read none of the last views (``runtime.floor_relaid``),
-        evidence, as the floor beside the path, that the floor changed, not that something stands on it."""
+        shifts)."""
         self._side = once(side) if side is not None else None
         try:
             share, hidden = self.shares(self.scores(view, position))
@@ -374,7 +373,7 @@ class ObstructionDetector:
                 self.growth.unseen()
                 if not self.growth.blocked:  # no region in view is no matched view of it
                     return ObstructionVerdict(False, 0.0, 0, "path region out of view")
-            return self.growth.update(share, hidden, moved, lambda: self.beside_tiles(view, position), relaid)
+            return self.growth.update(share, hidden, moved, lambda: self.beside_tiles(view, position))
         finally:
             self._side = None
 

@@ -198,20 +198,14 @@ class Growth:
         return self.beside_judged > 0 and self.beside_unmatched > self.cfg.max_elsewhere * self.beside_judged
 
     def update(
-        self,
-        share: float,
-        hidden: float,
-        moved: bool,
-        elsewhere: Elsewhere | None = None,
-        relaid: bool = False,
+        self, share: float, hidden: float, moved: bool, elsewhere: Elsewhere | None = None
     ) -> ObstructionVerdict:
         """Fold one view's unmatched share and hidden share in: the verdict. ``elsewhere``: the unmatched and
         judged tiles of the floor beside the path region in this view, asked only when everything else says
-        blocked (or on the first view, unmatched); ``relaid``: the floor registration read none of the last
-        views (``runtime.floor_relaid``): the floor changed too."""
+        blocked (or on the first view, unmatched)."""
         cfg = self.cfg
         # the view's tiles pooled once, however often it is asked
-        floor_changed = once(lambda: relaid or (elsewhere is not None and self._floor_changed(elsewhere)))
+        floor_changed = once(lambda: elsewhere is not None and self._floor_changed(elsewhere))
 
         if self.blocked:
             clear = share <= cfg.clear_fraction or hidden <= cfg.clear_hidden

@@ -8,7 +8,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from vtr.runtime.floor_relaid import FloorRelaid
 from vtr.runtime.floor_view import Camera
 from vtr.runtime.frame import Frame
 from vtr.runtime.hello import current_camera_names
@@ -58,12 +57,10 @@ def side_offset(subgoals: np.ndarray, poses: np.ndarray | None, camera: Camera |
         return None
 
 
-def floor_side_of(
-    registration: SideOffset | None, image: Frame, position: float, record: FloorRelaid | None = None
-) -> FloorSide | None:
+def floor_side_of(registration: SideOffset | None, image: Frame, position: float) -> FloorSide | None:
     """Where the floor of ``image`` puts the robot beside the taught pose at ``position``, computed when first
     asked and then kept for the view: the obstruction detector and the side turn both ask it (None: no floor
-    registration); ``record`` is told each registration made (``runtime.floor_relaid``)."""
+    registration)."""
     if registration is None:
         return None
     found: list[SideEstimate | None] = []
@@ -71,8 +68,6 @@ def floor_side_of(
     def at() -> SideEstimate | None:
         if not found:
             found.append(registration.estimate(image, position))
-            if record is not None:
-                record.seen(position, found[0])
         return found[0]
 
     return at
