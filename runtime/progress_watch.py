@@ -69,10 +69,8 @@ class ProgressWatch:
     def reset(self) -> None:
         """Count afresh (a new start, the robot held for something in the way)."""
         self.reach, self.since, self.travel = -math.inf, 0, 0.0
-        self.furthest, self.quiet = (
-            -math.inf,
-            0,
-        )  # new ground: the furthest the estimate reached, images since
+        # new ground: the furthest the estimate has reached, and the images since it did
+        self.furthest, self.quiet = -math.inf, 0
 
     def commanded(self, v: float, dt: float) -> None:
         """The robot was commanded ``v`` (m/s, either way) for ``dt`` seconds."""
