@@ -112,6 +112,11 @@ def stage_samples(
         for i in range(warmup + steps):
             per_step.clear()
             counting = int(i >= warmup)
+            progress = getattr(rep.controller, "progress", None)
+            if (
+                progress is not None
+            ):  # the view never moves: the no-progress watch would end it (as the bench)
+                progress.reset()
             t0 = clock()
             record = rep.step()
             whole = clock() - t0
