@@ -32,10 +32,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.lib.stride_tricks import as_strided
 
 from vtr.runtime.floor_view import Camera, FloorTiles, taught_offset
 from vtr.runtime.matching import MatchConfig, Matcher
-from vtr.runtime.row_shifts import CurrentRows, RowShifts
 
 
 @dataclass(frozen=True)
@@ -134,7 +134,7 @@ class SideOffset:
         self._bands: dict[int, np.ndarray] = {}
         self._along_told: dict[int, bool] = {}  # per taught view: whether its floor tells a distance along
         n = len(self.rows)
-        self._shifts = RowShifts(w // ds, self.shifts, self.matcher.cfg.std_floor * ds**2)
+        self._cols = w // ds - 2 * self.shifts  # the current rows' middle columns compared
         self._r = np.arange(n)
         self._around = np.array([[-1], [0], [1]])  # a shift's neighbours, for the sub-pixel fit
         #: the spacing (m) of ``along``'s candidates: 1.5 pooled pixels on the nearest row kept
@@ -145,22 +145,30 @@ class SideOffset:
             self._bands[k] = self.floor.pool(self.subgoals[k])
         return self._bands[k]
 
+    def _normalised(self, rows: np.ndarray) -> np.ndarray:
+        """(3, rows, cols) floor rows (a new array: normalised in place), each row and channel at zero mean and
+        unit spread (floored)."""
+        cols = rows.shape[-1]
+        mean = np.add.reduce(rows, axis=-1, keepdims=True)
+        mean /= cols
+        rows -= mean
+        spread = np.add.reduce(rows * rows, axis=-1, keepdims=True)
+        spread /= cols
+        np.sqrt(spread, out=spread)
+        spread += self.matcher.cfg.std_floor * self.matcher.cfg.downsample**2
+        rows /= spread
+        return rows
+
     def _taught_rows(self, band: np.ndarray, offset: tuple[float, float, float]) -> np.ndarray:
-        """(3, rows, 1, cols): the kept rows of a taught pooled band as the floor looks ``offset`` (ahead, left,
-        turned left) from where it was taught (``FloorTiles.warp``'s plane, nearest pooled pixel, only the rows
-        used here), laid out as :meth:`_table` takes them."""
+        """The kept rows of a taught pooled band as the floor looks ``offset`` (ahead, left, turned left) from
+        where it was taught (``FloorTiles.warp``'s plane, nearest pooled pixel, only the rows used here)."""
         dx, dy, turn = offset
         if not (dx or dy or turn):
-            return band[:, self.rows, None]
-        return self._warped_rows(band, np.array([dx], np.float32), dy, turn)
+            return band[:, self.rows]
+        return self._warped_rows(band, np.array([dx], np.float32), dy, turn)[0]
 
     def _warped_rows(self, band: np.ndarray, dx: np.ndarray, dy: float, turn: float) -> np.ndarray:
-        """(3, rows, D, cols): :meth:`_taught_rows` at each of the float32 ``dx`` with ``dy`` and ``turn``."""
-        return band.reshape(3, -1).take(self._warp_index(band, dx, dy, turn).transpose(1, 0, 2), axis=1)
-
-    def _warp_index(self, band: np.ndarray, dx: np.ndarray, dy: float, turn: float) -> np.ndarray:
-        """(D, rows, cols) flat index into a pooled band's planes of the pixel each kept row's pixel sees from
-        each of ``dx`` (float32, m ahead) with ``dy`` and ``turn``: the floor plane, nearest pooled pixel."""
+        """(D, 3, rows, cols): :meth:`_taught_rows` at each of the float32 ``dx`` with ``dy`` and ``turn``."""
         c, s = np.float32(math.cos(turn)), np.float32(math.sin(turn))
         ahead = (self._ahead[:, None] * (c + s * self._side[None, :]))[None] + dx[:, None, None]
         inverse = 1.0 / np.maximum(ahead, np.float32(1e-3))
@@ -171,7 +179,11 @@ class SideOffset:
         col = np.minimum(np.maximum(left * -self.focal + cols / 2, 0), cols - 1).astype(np.intp)
         row *= cols
         row += col
-        return row
+        # one fancy index of the planes for every offset, read as (D, 3, rows, cols): colours innermost in memory,
+        # the layout one offset's index made, which _normalised and _table reduce in its own order, so each
+        # offset's scores keep their bits (C-ordered rows are about 25% cheaper to score but change the last
+        # bits, and with them some closed-loop runs: dev routes 1544 -> 1543 of 1584, houses 185 -> 183 of 200)
+        return band.reshape(3, -1)[:, row].transpose(1, 0, 2, 3)
 
     def estimate(self, view: np.ndarray, position: float) -> SideEstimate | None:
         """The offset of ``view`` (a frame or an image) from the taught pose at route ``position`` (subgoal
@@ -180,19 +192,27 @@ class SideOffset:
         taught = self._band(k)  # seen from the taught pose at the position (between subgoals k and k + 1)
         n = self.cfg.along_search
         if not n or not self.tells_along(k):  # a floor the same along the path tells the side wherever
-            return self._fit(self._table(self._current(view), self._taught_rows(taught, offset))[0])
+            return self._fit(self._table(self._current(view), self._taught_rows(taught, offset)))
         # elsewhere a robot a few centimetres off the estimate along the route sees other floor in each row (see
-        # the module docstring): read it where the floor matches best along the route, scoring every offset the
-        # search may reach in one table (each table's fixed cost is most of it)
+        # the module docstring): read it where the floor matches best along the route
         ahead, left, turn = offset
+        cur = self._current(view)
         reach = self.cfg.along_reach
-        steps = np.arange(-reach, reach + 1)
-        tables = self._table(
-            self._current(view),
-            self._warped_rows(taught, (ahead + steps * self.along_step).astype(np.float32), left, turn),
-        )
-        scores = self._row_score(tables).tolist()
-        found = {a: (tables[i], scores[i]) for i, a in enumerate(steps.tolist())}  # offset along (steps)
+        found: dict[int, tuple[np.ndarray, float]] = {}  # offset along (steps) -> its table and score
+
+        def score(offsets: range | list[int]) -> None:
+            new = np.array([a for a in offsets if a not in found], dtype=np.intp)
+            if new.size:
+                rows = self._warped_rows(
+                    taught, (ahead + new * self.along_step).astype(np.float32), left, turn
+                )
+                tables = self._table(cur, rows)
+                found.update(
+                    zip(new.tolist(), zip(tables, self._row_score(tables).tolist(), strict=True), strict=True)
+                )
+
+        # the offsets near the estimate, and every n-th out to the reach: the rivals a best must beat
+        score([*range(-n, n + 1), *(a for a in range(-reach, reach + 1, n) if abs(a) > n)])
         lo, hi = -n, n
         while True:  # the best near the estimate; where it is the furthest tried, look on that way
             best = min(range(lo, hi + 1), key=lambda a: found[a][1])
@@ -202,15 +222,13 @@ class SideOffset:
                 hi = min(reach, hi + n)
             else:
                 break
+            score(range(lo, hi + 1))
         if best in (lo, hi):  # the best at the furthest reach: the robot may be further off still
             return None
         # a floor that repeats along the path (planks laid across it at a slant) matches nearly as well at
         # offsets further along, each with its own side offset: no reading where such a rival reads another one
         table, least = found[best]
-        # the rivals a best must beat: the offsets near the estimate, every n-th out to the reach, and those the
-        # search looked at
-        looked = {*range(lo, hi + 1), *range(-reach, reach + 1, n)}
-        rivals = [(a, s) for a, (_, s) in found.items() if abs(a - best) >= 2 and a in looked]
+        rivals = [(a, s) for a, (_, s) in found.items() if abs(a - best) >= 2]
         if min((s for _, s in rivals), default=math.inf) < least:  # none where the reach is a step
             return None
         fit = self._fit(table)
@@ -274,21 +292,16 @@ class SideOffset:
             self._along_told[k] = bool((scores > self.cfg.distinct).all())
         return self._along_told[k]
 
-    def _ahead_tables(self, cur: CurrentRows, band: np.ndarray, ahead: np.ndarray) -> np.ndarray:
-        """(D, shifts, rows) mean absolute differences (``RowShifts.mean_abs``: the end's arrival and the floor
-        telling a distance at all rest on them) of the current rows against a taught band as seen from each of
-        ``ahead`` (m, straight on), in one batch: the values one by one would give, without D rounds of small
+    def _ahead_tables(self, cur: np.ndarray, band: np.ndarray, ahead: np.ndarray) -> np.ndarray:
+        """(D, shifts, rows) scores (:meth:`_table`) of the current rows against a taught band as seen from each
+        of ``ahead`` (m, straight on), in one batch: the values one by one would give, without D rounds of small
         array calls (``along`` asks for 9-13)."""
         tables = np.empty((len(ahead), 2 * self.shifts + 1, len(self.rows)), np.float32)
         off = ahead != 0
         if off.any():
-            index = self._warp_index(band, ahead[off].astype(np.float32), 0.0, 0.0)
-            # read as (D, 3, rows, cols): colours innermost in memory, the layout one offset's index made,
-            # which mean_abs reduces in its own order, so each offset's scores keep their bits (C-ordered rows
-            # change the last bits, and with them some closed-loop runs: dev routes 1544 -> 1543 of 1584)
-            tables[off] = self._shifts.mean_abs(cur, band.reshape(3, -1)[:, index].transpose(1, 0, 2, 3))
-        if not off.all():  # the pose itself: its rows as they lie, C-ordered, scored apart
-            tables[~off] = self._shifts.mean_abs(cur, band[:, self.rows])
+            tables[off] = self._table(cur, self._warped_rows(band, ahead[off].astype(np.float32), 0.0, 0.0))
+        if not off.all():  # the pose itself: its rows as they lie (_taught_rows), C-ordered, scored apart
+            tables[~off] = self._table(cur, band[:, self.rows])
         return tables
 
     @staticmethod
@@ -299,14 +312,26 @@ class SideOffset:
         middle = best.shape[-1] // 2
         return np.partition(best, middle, axis=-1)[..., middle]
 
-    def _current(self, view: np.ndarray) -> CurrentRows:
-        """The kept floor rows of ``view``, prepared for :meth:`_table`."""
-        return self._shifts.current(self.floor.pool(view)[:, self.rows])
+    def _current(self, view: np.ndarray) -> np.ndarray:
+        """The kept floor rows of ``view``, normalised."""
+        return self._normalised(self.floor.pool(view)[:, self.rows])
 
-    def _table(self, cur: CurrentRows, taught_rows: np.ndarray) -> np.ndarray:
-        """(D, shifts, rows) scores of the current rows against D versions of the taught ones (3, rows, D, cols;
-        normalised in place) under each shift, from -s_max (``RowShifts.squares``)."""
-        return self._shifts.squares(cur, taught_rows)
+    def _table(self, cur: np.ndarray, taught_rows: np.ndarray) -> np.ndarray:
+        """(..., shifts, rows) scores of the current rows against the taught ones (..., 3, rows, cols) under each
+        shift, from -s_max."""
+        ref = self._normalised(taught_rows)
+        s_max, m = self.shifts, self._cols
+        # the current rows' middle columns against every window of the taught rows: window i is a shift of
+        # s_max - i (the current column c against the taught c - s); the strided view is what
+        # sliding_window_view makes, without its ~50 us of Python checks
+        middle = cur[:, :, s_max : s_max + m]
+        step = ref.strides[-1]
+        windows = as_strided(ref, (*ref.shape[:-1], 2 * s_max + 1, m), (*ref.strides[:-1], step, step), False)
+        diff = np.subtract(windows, middle[:, :, None, :])
+        # summed over colours and columns per (row, shift), in the order the rows' layout gives numpy: the same
+        # bits with or without the leading offsets (tests/runtime/test_arrival.py holds them)
+        table = np.abs(diff, out=diff).sum(axis=(-4, -1))[..., ::-1]
+        return np.swapaxes(table, -1, -2) / (3 * m)
 
     def _fit(self, table: np.ndarray) -> SideEstimate | None:
         """``(dy, psi)`` from a (shifts, rows) table: each row's best shift, refined to a fraction, and the line

@@ -190,7 +190,7 @@ def reference_tables(side: SideOffset, view: np.ndarray, k: int, ahead: np.ndarr
         return band.reshape(3, -1)[:, row * cols + col]
 
     cur, band = side._current(view), side._band(k)
-    return [side._shifts.mean_abs(cur, rows_at(band, float(dx))) for dx in ahead]
+    return [side._table(cur, rows_at(band, float(dx))) for dx in ahead]
 
 
 def test_the_offsets_scored_in_one_batch_give_the_bits_one_by_one_gave():
