@@ -33,7 +33,9 @@ unmatched (a path that turned out of view and back, as in a taught turn in place
 matched; only where the floor matched before the turn), or was unmatched from the first view while the floor
 beside it matched (a box already in view), and at least ``hidden_fraction`` of the region is unmatched all
 the way up its column to the region's far end, while no more than ``max_elsewhere`` of the floor beside the
-region is unmatched (judged on taught tiles with texture that the floor plane explains,
+region is unmatched (``max_elsewhere_assumed`` where the region was never seen matched: then the floor beside
+it is the only witness that something stands on the path rather than the floor changed; judged on taught
+tiles with texture that the floor plane explains,
 :meth:`ObstructionDetector.floor_evidence`: walls and furniture stay when a floor is re-laid, and would water
 its share down; pooled over the views of the unmatched spell, obstruction_decision.Growth). A floor that
 looks different everywhere (a new carpet), a robot off its pose (which mismatches the floor nearest to it

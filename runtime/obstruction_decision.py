@@ -88,6 +88,13 @@ class ObstructionConfig:
     #: something on the path (held-out set 11 with the floor re-coloured blocked 36 runs of 40 without it;
     #: dev boxes on the path blocked with 11-17% unmatched beside it).
     max_elsewhere: float = 0.5
+    #: ... and the most where the path region was never seen matched to grow from (unmatched from its first
+    #: view on, or in view first after a turn at the start): then only the floor beside it says that something
+    #: stands on the path rather than the floor itself changed, and a floor a third unmatched does not say it
+    #: (dev gen_100-179, seeds 0 1, pooled at the block: a re-coloured floor 0.31-0.48 on 13 false stops, every
+    #: box on the path or after a turn 0.08-0.16 on 34 stops; where the region grew from a matched view, boxes
+    #: on the path read up to 0.43 and a crossing obstacle 0.50).
+    max_elsewhere_assumed: float = 0.25
 
     def pooled_shifts(self, focal: float) -> tuple[int, int]:
         """The warped taught view's shifts each way (pooled pixels, down and across) on a camera whose focal
@@ -109,7 +116,7 @@ class ObstructionConfig:
             raise ValueError(f"ObstructionConfig.far_m ({self.far_m}) must exceed near_m ({self.near_m})")
         fractions = ("onset_fraction", "block_fraction", "min_growth", "slack", "max_base", "hidden_fraction")
         fractions += ("min_region",)
-        for name in (*fractions, "clear_fraction", "clear_hidden", "max_elsewhere"):
+        for name in (*fractions, "clear_fraction", "clear_hidden", "max_elsewhere", "max_elsewhere_assumed"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and 0.0 <= value <= 1.0):
                 raise ValueError(f"ObstructionConfig.{name} must be in [0, 1], got {value!r}")
@@ -170,11 +177,14 @@ class Growth:
         self.clear = 0
         self.fresh = False  # the path came into view unmatched: no matched view of it to grow from
         self.seen = False  # any view of the path region judged yet
+        # no view of the path region has matched to grow from: its matched start is assumed from the floor
+        # beside it (``max_elsewhere_assumed``)
+        self.assumed = False
         self._beside_spell()
 
     def _beside_spell(self) -> None:
         """Forget the floor beside the path: the unmatched and judged tiles pooled over the views asked since the
-        path region went unmatched (:meth:`_floor_changed`)."""
+        path region went unmatched (:meth:`_pool_beside`)."""
         self.beside_unmatched = self.beside_judged = 0
 
     def unseen(self) -> None:
@@ -182,20 +192,25 @@ class Growth:
         from unmatched only where the floor matched before the path went out of view (or none was seen
         yet): a floor that matched nowhere before the turn (re-laid) tells nothing after it either."""
         if not self.blocked:
+            self.assumed = self.assumed or not self.seen  # nothing of the path seen before the turn
             self.fresh = self.fresh or self.low <= self.cfg.max_base or not self.seen
             self.growing, self.last, self.low = 0, 0.0, 1.0
             self._beside_spell()
 
-    def _floor_changed(self, elsewhere: Elsewhere) -> bool:
-        """Whether the floor beside the path region is unmatched by more than ``max_elsewhere``, its tiles
-        (``elsewhere``: this view's unmatched and judged ones) pooled over every view asked in this unmatched
-        spell. One view judges 10-25 tiles: on a re-coloured floor the share beside the path read 60-93% view
-        after view and a growth blocked on the one view it read 50% (dev floor_recoloured gen_104, gen_109,
-        gen_120, gen_125, gen_133); the floor does not change back between two views, a box does not change it."""
+    def _pool_beside(self, elsewhere: Elsewhere) -> None:
+        """Add this view's floor beside the path region (``elsewhere``: its unmatched and judged tiles) to the
+        spell's: one view judges 10-25 tiles, and on a re-coloured floor the share beside the path read 60-93%
+        view after view while a growth blocked on the one view it read 50% (dev floor_recoloured gen_104,
+        gen_109, gen_120, gen_125, gen_133); the floor does not change back between two views, a box does not
+        change it."""
         unmatched, judged = elsewhere()
         self.beside_unmatched += unmatched
         self.beside_judged += judged
-        return self.beside_judged > 0 and self.beside_unmatched > self.cfg.max_elsewhere * self.beside_judged
+
+    def _floor_changed(self, bound: float) -> bool:
+        """Whether more than ``bound`` of the floor beside the path region is unmatched, pooled over every view
+        asked in this unmatched spell (:meth:`_pool_beside`)."""
+        return self.beside_judged > 0 and self.beside_unmatched > bound * self.beside_judged
 
     def update(
         self, share: float, hidden: float, moved: bool, elsewhere: Elsewhere | None = None
@@ -204,8 +219,16 @@ class Growth:
         judged tiles of the floor beside the path region in this view, asked only when everything else says
         blocked (or on the first view, unmatched)."""
         cfg = self.cfg
-        # the view's tiles pooled once, however often it is asked
-        floor_changed = once(lambda: elsewhere is not None and self._floor_changed(elsewhere))
+        asked = False
+
+        def floor_changed(bound: float = cfg.max_elsewhere) -> bool:
+            nonlocal asked
+            if elsewhere is None:
+                return False
+            if not asked:  # the view's tiles pooled once, however often it is asked
+                self._pool_beside(elsewhere)
+                asked = True
+            return self._floor_changed(bound)
 
         if self.blocked:
             clear = share <= cfg.clear_fraction or hidden <= cfg.clear_hidden
@@ -220,9 +243,10 @@ class Growth:
             # it matches (a box just past a turn near the start, dev box_after_turn gen_102), else the floor
             # itself changed (re-laid), and nothing grew from a matched floor
             self.low = 1.0 if floor_changed() else 0.0
+            self.assumed = True
         self.seen = True
         if share < cfg.onset_fraction:
-            self.growing, self.low, self.fresh = 0, share, False
+            self.growing, self.low, self.fresh, self.assumed = 0, share, False, False
             self._beside_spell()
         elif moved:
             if not self.growing:
@@ -240,7 +264,8 @@ class Growth:
             and (self.low <= cfg.max_base or self.fresh)
             and hidden >= cfg.hidden_fraction
         )
-        if self.blocked and elsewhere is not None and floor_changed():
+        bound = cfg.max_elsewhere_assumed if self.assumed else cfg.max_elsewhere
+        if self.blocked and elsewhere is not None and floor_changed(bound):
             self.blocked = False  # the floor beside the path changed as much: not evidence of something on it
         note = self.note(share) if self.blocked else f"path region {share:.0%} unmatched"
         return ObstructionVerdict(self.blocked, share, self.growing, note, hidden)

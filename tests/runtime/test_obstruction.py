@@ -398,11 +398,11 @@ def test_the_floor_beside_the_path_is_judged_on_every_view_of_the_unmatched_spel
         return asked[-1]
 
     growth = Growth(ObstructionConfig())
-    growth.unseen()  # the route starts with a turn in place: the path comes into view unmatched
+    growth.update(0.0, 0.0, True, beside)  # a matched view of the path region (nothing asked): grown from it
     verdicts = [growth.update(s, s, True, beside) for s in relaid]
     assert (5, 10) in asked and not any(v.blocked for v in verdicts)
     halves = Growth(ObstructionConfig())  # every view 5 of 10 beside the path: that view's verdict, blocked
-    halves.unseen()
+    halves.update(0.0, 0.0, True, lambda: (5, 10))
     assert any(halves.update(s, s, True, lambda: (5, 10)).blocked for s in relaid)
 
     box = [0.05, 0.15, 0.25, 0.35, 0.45, 0.55]
@@ -417,6 +417,32 @@ def test_the_floor_beside_the_path_is_judged_on_every_view_of_the_unmatched_spel
     growth = Growth(ObstructionConfig(grow_steps=1, min_growth=0.0))  # a view asked twice is pooled once
     assert growth.update(0.5, 0.5, True, lambda: calls.append(1) or (2, 20)).blocked
     assert len(calls) == 1 and (growth.beside_unmatched, growth.beside_judged) == (2, 20)
+
+
+def test_a_path_region_never_seen_matched_blocks_only_where_the_floor_beside_it_clearly_matches():
+    """Dev floor_recoloured (gen_107, 109, 116, 124, 135, 147, 176, 179; session 27): 13 false stops came on
+    a path region unmatched from its first view on, the floor beside it 31-48% unmatched (pooled), which the
+    0.5 bound counted as matching; every box in view from the first view (on the path, or after a turn in
+    place at the start) read 8-16%. With no matched view of the region to grow from, the floor beside it is
+    the only witness, and a floor a third unmatched is not a matching one. A spell that grew from a matched
+    view keeps the 0.5 bound (a box on the path: up to 43% beside it)."""
+    from vtr.runtime.obstruction import Growth
+
+    relaid = [0.54, 1.0, 1.0, 1.0, 0.95, 1.0]  # gen_107 seed 0: in view after the turn at the start
+    for start_turn in (False, True):
+        growth = Growth(ObstructionConfig())
+        if start_turn:
+            growth.unseen()
+        assert not any(growth.update(s, s, True, lambda: (4, 10)).blocked for s in relaid)
+        assert growth.assumed
+        box = Growth(ObstructionConfig())  # a box in view from the start, the floor beside it matching
+        if start_turn:
+            box.unseen()
+        assert [box.update(s, s, True, lambda: (1, 10)).blocked for s in relaid][2]
+    grown = Growth(ObstructionConfig())  # a box coming into a region that matched: 4 of 10 beside it
+    grown.update(0.02, 0.0, True, lambda: (4, 10))
+    assert [grown.update(s, s, True, lambda: (4, 10)).blocked for s in (0.15, 0.25, 0.35, 0.45)][-1]
+    assert not grown.assumed
 
 
 def test_a_path_that_turns_back_into_view_unmatched_blocks_only_where_the_floor_matched_before_the_turn():
