@@ -90,8 +90,8 @@ class ObstructionConfig:
     max_elsewhere: float = 0.5
     #: ... and the most where the path region was never seen matched to grow from (unmatched from its first
     #: view on, or in view first after a turn at the start): then only the floor beside it says that something
-    #: stands on the path rather than the floor itself changed, and a floor a third unmatched does not say it
-    #: (dev gen_100-179, seeds 0 1, pooled at the block: a re-coloured floor 0.31-0.48 on 13 false stops, every
+    #: stands on the path rather than the floor itself changed, and a floor a third or more unmatched does not
+    #: say it (dev gen_100-179, seeds 0 1, pooled at the block: a re-coloured floor 0.31-0.48 on 13 false stops, every
     #: box on the path or after a turn 0.08-0.16 on 34 stops; where the region grew from a matched view, boxes
     #: on the path read up to 0.43 and a crossing obstacle 0.50).
     max_elsewhere_assumed: float = 0.25
@@ -124,6 +124,11 @@ class ObstructionConfig:
             raise ValueError(
                 f"ObstructionConfig: need 0 < block_fraction and onset_fraction <= block_fraction, got "
                 f"{self.onset_fraction}, {self.block_fraction}"
+            )
+        if self.max_elsewhere_assumed > self.max_elsewhere:
+            raise ValueError(
+                f"ObstructionConfig.max_elsewhere_assumed ({self.max_elsewhere_assumed}) must not exceed "
+                f"max_elsewhere ({self.max_elsewhere})"
             )
         if self.clear_fraction >= self.block_fraction:
             raise ValueError(

@@ -144,6 +144,8 @@ def test_bad_settings_and_inputs_are_refused():
         ObstructionConfig(clear_fraction=0.5)
     with pytest.raises(ValueError, match="grow_steps"):
         ObstructionConfig(grow_steps=0)
+    with pytest.raises(ValueError, match="max_elsewhere_assumed"):
+        ObstructionConfig(max_elsewhere_assumed=0.6)
     with pytest.raises(ValueError, match="tile_threshold"):
         ObstructionConfig(tile_threshold=float("nan"))
     for bad in (-1.0, 45.0, float("nan"), "2", True):
