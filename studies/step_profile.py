@@ -112,10 +112,10 @@ def stage_samples(
         for i in range(warmup + steps):
             per_step.clear()
             counting = int(i >= warmup)
+            # the view never moves, so the no-progress watch would end the repeat: counted afresh each step,
+            # as the bench does (benchmarks/step_bench.py)
             progress = getattr(rep.controller, "progress", None)
-            if (
-                progress is not None
-            ):  # the view never moves: the no-progress watch would end it (as the bench)
+            if progress is not None:
                 progress.reset()
             t0 = clock()
             record = rep.step()

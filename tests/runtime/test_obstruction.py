@@ -386,9 +386,11 @@ def test_the_floor_beside_the_path_is_judged_on_every_view_of_the_unmatched_spel
     """Dev floor_recoloured (gen_120, seed 0): after a turn in place at the start the path came into view
     unmatched; the floor beside it read 60-93% unmatched view after view (10-24 tiles a view) and a growth
     blocked on the first view it read 5 of 10, with nothing on the path (as it does here where every view reads
-    5 of 10). Pooled over the spell's views, the floor beside the path changed. A box on an unchanged floor (2 of 20 beside it) blocks on the same view
-    as one view's share would say; so does one whose spell began on views with the floor beside it unmatched
-    where the path region then matched again (a new spell)."""
+    5 of 10). Pooled over the spell's views, the floor beside the path changed (shown here on a region seen
+    matched first, where the bound is a half; one never seen matched has a quarter, the test below). A box on
+    an unchanged floor (2 of 20 beside it) blocks on the same view as one view's share would say; so does one
+    whose spell began on views with the floor beside it unmatched where the path region then matched again (a
+    new spell)."""
     from vtr.runtime.obstruction import Growth
 
     relaid = [0.78, 0.83, 0.8, 0.87, 0.7, 0.86, 1.0, 0.84, 0.87, 0.97, 0.77, 0.9, 0.94, 0.9]
