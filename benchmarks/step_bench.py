@@ -143,6 +143,15 @@ def sample_end_view(height: int, width: int, poses: np.ndarray, route: np.ndarra
     return np.ascontiguousarray(view)
 
 
+def progress_afresh(repeater: Any) -> None:
+    """Count the follower's no-progress watch afresh before a benchmark step: the view never moves while every
+    step drives on, so the watch would end the repeat after its window's taught travel, as it should on a
+    robot; counted afresh each step (its check still runs in the step), the benchmark's repeat goes on."""
+    progress = getattr(repeater.controller, "progress", None)
+    if progress is not None:
+        progress.reset()
+
+
 class BenchStep:
     """``Repeater.step`` on a ``LoopbackRobot`` showing ``current`` while steering to ``route[0]``.
 
@@ -243,12 +252,7 @@ class BenchStep:
 
     def __call__(self) -> Any:
         self._cpu_ns = 0
-        progress = getattr(self.repeater.controller, "progress", None)
-        if progress is not None:
-            # the view never moves while every step drives on, so the follower's no-progress watch would end
-            # the repeat after its window's taught travel, as it should on a robot; counted afresh each call
-            # (its check still runs in the step), the bench's repeat goes on
-            progress.reset()
+        progress_afresh(self.repeater)
         if self.hold_at is not None:  # the view never moves, nor should the belief: judged at the same place
             localiser = self.repeater.controller.localiser
             localiser.start_at(self.hold_at)

@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from vtr.benchmarks.step_bench import progress_afresh
+
 #: (label, owner key, attribute): wrapped in this order; ``owner key`` names an object or a module.
 STAGES: tuple[tuple[str, str, str], ...] = (
     ("link.step", "robot", "step"),
@@ -112,11 +114,7 @@ def stage_samples(
         for i in range(warmup + steps):
             per_step.clear()
             counting = int(i >= warmup)
-            # the view never moves, so the no-progress watch would end the repeat: counted afresh each step,
-            # as the bench does (benchmarks/step_bench.py)
-            progress = getattr(rep.controller, "progress", None)
-            if progress is not None:
-                progress.reset()
+            progress_afresh(rep)
             t0 = clock()
             record = rep.step()
             whole = clock() - t0
