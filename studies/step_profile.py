@@ -160,10 +160,12 @@ def cprofile_top(rep: Any, steps: int, warmup: int, top: int) -> str:
     import pstats
 
     for _ in range(warmup):
+        progress_afresh(rep)
         rep.step()
     prof = cProfile.Profile()
     prof.enable()
     for _ in range(steps):
+        progress_afresh(rep)
         rep.step()
     prof.disable()
     out = io.StringIO()

@@ -179,24 +179,24 @@ def reference_tables(side: SideOffset, view: np.ndarray, k: int, ahead: np.ndarr
 
     def rows_at(band: np.ndarray, dx: float) -> np.ndarray:
         if not dx:
-            return band[:, side.rows]
+            return band[side.rows].transpose(1, 0, 2)[:, None].copy()
         inverse = 1.0 / np.maximum(
-            side._ahead[:, None] * (1 + 0 * side._side[None, :]) + np.float32(dx), 1e-3
+            side._ahead[None, :] * (1 + 0 * side._side[:, None]) + np.float32(dx), 1e-3
         )
-        left = (side._ahead[:, None] * (0 - 1 * side._side[None, :]) + np.float32(0.0)) * inverse
-        rows, cols = band.shape[1:]
+        left = (side._ahead[None, :] * (0 - 1 * side._side[:, None]) + np.float32(0.0)) * inverse
+        rows, cols = band.shape[:2]
         row = np.clip(inverse * side._row_scale + side._row_zero, 0, rows - 1).astype(np.intp)
         col = np.clip(left * -side.focal + cols / 2, 0, cols - 1).astype(np.intp)
-        return band.reshape(3, -1)[:, row * cols + col]
+        return band[row, col][:, None]  # (cols, 1, rows, 3)
 
     cur, band = side._current(view), side._band(k)
-    return [side._table(cur, rows_at(band, float(dx))) for dx in ahead]
+    return [side._table(cur, rows_at(band, float(dx)))[0] for dx in ahead]
 
 
 def test_the_offsets_scored_in_one_batch_give_the_bits_one_by_one_gave():
     # the end's registration scores every offset (9-13 a step in the last two gaps): one gather and one table
-    # for all of them, laid out in memory as each offset's alone was, so each score keeps its last bit (another
-    # layout moved some closed-loop runs, as any last-bit change does)
+    # for all of them, each score summed in the order it is summed alone, so it keeps its last bit whatever the
+    # batch (a last-bit change moves some closed-loop runs)
     side = registration()
     views = [
         floor_view(1.1 + dx, dy, tilt=TILT, seed=seed) for dx, dy, seed in [(-0.06, 0.0, 0), (0.02, 0.03, 0)]

@@ -235,26 +235,34 @@ def test_the_side_turn_waits_for_views_in_a_row_and_one_wrong_view_does_not_turn
 
 
 def reference_estimate(side: SideOffset, view: np.ndarray, position: float) -> SideEstimate | None:
-    """The side estimate as written before it was trimmed for speed (sliding windows, np.median, both line
-    fits always): :meth:`SideOffset.estimate` must give the same bits."""
+    """The side estimate written plainly (rows as the image lays them out, sliding windows, sums column by column
+    in a Python loop, np.median, both line fits always): :meth:`SideOffset.estimate`, laid out for speed, must give
+    the same bits."""
     from numpy.lib.stride_tricks import sliding_window_view
 
     from vtr.runtime.floor_view import taught_offset
     from vtr.runtime.side_offset import _weighted_line
 
-    def normalised(rows: np.ndarray) -> np.ndarray:
-        b = rows - np.add.reduce(rows, axis=2, keepdims=True) / rows.shape[2]
-        spread = np.sqrt(np.add.reduce(b * b, axis=2, keepdims=True) / rows.shape[2])
+    def column_sum(x: np.ndarray) -> np.ndarray:  # over the last axis, one column after the other
+        total = x[..., 0].copy()
+        for c in range(1, x.shape[-1]):
+            total += x[..., c]
+        return total
+
+    def normalised(rows: np.ndarray) -> np.ndarray:  # (3, rows, cols)
+        b = rows - (column_sum(rows) / rows.shape[2])[..., None]
+        spread = np.sqrt(column_sum(b * b) / rows.shape[2])[..., None]
         spread += side.matcher.cfg.std_floor * side.matcher.cfg.downsample**2
         return b / spread
 
     k, offset = taught_offset(side.poses, position)
     cur = normalised(side.floor.pool(view)[:, side.rows])
-    ref = normalised(side._taught_rows(side._band(k), offset))
+    ref = normalised(side._taught_rows(side._band(k), offset)[:, 0].transpose(2, 1, 0))
     s_max = side.shifts
     middle = cur[:, :, s_max : cur.shape[2] - s_max]
-    windows = sliding_window_view(ref, middle.shape[2], axis=2)
-    table = np.abs(windows - middle[:, :, None, :]).sum(axis=(0, 3))[:, ::-1].T / (3 * middle.shape[2])
+    windows = sliding_window_view(ref, middle.shape[2], axis=2)  # (3, rows, shifts, cols)
+    per_colour = column_sum(np.abs(windows - middle[:, :, None, :]))
+    table = (per_colour[0] + per_colour[1] + per_colour[2])[:, ::-1].T / (3 * middle.shape[2])
     best = table.argmin(axis=0)
     at = np.clip(best, 1, 2 * s_max - 1)
     r = np.arange(len(side.rows))
