@@ -239,14 +239,17 @@ class Matcher:
         wp = self.tile_columns(frame)
         grid = others.reshape(k, n // wp, wp, d)
         out = np.full((len(shifts), k), np.nan)
-        for i, shift in enumerate(shifts):
-            if only is not None and i != only:
+        picked = range(len(shifts)) if only is None else (only,)
+        for first in (0, 1):  # a shift to the right faces columns from 0, one to the left from 1
+            at = [i for i in picked if (shifts[i] > 0) == (first == 0)]
+            if not at:
                 continue
-            first = 0 if shift > 0 else 1  # a shift to the right faces columns from 0, one to the left from 1
-            diff = grid[:, :, first : first + wp - 1] - features[i]  # (K, rows, columns - 1, D)
+            # every shift that way in one batch: (S', K, rows, columns - 1, D)
+            diff = grid[None, :, :, first : first + wp - 1] - features[at, None]
             np.abs(diff, out=diff)
-            # reduced as distances() reduces its (K, tiles, D) stack
-            out[i] = self._trimmed(np.add.reduce(diff.reshape(k, -1, d), axis=-1) / d)
+            # reduced as distances() reduces its (K, tiles, D) stack, a row per shift and view
+            scores = self._trimmed(np.add.reduce(diff.reshape(len(at) * k, -1, d), axis=-1) / d)
+            out[at] = scores.reshape(len(at), k)
         return out
 
     def _trimmed(self, per_tile: np.ndarray) -> np.ndarray:

@@ -334,12 +334,13 @@ class SideOffset:
         # the current rows' middle columns, once for each offset, against every window of the taught rows:
         # window i is a shift of s_max - i (the current column c against the taught c - s); the strided view is
         # what sliding_window_view makes, without its ~50 us of Python checks
-        middle = np.tile(cur.reshape(cols, -1)[s_max : s_max + m], (1, d))
+        middle = np.empty((m, d, cur[0].size), np.float32)
+        middle[...] = cur.reshape(cols, 1, -1)[s_max : s_max + m]
         step = taught.strides[0]
         windows = as_strided(
             taught, (2 * s_max + 1, m, taught.shape[1]), (step, step, taught.strides[1]), False
         )
-        diff = np.subtract(windows, middle)
+        diff = np.subtract(windows, middle.reshape(m, -1))
         np.abs(diff, out=diff)
         per_colour = np.add.reduce(diff, axis=1).reshape(2 * s_max + 1, d, -1, 3)  # summed column by column
         table = per_colour[..., 0] + per_colour[..., 1]
