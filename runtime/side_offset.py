@@ -140,8 +140,8 @@ class SideOffset:
         #: the spacing (m) of ``along``'s candidates: 1.5 pooled pixels on the nearest row kept
         self.along_step = float(1.5 * self._ahead.min() ** 2 / (self.focal * camera.height_m))
 
-    # Floor rows are laid out column-major, (cols, D, rows, 3): D taught offsets (1 for the current view), each
-    # kept row with its colours innermost. Every reduction below is then along the first axis, over arrays whose
+    # Floor rows are laid out column-major: (cols, D, rows, 3) for D taught offsets, (cols, rows, 3) for the
+    # current view, each kept row with its colours innermost. Every reduction below is then along the first axis, over arrays whose
     # inner run is all offsets, rows and colours (2-3 thousand values), where numpy is fast; laid out row by row
     # the same sums ran over runs of 40-64 values and cost 2-3 times as much (numpy's per-run overhead). A
     # score's sum runs over the columns in order, then over the colours, the same for any D: an offset scored
@@ -189,7 +189,7 @@ class SideOffset:
         col = np.minimum(np.maximum(left * -self.focal + cols / 2, 0), cols - 1).astype(np.intp)
         row *= cols
         row += col
-        # take gathers the pixels' three colours a quarter as fast as fancy indexing does
+        # take gathers the pixels' three colours in about a quarter of fancy indexing's time
         return band.reshape(-1, 3).take(row, axis=0)
 
     def estimate(self, view: np.ndarray, position: float) -> SideEstimate | None:
