@@ -23,7 +23,7 @@ class FloorArrival:
     """Whether the floor places the robot at the last taught pose (see the module docstring)."""
 
     def __init__(self, registration: SideOffset, motion: np.ndarray, held: np.ndarray) -> None:
-        """``motion``: (L-1, 2) the taught motion of each gap (``localiser.taught_motion``); ``held``: (L,)
+        """``motion``: (L-1, 2) the taught motion of each gap (``kinematics.taught_motion``); ``held``: (L,)
         whether the teach turned in place into each subgoal (into the last one, the floor is not asked)."""
         self.registration = registration
         self.route_m = taught_translation(motion)

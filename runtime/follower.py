@@ -9,34 +9,33 @@ Each image:
 3. the end: the floor places the robot at the last taught pose (``runtime.arrival``) or, where the floor does
    not tell, the estimate is at the last subgoal (where the end's floor tells no distance, within half a step
    of it: ``FloorArrival.view_may_end``) and the view matches it as well as the teach's neighbouring views
-   match each other, and is no nearer than the one before unless the estimate is within half a step of the
-   end (``APPROACH_MARGIN``); or, the view closest to it, the policy has stopped driving there: FINISHED; or,
+   match each other, and is no nearer than the one before unless the estimate is within half a step of the end
+   (``APPROACH_MARGIN``); or, the view closest to it, the policy has stopped driving there: FINISHED; or,
    after 4 and 5, by travel (``EndWatch``: the views cannot see the robot pass the end, nor turn past the end
-   of a final turn in place): moved past what the route had left, within the settled bound FINISHED, else
-   LOST with the evidence;
+   of a final turn in place): moved past what the route had left, within the settled bound FINISHED, else LOST
+   with the evidence;
 4. blocked: the camera sees the way ahead blocked (``runtime.obstruction``: the floor just ahead, warped from
-   the taught view to the estimated pose, stops matching in a region that grew while the robot was
-   commanded forward): BLOCKED with the evidence, for as long as the detector says so. It is not an end:
-   the repeat loop holds the robot still and judges again, resumes when the way clears, and ends the run
-   as ``blocked`` after its wait. The detector needs the taught poses (or the route's dead-reckoned travel,
-   ``Route.travel_poses``) to warp the floor by: a route without them has no camera-only stop (the range
-   scan's zones in the repeat loop still apply); ``ControllerConfig.obstruction`` turns it off (ablations);
-5. lost: for ``lost_steps`` images in a row no subgoal near the estimate matches the view (the best
-   distance is over the lost bound there: the route's, or ``lost_factor`` times the taught gaps next to the
-   estimate where those are wider, ``thresholds.lost_bounds``) and the match is not improving: LOST, with
-   the evidence; or the estimate has not progressed for too many images while the view matched no subgoal
-   under its threshold, or, matched or not, for twice as many without new ground or while driven further than
-   the taught route covers across the window (``runtime.progress_watch``): LOST, with the evidence (a robot
-   that does not get on, crawls on where taught views differ, drives on blind, or stands, rocks or spins);
-6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps
-   ahead, rounded up to a subgoal), with the taught command at the estimated position as feed-forward
+   the taught view to the estimated pose, stops matching in a region that grew while the robot was commanded
+   forward): BLOCKED with the evidence, for as long as the detector says so. Not an end: the repeat loop holds
+   the robot still, resumes when the way clears, and ends the run ``blocked`` after its wait. Without taught
+   poses (or ``Route.travel_poses``) to warp the floor by there is no camera-only stop (the range scan's
+   zones still apply); ``ControllerConfig.obstruction`` turns it off (ablations);
+5. lost: for ``lost_steps`` images in a row no subgoal near the estimate matches the view (the best distance
+   is over the lost bound there: the route's, or ``lost_factor`` times the taught gaps next to the estimate
+   where those are wider, ``thresholds.lost_bounds``) and the match is not improving: LOST, with the evidence;
+   or the estimate has not progressed for too many images while the view matched no subgoal under its
+   threshold, or, matched or not, for twice as many without new ground or while driven further than the taught
+   route covers across the window (``runtime.progress_watch``): LOST, with the evidence (a robot that does not
+   get on, crawls on where taught views differ, drives on blind, stands, rocks or spins);
+6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps ahead,
+   rounded up to a subgoal), with the taught command at the estimated position as feed-forward
    (``Decision.prior``, blended by the repeat loop; faded out over the last control step of taught motion
    before the end, ``RouteLocaliser.left_to_end``) and no translation where the teach turned in place (from
-   where the floor places the robot at the turn's pose, where it tells: ``runtime.pivot``);
-   where the teach drove forward, a turn back toward the taught path (``Decision.turn``, added by the
-   repeat loop) from the side offset the floor shows (``runtime.side_turn``: a pure pursuit of the path
-   point ``side_lookahead`` ahead, at most ``SIDE_TURN_MAX``). VelocityNet lines the view up with the
-   subgoal's, which closes a side offset only over a few wall distances of travel.
+   where the floor places the robot at the turn's pose, where it tells: ``runtime.pivot``; to where the views
+   place it past the turn's end, or the floor shows it turned to that end: ``runtime.turn_end``); where the
+   teach drove forward, a turn back toward the taught path (``Decision.turn``, added by the repeat loop) from
+   the side offset the floor shows (``runtime.side_turn``: a pure pursuit of the path point ``side_lookahead``
+   ahead, at most ``SIDE_TURN_MAX``: VelocityNet alone closes a side offset over a few wall distances).
 
 The subgoal steered to changes because the estimate moved (ADVANCE events when it moved past subgoals, a
 JUMP back when the views placed the robot behind); never by a timeout, a plateau or a jump on a stall.
@@ -56,7 +55,8 @@ from vtr.runtime.controller_config import ControllerConfig
 from vtr.runtime.decisions import Action, Decision, Verdict
 from vtr.runtime.floor_view import Camera
 from vtr.runtime.frame import Frame, as_frame
-from vtr.runtime.localiser import Estimate, RouteLocaliser, taught_motion
+from vtr.runtime.kinematics import taught_motion
+from vtr.runtime.localiser import Estimate, RouteLocaliser
 from vtr.runtime.obstruction import FORWARD_SPEED, ObstructionVerdict, SideFn, moving
 from vtr.runtime.pivot import PivotArrival
 from vtr.runtime.progress_watch import EndWatch, ProgressWatch, taught_translation
@@ -70,6 +70,7 @@ from vtr.runtime.route_sensing import (
 from vtr.runtime.side_offset import SideEstimate
 from vtr.runtime.side_turn import SideTurn
 from vtr.runtime.thresholds import check_subgoals, lost_bounds, route_views
+from vtr.runtime.turn_end import TurnEnd
 
 if TYPE_CHECKING:
     from vtr.runtime.route import Route
@@ -127,7 +128,7 @@ class Follower:
         )
         self.side_turn = SideTurn(self.cfg.side_gain, self.cfg.side_lookahead)  # toward the taught path
         self.obstructed: ObstructionVerdict | None = None  # the detector's verdict on the last view
-        self._speed, self._step_m = 0.0, 0.0  # the last forward speed commanded (m/s), its travel (m)
+        self._speed, self._step_m, self._turn = 0.0, 0.0, 0.0  # the last command: m/s, travel (m), turn (rad)
         self._moved = False  # commanded to drive or turn since the last view
         self.index = 0  # the subgoal steered to
         self.status: Action | None = None
@@ -142,6 +143,7 @@ class Follower:
         self.end = EndWatch(self.localiser.travelled, motion, self._held)  # the end by travel (a turn's too)
         self.arrival = FloorArrival.of(self._floor_side, motion, self._held)  # the end by the floor
         self.pivot = PivotArrival(self._floor_side, motion, self._held)  # a turn in place's start by it
+        self.turn_end = TurnEnd(self._floor_side, motion, self._held)  # and its end
         self._idle, self._finished, self._approach = 0, False, math.inf  # _approach: the last final_error
 
     @classmethod
@@ -173,7 +175,7 @@ class Follower:
     def commanded(self, v: float, w: float, dt: float) -> None:
         """The repeat loop applied (v, w) for ``dt`` seconds: the estimate moves along the route."""
         self._idle = self._idle + 1 if abs(v) < IDLE_SPEED and abs(w) < IDLE_TURN else 0
-        self._speed, self._step_m = v, abs(v) * dt
+        self._speed, self._step_m, self._turn = v, abs(v) * dt, abs(w) * dt
         self._moved = self._moved or moving(v, w)
         self.progress.commanded(v, dt)
         self.pivot.commanded(v, dt)
@@ -240,15 +242,12 @@ class Follower:
             note = note or f"the view {final_error:.3f} from the last subgoal's (threshold {threshold:.3f})"
             return Decision(Action.FINISHED, len(self), final_error, note=note)
         floor_side = floor_side_of(self._floor_side, image, est.position)  # one registration a view, lazily
-        blocked = self._blocked(image, est, floor_side)
-        if blocked is not None:
+        if (blocked := self._blocked(image, est, floor_side)) is not None:
             return blocked
         matched = est.best_error <= float(self.thresholds[est.best])  # a view under its subgoal's threshold
-        lost = self._lost(est) or self._stalled(est, matched)
-        if lost is not None:
+        if (lost := self._lost(est) or self._stalled(est, matched)) is not None:
             return lost
-        past = self._past_end(est, at_end, matched, close, final_error)
-        if past is not None:
+        if (past := self._past_end(est, at_end, matched, close, final_error)) is not None:
             return past
         gap = min(int(est.position), last - 1) if last > 0 else 0
         # in a taught turn in place: the turn's pose, where the floor places the robot short of it (the belief
@@ -259,12 +258,13 @@ class Follower:
         if pose is not None:
             est = self.estimate = self.localiser.last or est
             gap = min(gap, pose - 1)
+        elif self.holds_turn(gap + 1) and (end := self.turn_end.witness(image, est.position, self._turn)):
+            est = self.estimate = self.localiser.at_least(end)
+            gap = end
         target = min(last, int(math.floor(est.position + self.cfg.lead)) + 1, pose or last)
         hold = self.holds_turn(gap + 1)  # the teach turned on the spot where the robot is
-        # In a taught turn in place the route's turn is replayed as taught until the views place the robot past
-        # it: the policy, aiming at the view after the turn, eased off before the estimate got there and both
-        # then waited for the other (a plain room; a held-out route's start); a heading off by the last bit of
-        # the turn is the policy's to correct on the drive that follows.
+        # a taught turn in place is replayed as taught: the policy alone, aiming at the view after it, eased off
+        # short of where the views place the robot past it (a plain room; a held-out route's start)
         turn = 1.0 if hold else self.cfg.feed_forward_turn
         # the taught motion left to the end, in control steps: the last of it is VelocityNet's alone (the taught
         # command into the last subgoal, replayed at the end, drove the robot past it)

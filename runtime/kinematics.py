@@ -1,4 +1,5 @@
-"""The unicycle the protocol's (v, w) commands drive: one source for the arc a held command traces."""
+"""The unicycle the protocol's (v, w) commands drive: one source for the arc a held command traces, and for the
+motion a taught route makes between its subgoals."""
 
 from __future__ import annotations
 
@@ -25,3 +26,23 @@ def unicycle(x: float, y: float, yaw: float, v: float, w: float, t: float) -> tu
         y - r * (math.cos(yaw + w * t) - math.cos(yaw)),
         yaw + w * t,
     )
+
+
+def taught_motion(travel_poses: np.ndarray | None, commands: np.ndarray, n: int, steps: float) -> np.ndarray:
+    """(n-1, 2) signed taught motion of each gap: (metres forward, radians counter-clockwise).
+
+    From the taught poses where known (the sign of the distance from the taught command); else the taught
+    command held for ``steps`` control steps of its dt (the caller passes ``dt * steps`` as ``steps``)."""
+    out = np.zeros((max(n - 1, 0), 2))
+    if n < 2:
+        return out
+    cmds = np.asarray(commands, dtype=np.float64)[: n - 1]
+    if travel_poses is not None and len(travel_poses) >= n and np.isfinite(travel_poses[:n]).all():
+        p = np.asarray(travel_poses, dtype=np.float64)[:n]
+        distance = np.hypot(*np.diff(p[:, :2], axis=0).T)
+        sign = np.where(cmds[:, 0] < 0, -1.0, 1.0)
+        turn = wrap_angle(np.diff(p[:, 2]))
+        out[:, 0], out[:, 1] = sign * distance, turn
+        return out
+    out[:] = cmds * steps
+    return out

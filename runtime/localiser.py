@@ -29,7 +29,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from vtr.runtime.frame import Frame
-from vtr.runtime.kinematics import wrap_angle
 from vtr.runtime.matching import Matcher
 
 
@@ -106,26 +105,6 @@ REGISTER_COLUMNS = 4
 CONFIDENT_SPAN = 0.75
 
 
-def taught_motion(travel_poses: np.ndarray | None, commands: np.ndarray, n: int, steps: float) -> np.ndarray:
-    """(n-1, 2) signed taught motion of each gap: (metres forward, radians counter-clockwise).
-
-    From the taught poses where known (the sign of the distance from the taught command); else the taught
-    command held for ``steps`` control steps of its dt (the caller passes ``dt * steps`` as ``steps``)."""
-    out = np.zeros((max(n - 1, 0), 2))
-    if n < 2:
-        return out
-    cmds = np.asarray(commands, dtype=np.float64)[: n - 1]
-    if travel_poses is not None and len(travel_poses) >= n and np.isfinite(travel_poses[:n]).all():
-        p = np.asarray(travel_poses, dtype=np.float64)[:n]
-        distance = np.hypot(*np.diff(p[:, :2], axis=0).T)
-        sign = np.where(cmds[:, 0] < 0, -1.0, 1.0)
-        turn = wrap_angle(np.diff(p[:, 2]))
-        out[:, 0], out[:, 1] = sign * distance, turn
-        return out
-    out[:] = cmds * steps
-    return out
-
-
 def _mean(x: np.ndarray, axis: int) -> np.ndarray:
     """``np.mean(x, axis)`` of a float64 array: the same sum and division, without its Python wrappers (the
     update runs a few of these on a small table every step)."""
@@ -156,7 +135,7 @@ class RouteLocaliser:
         cfg: LocaliserConfig | None = None,
     ) -> None:
         """``feats``: the subgoals' features (``matcher.features``); ``motion``: (L-1, 2) from
-        :func:`taught_motion`; ``median_gap``: the route's median distance between consecutive subgoals."""
+        :func:`~vtr.runtime.kinematics.taught_motion`; ``median_gap``: the route's median distance between consecutive subgoals."""
         self.cfg = cfg or LocaliserConfig()
         self.matcher, self.feats = matcher, feats
         self.n = len(feats)
@@ -361,6 +340,20 @@ class RouteLocaliser:
         assert self.last is not None, "observe follows update"
         self.belief *= np.exp(-0.5 * ((self.cells - position) / max(std, 1e-6)) ** 2)
         self._normalise()
+        return self._respread()
+
+    def at_least(self, position: float) -> Estimate:
+        """After :meth:`update`: the floor places the robot at ``position`` or past it (``runtime.turn_end``): the
+        belief short of it moves there (not mixed: a mean a hair short would still be in the gap before)."""
+        assert self.last is not None, "at_least follows update"
+        cut = int(round(position * self.cfg.cells_per_gap))
+        self.belief[cut] += self.belief[:cut].sum()
+        self.belief[:cut] = 0.0
+        return self._respread()
+
+    def _respread(self) -> Estimate:
+        """The last estimate with the position, spread and confidence of the belief as it is now."""
+        assert self.last is not None
         mean, spread, confidence = self._spread()
         self.last = replace(self.last, position=mean, std=spread, confidence=confidence)
         return self.last

@@ -36,7 +36,7 @@ class PivotArrival:
     def __init__(self, registration: SideOffset | None, motion: np.ndarray, held: np.ndarray) -> None:
         """``registration``: the route's floor (None: none, and every turn starts where the estimate gets to it,
         as on a route with no turn in place after a drive); ``motion``: (L-1, 2) the taught motion of each gap
-        (``localiser.taught_motion``); ``held``: (L,) whether the teach turned in place into each subgoal."""
+        (``kinematics.taught_motion``); ``held``: (L,) whether the teach turned in place into each subgoal."""
         self.registration = registration
         n = len(held) if registration is not None else 0
         drive = np.abs(motion[:, 0])

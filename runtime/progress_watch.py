@@ -115,7 +115,7 @@ class ProgressWatch:
 
 def taught_translation(motion: np.ndarray) -> np.ndarray:
     """(L,) the taught translation (m, either way) from the first subgoal to each, from the (L-1, 2) taught
-    motion of each gap (``localiser.taught_motion``): the ``route_m`` the floor's registrations place along."""
+    motion of each gap (``kinematics.taught_motion``): the ``route_m`` the floor's registrations place along."""
     return np.concatenate([[0.0], np.cumsum(np.abs(motion[:, 0]))])
 
 

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from runtime_fakes import corridor_route, render
 
-from vtr.runtime.localiser import LocaliserConfig, RouteLocaliser, taught_motion
+from vtr.runtime.kinematics import taught_motion
+from vtr.runtime.localiser import LocaliserConfig, RouteLocaliser
 from vtr.runtime.matching import MatchConfig, Matcher
 
 SPACING = 0.05  # m between the corridor route's subgoals
