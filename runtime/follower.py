@@ -143,7 +143,7 @@ class Follower:
         self.end = EndWatch(self.localiser.travelled, motion, self._held)  # the end by travel (a turn's too)
         self.arrival = FloorArrival.of(self._floor_side, motion, self._held)  # the end by the floor
         self.pivot = PivotArrival(self._floor_side, motion, self._held)  # a turn in place's start by it
-        self.turn_end = TurnEnd(self._floor_side, motion, self._held)  # and its end
+        self.turn_end = TurnEnd(self._floor_side, motion, self._held, self.commands[:, 0] == 0)  # and its end
         self._idle, self._finished, self._approach = 0, False, math.inf  # _approach: the last final_error
 
     @classmethod
