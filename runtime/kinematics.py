@@ -1,5 +1,5 @@
-"""The unicycle the protocol's (v, w) commands drive: one source for the arc a held command traces, and for the
-motion a taught route makes between its subgoals."""
+"""The unicycle the protocol's (v, w) commands drive: one source for the arc a held command traces, and for
+the motion a taught route makes between its subgoals."""
 
 from __future__ import annotations
 

@@ -135,7 +135,8 @@ class RouteLocaliser:
         cfg: LocaliserConfig | None = None,
     ) -> None:
         """``feats``: the subgoals' features (``matcher.features``); ``motion``: (L-1, 2) from
-        :func:`~vtr.runtime.kinematics.taught_motion`; ``median_gap``: the route's median distance between consecutive subgoals."""
+        :func:`~vtr.runtime.kinematics.taught_motion`; ``median_gap``: the route's median distance between
+        consecutive subgoals."""
         self.cfg = cfg or LocaliserConfig()
         self.matcher, self.feats = matcher, feats
         self.n = len(feats)
@@ -343,8 +344,8 @@ class RouteLocaliser:
         return self._respread()
 
     def at_least(self, position: float) -> Estimate:
-        """After :meth:`update`: the floor places the robot at ``position`` or past it (``runtime.turn_end``): the
-        belief short of it moves there (not mixed: a mean a hair short would still be in the gap before)."""
+        """After :meth:`update`: the floor places the robot at ``position`` or past it (``runtime.turn_end``):
+        the belief short of it moves there (not mixed: a mean a hair short would still be in the gap before)."""
         assert self.last is not None, "at_least follows update"
         cut = int(round(position * self.cfg.cells_per_gap))
         self.belief[cut] += self.belief[:cut].sum()

@@ -11,11 +11,11 @@ The floor the teach saw at the turn's end, registered as the side offset is (``S
 subgoal: the far rows shift with the heading), tells the robot's heading against the taught one there to about
 a degree, wherever the robot stands near the pivot. Open loop on development routes (71 turns of gen_106-179,
 49 of houses random:900-959; headings 25 deg either way, robots up to 8 cm beside the pivot): no reading put a
-robot 4 deg or more short of the end at or past it, and within a degree of it 92-100% (paper house) and 61-82%
+robot 4 deg or more short of the end at or past it, and within a degree of it 96-100% (paper house) and 61-82%
 (houses, where some floors tell nothing) read there. Where the floor places the heading at the end or past it
-(short by no more than half the last command's turn, as the end's arrival judges a distance), the turn is over:
-the belief moves to the end's subgoal (``RouteLocaliser.at_least``) and the robot drives on as the teach did,
-VelocityNet correcting what heading is left. Where the floor does not tell, the replay goes on as before.
+(short by no more than half the last command's turn, as the end's arrival judges a distance), the turn is
+over: the belief moves to the end's subgoal (``RouteLocaliser.at_least``) and the robot drives on as the teach
+did, VelocityNet correcting what heading is left. Where the floor does not tell, the replay goes on as before.
 """
 
 from __future__ import annotations
@@ -33,10 +33,11 @@ class TurnEnd:
         self, registration: SideOffset | None, motion: np.ndarray, held: np.ndarray, still: np.ndarray
     ) -> None:
         """``registration``: the route's floor (None: none, and every turn ends where the views place it);
-        ``motion``: (L-1, 2) the taught motion of each gap (``kinematics.taught_motion``); ``held``: (L,) whether
-        the teach turned in place into each subgoal; ``still``: (L,) whether the taught command out of each
-        subgoal had no translation (a turn goes on where the teach turned on with no translation commanded
-        but its pose moved, dev house random:939 at 120 deg: 9 mm and 2.4 deg more after the held ones)."""
+        ``motion``: (L-1, 2) the taught motion of each gap (``kinematics.taught_motion``); ``held``: (L,)
+        whether the teach turned in place into each subgoal; ``still``: (L,) whether the taught command out of
+        each subgoal had no translation (a turn goes on where the teach turned on with no translation
+        commanded but its pose moved, dev house random:939 at 120 deg: 9 mm and 2.4 deg more after the held
+        ones)."""
         self.registration = registration
         n = len(held) if registration is not None else 0
         turn = np.asarray(motion, dtype=np.float64).reshape(-1, 2)[:, 1]
@@ -59,9 +60,9 @@ class TurnEnd:
 
     def witness(self, view: Frame | np.ndarray, position: float, turn_step: float) -> int | None:
         """The end's subgoal of the taught turn in place that the estimate ``position`` is in, where the floor
-        shows the robot turned to it or past it (short by at most half of ``turn_step``, the last command's turn
-        in radians); None where it is not in such a turn, the turn left is beyond the registration's reach, or
-        the floor does not show that."""
+        shows the robot turned to it or past it (short by at most half of ``turn_step``, the last command's
+        turn in radians); None where it is not in such a turn, the turn left is beyond the registration's
+        reach, or the floor does not show that."""
         gap = int(position)
         end = int(self.end_of[gap + 1]) if 0 <= gap + 1 < len(self.end_of) else -1
         if end < 0 or self.registration is None:
