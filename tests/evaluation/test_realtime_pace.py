@@ -31,9 +31,29 @@ def test_a_realtime_repeat_is_timed_against_the_teach(tmp_path: Path) -> None:
         assert row["time_ratio"] == pytest.approx(row["wall_s"] / row["taught_s"], rel=0.01)
         # no upper bound: a wall clock on a shared machine waits for a core (6x under load 6); the pace itself
         # is a benchmark (`vtr eval --suite pace`), not a timed test
-        assert row["time_ratio"] > 0.5 and row["mean_error_mm"] < 30
+        assert row["time_ratio"] > 0.5 and row["mean_error_mm"] < 30 and row["off_route"] == ""
     table = realtime_pace.table(rows)
-    assert "| default | 1 | 1 |" in table and "| continuous | 1 | 1 |" in table
+    assert "| default | 1 | 1 | 1 |" in table and "| continuous | 1 | 1 | 1 |" in table
+
+
+def _row(status: str, off_route: str = "", ratio: float = 1.05) -> dict:
+    return {
+        "motion": "default", "status": status, "off_route": off_route, "time_ratio": ratio, "steps_ratio": 1.0,
+        "mean_error_mm": 8.0,
+    }  # fmt: skip
+
+
+def test_a_run_that_finished_off_the_route_is_counted_apart() -> None:
+    rows = [_row("finished"), _row("finished", "final position 54 mm > 50 from the end", 1.2), _row("lost")]
+    line = realtime_pace.table(rows).splitlines()[-1]
+    assert line.startswith("| default | 3 | 2 | 1 | 1.125 / 1.2 |")
+
+
+def test_the_report_is_written_beside_the_json(tmp_path: Path) -> None:
+    rows = [_row("finished")]
+    md = realtime_pace.write_outputs(tmp_path / "pace.json", rows, "TABLE\nload average 0.1")
+    assert md == tmp_path / "pace.md" and md.read_text() == "TABLE\nload average 0.1\n"
+    assert json.loads((tmp_path / "pace.json").read_text()) == rows
 
 
 def test_a_folder_without_routes_is_one_line_and_exit_2(
