@@ -141,11 +141,11 @@ class SideOffset:
         self.along_step = float(1.5 * self._ahead.min() ** 2 / (self.focal * camera.height_m))
 
     # Floor rows are laid out column-major: (cols, D, rows, 3) for D taught offsets, (cols, rows, 3) for the
-    # current view, each kept row with its colours innermost. Every reduction below is then along the first axis, over arrays whose
-    # inner run is all offsets, rows and colours (2-3 thousand values), where numpy is fast; laid out row by row
-    # the same sums ran over runs of 40-64 values and cost 2-3 times as much (numpy's per-run overhead). A
-    # score's sum runs over the columns in order, then over the colours, the same for any D: an offset scored
-    # in a batch gives the bits it gives alone.
+    # current view, each kept row with its colours innermost. Every reduction below is then along the first
+    # axis, over arrays whose inner run is all offsets, rows and colours (2-3 thousand values), where numpy is
+    # fast; laid out row by row the same sums ran over runs of 40-64 values and cost 2-3 times as much
+    # (numpy's per-run overhead). A score's sum runs over the columns in order, then over the colours, the
+    # same for any D: an offset scored in a batch gives the bits it gives alone.
 
     def _band(self, k: int) -> np.ndarray:
         """Taught view ``k``'s pooled floor band, (band rows, cols, 3)."""
