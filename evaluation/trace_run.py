@@ -113,6 +113,7 @@ def trace(
                     "position": math.nan if est is None else est.position,
                     "confidence": math.nan if est is None else est.confidence,
                     "match": math.nan if est is None else est.match,
+                    "best_error": math.nan if est is None else est.best_error,
                     "v": rec.v,
                     "w": rec.w,
                     "status": rec.status.value if rec.status else "",
@@ -176,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
     )
     print(
         " step    i  action    error  clean  thresh  err_i+1  dist_mm  dyaw  near_mm near_k cross_mm side_mm"
-        "     pos  conf  match"
+        "     pos  conf  match   best"
     )
     for k, r in enumerate(rows):
         if k % args.every == 0 or r["status"] or k == len(rows) - 1:
@@ -184,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
                 f"{r['step']:5d} {r['i']:4d}  {r['action'][:8]:8s} {r['error']:6.3f} {r['clean_error']:6.3f}  {r['threshold']:6.3f}  "
                 f"{r['error_next']:6.3f}  {r['dist_mm']:7.1f} {r['dyaw_deg']:5.1f}  {r['nearest_mm']:7.1f} "
                 f"{r['nearest_k']:5d}  {r['cross_mm']:7.1f} {r['side_mm']:7.1f} {r['position']:7.2f} "
-                f"{r['confidence']:5.2f} {r['match']:6.3f}"
+                f"{r['confidence']:5.2f} {r['match']:6.3f} {r['best_error']:6.3f}"
             )
     print(end)
     if args.json is not None:
