@@ -25,8 +25,10 @@ Each image:
    where those are wider, ``thresholds.lost_bounds``) and the match is not improving: LOST, with the evidence;
    or the estimate has not progressed for too many images while the view matched no subgoal under its
    threshold, or, matched or not, for twice as many without new ground or while driven further than the taught
-   route covers across the window (``runtime.progress_watch``): LOST, with the evidence (a robot that does not
-   get on, crawls on where taught views differ, drives on blind, stands, rocks or spins);
+   route covers across the window (``runtime.progress_watch``), or driven further beside the taught path than
+   ``BESIDE_M`` by its commands since a view or the floor last placed it (``runtime.beside_watch``): LOST, with
+   the evidence (a robot that does not get on, crawls on where views differ, drives on blind, stands, rocks,
+   spins, or leaves the path);
 6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps ahead,
    rounded up to a subgoal), with the taught command at the estimated position as feed-forward
    (``Decision.prior``, blended by the repeat loop; faded out over the last control step of taught motion
@@ -50,6 +52,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from vtr.runtime.arrival import FloorArrival
+from vtr.runtime.beside_watch import BesideWatch
 from vtr.runtime.controller import Controller
 from vtr.runtime.controller_config import ControllerConfig
 from vtr.runtime.decisions import Action, Decision, Verdict
@@ -69,7 +72,7 @@ from vtr.runtime.route_sensing import (
 )
 from vtr.runtime.side_offset import SideEstimate
 from vtr.runtime.side_turn import SideTurn
-from vtr.runtime.thresholds import check_subgoals, lost_bounds, route_views
+from vtr.runtime.thresholds import bound_between, check_subgoals, lost_bounds, route_views
 from vtr.runtime.turn_end import TurnEnd
 
 if TYPE_CHECKING:
@@ -140,6 +143,7 @@ class Follower:
         window = self.cfg.localiser.window_behind + self.cfg.localiser.window_ahead
         #: images and commanded translation since the last evidence of where the robot is (``_stalled``)
         self.progress = ProgressWatch(window * self._steps, taught_translation(motion))
+        self.beside_watch = BesideWatch(None if travel_poses is None else motion)  # and beside the path
         self.end = EndWatch(self.localiser.travelled, motion, self._held)  # the end by travel (a turn's too)
         self.arrival = FloorArrival.of(self._floor_side, motion, self._held)  # the end by the floor
         self.pivot = PivotArrival(self._floor_side, motion, self._held)  # a turn in place's start by it
@@ -178,6 +182,7 @@ class Follower:
         self._speed, self._step_m, self._turn = v, abs(v) * dt, abs(w) * dt
         self._moved = self._moved or moving(v, w)
         self.progress.commanded(v, dt)
+        self.beside_watch.commanded(v, w, dt)
         self.pivot.commanded(v, dt)
         self.end.commanded(v, w, dt, self.localiser.predict(v, w, dt))
 
@@ -185,6 +190,7 @@ class Follower:
         """Search the whole route on the next image (after a robot restart)."""
         self.localiser.start_at(None)
         self.progress.reset()  # counted from where the views place it now
+        self.beside_watch.reset()
         self.end.reset()
         if self.obstruction is not None:
             self.obstruction.reset()
@@ -245,6 +251,7 @@ class Follower:
         if (blocked := self._blocked(image, est, floor_side)) is not None:
             return blocked
         matched = est.best_error <= float(self.thresholds[est.best])  # a view under its subgoal's threshold
+        self.beside_watch.view(est.position, matched, self.side_turn.beside)  # the floor's: the last view's
         if (lost := self._lost(est) or self._stalled(est, matched)) is not None:
             return lost
         if (past := self._past_end(est, at_end, matched, close, final_error)) is not None:
@@ -318,17 +325,8 @@ class Follower:
             f"{verdict.growing_steps} steps",
         )
 
-    def bound_at(self, position: float) -> float:
-        """The lost bound at ``position`` (subgoal units): the larger of its two subgoals' bounds, each the
-        route's, or ``lost_factor`` times the wider taught gap next to it (where the teach's neighbouring
-        views differ more, as in a fast turn in place or facing a wall close up, often at a route's end, a
-        view between them differs more too: dev routes ended `lost` 8-22 degrees short of a final turn)."""
-        last = len(self) - 1
-        lo = min(max(int(math.floor(position)), 0), last)
-        return float(max(self.lost_bounds[lo], self.lost_bounds[min(lo + 1, last)]))
-
     def _lost(self, est: Estimate) -> Decision | None:
-        bound = self.bound_at(est.position)
+        bound = bound_between(self.lost_bounds, est.position)
         if self.cfg.lost_steps <= 0 or est.best_error <= bound:
             self._lost_count, self._lost_best = 0, math.inf
             return None
@@ -369,7 +367,8 @@ class Follower:
         ``runtime.progress_watch``'s). ``lost_steps`` <= 0 (no lost verdict at all) turns it off."""
         if self.cfg.lost_steps <= 0:
             return None
-        spent = self.progress.judge(est.position, matched, self.localiser.window_travel(est.position))
+        window_m = self.localiser.window_travel(est.position)
+        spent = self.progress.judge(est.position, matched, window_m) or self.beside_watch.judge()
         if spent is None:
             return None
         return self._stop(

@@ -80,6 +80,16 @@ def lost_bounds(gaps: np.ndarray, n: int, cfg: ControllerConfig, route_bound: fl
     return np.maximum(route_bound, cfg.lost_factor * np.maximum(incoming, outgoing))
 
 
+def bound_between(bounds: np.ndarray, position: float) -> float:
+    """The lost bound at ``position`` (subgoal units) from :func:`lost_bounds`' per subgoal: the larger of its two
+    subgoals' (where the teach's neighbouring views differ more, as in a fast turn in place or facing a wall
+    close up, often at a route's end, a view between them differs more too: dev routes ended `lost` 8-22
+    degrees short of a final turn)."""
+    last = len(bounds) - 1
+    lo = min(max(int(math.floor(position)), 0), last)
+    return float(max(bounds[lo], bounds[min(lo + 1, last)]))
+
+
 @dataclass(frozen=True)
 class RouteViews:
     """What both controllers derive from a route's subgoal images: the comparison in force (``cfg.match``, the

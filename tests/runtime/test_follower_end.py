@@ -11,6 +11,7 @@ from runtime_fakes import render
 from vtr.runtime.controller import Action, ControllerConfig
 from vtr.runtime.follower import Follower
 from vtr.runtime.route import Route
+from vtr.runtime.thresholds import bound_between
 
 #: The corridor's views change this much faster past ``WALL_AT`` (m): the robot closes in on a wall.
 STEEP, WALL_AT, END = 6.0, 0.3, 0.4
@@ -89,7 +90,8 @@ def test_a_robot_that_makes_no_progress_with_a_poor_match_ends_lost_with_the_evi
     follower = _near_end()
     actions = _standing(follower, changed_end(), follower.progress.stall_images + 2)
     est = follower.estimate
-    assert est is not None and est.best_error < follower.bound_at(est.position)  # the bound alone never held
+    assert est is not None
+    assert est.best_error < bound_between(follower.lost_bounds, est.position)  # the bound alone never held
     assert est.best_error > follower.thresholds[est.best]
     assert Action.LOST in actions and Action.FINISHED not in actions
     # not sooner: the robot had its time
