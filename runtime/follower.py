@@ -12,8 +12,8 @@ Each image:
    match each other, and is no nearer than the one before unless the estimate is within half a step of the end
    (``APPROACH_MARGIN``); or, the view closest to it, the policy has stopped driving there: FINISHED; or,
    after 4 and 5, by travel (``EndWatch``: the views cannot see the robot pass the end, nor turn past the end
-   of a final turn in place): moved past what the route had left, within the settled bound FINISHED, else LOST
-   with the evidence;
+   of a final turn in place): moved past what the route had left, within the settled bound (net of a changed
+   scene's common offset where the view follows the teach's profile) FINISHED, else LOST with the evidence;
 4. blocked: the camera sees the way ahead blocked (``runtime.obstruction``: the floor just ahead, warped from
    the taught view to the estimated pose, stops matching in a region that grew while the robot was commanded
    forward): BLOCKED with the evidence, for as long as the detector says so. Not an end: the repeat loop holds
@@ -121,14 +121,11 @@ class Follower:
         )
         if self.cfg.localise:
             self.localiser.start_at(None)
-        self.obstruction = (
-            obstruction_detector(subgoals, travel_poses, camera) if self.cfg.obstruction else None
-        )
-        self.side = side_offset(subgoals, travel_poses, camera) if self.cfg.side_gain > 0 else None
+        sensed = (subgoals, travel_poses, camera)
+        self.obstruction = obstruction_detector(*sensed) if self.cfg.obstruction else None
+        self.side = side_offset(*sensed) if self.cfg.side_gain > 0 else None
         # the detector warps the taught floor to where the floor puts the robot beside the path, too
-        self._floor_side = self.side or (
-            side_offset(subgoals, travel_poses, camera) if self.obstruction else None
-        )
+        self._floor_side = self.side or (side_offset(*sensed) if self.obstruction else None)
         self.side_turn = SideTurn(self.cfg.side_gain, self.cfg.side_lookahead)  # toward the taught path
         self.obstructed: ObstructionVerdict | None = None  # the detector's verdict on the last view
         self._speed, self._step_m, self._turn = 0.0, 0.0, 0.0  # the last command: m/s, travel (m), turn (rad)
@@ -347,12 +344,15 @@ class Follower:
         self, est: Estimate, at_end: bool, matched: bool, close: bool, error: float
     ) -> Decision | None:
         """The end by travel (``EndWatch``): FINISHED where the view matches the last subgoal within the settled
-        bound (``close``), else LOST with the evidence; None while the robot has route left."""
-        if (spent := self.end.judge(est.position, at_end, matched)) is None:
+        bound (``close``), or does net of a changed scene's common offset (``est.match``) where its distances follow
+        the teach's profile (``est.fit``), else LOST with the evidence; None while the robot has route left."""
+        fits = est.fit <= 1.0  # no noisier about the profile than the localiser expects: changed alike
+        net = fits and est.best_error - est.match <= float(self.thresholds[est.best])
+        if (spent := self.end.judge(est.position, at_end, matched or net)) is None:
             return None
         last = len(self) - 1
         threshold = float(self.thresholds[last])
-        if close:
+        if close or fits and error - est.match <= self.cfg.jump_factor * threshold:
             self._finished = True
             return Decision(Action.FINISHED, len(self), error, note=f"at the route's end: {spent}")
         return self._stop(

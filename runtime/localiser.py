@@ -80,7 +80,8 @@ class Estimate:
     ``confidence``: the belief mass within ``CONFIDENT_SPAN`` gaps of the mode (0..1); ``match``: the common
     offset of the view's distances at the estimate (matcher units: 0 when the view is as the teach saw it);
     ``best``, ``best_error``: the subgoal of the window the view is closest to, and that distance;
-    ``errors``: the window's distances, from subgoal ``first``.
+    ``errors``: the window's distances, from subgoal ``first``; ``fit``: their rms about the teach's profile at
+    the estimate, less ``match``, in units of the filter's observation noise (1: as noisy as it expects).
     """
 
     position: float
@@ -91,6 +92,7 @@ class Estimate:
     best_error: float
     first: int
     errors: np.ndarray
+    fit: float = math.nan
 
     def error_to(self, index: int) -> float:
         """The view's distance to subgoal ``index`` (nan when it was outside the window)."""
@@ -321,6 +323,7 @@ class RouteLocaliser:
             best_error=float(errors[best]),
             first=win.start,
             errors=errors,
+            fit=float(np.sqrt(sq[at])) / self.sigma,
         )
         return self.last
 
