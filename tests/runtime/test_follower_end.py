@@ -216,8 +216,8 @@ def test_a_robot_whose_views_matched_nothing_near_the_end_is_not_finished_by_tra
     """Dev gen_117 (re-coloured floor): the estimate reached the end on the commanded motion alone, 0.32 m from
     it, every view 1.4-1.9 thresholds off; a first version of the end by travel declared it finished. Here
     the camera sees a plain grey from two gaps before the end (nothing of the route; camera noise, which raises
-    every distance alike and keeps the teach's profile, is read net of that: ``test_a_noisy_view_at_the_end_of_a_
-    final_turn_is_judged_net_of_the_noise``): travel decides nothing, the other rules end it."""
+    every distance alike and keeps the teach's profile, is read net of that, as the noisy final turn's end below
+    shows): travel decides nothing, the other rules end it."""
     follower = Follower.for_route(wall_route(), ControllerConfig(zero_bias=0.0, lost_steps=3))
     x, decision = 0.0, None
     while x < 1.5:
