@@ -6,8 +6,6 @@ import enum
 import math
 from dataclasses import dataclass
 
-from vtr.runtime.frame import Frame
-
 
 class Action(str, enum.Enum):
     COMMAND = "command"  # run the policy on (image, subgoal) and apply its first (v, w)
@@ -39,9 +37,6 @@ class Decision:
     prior: tuple[float, float, float, float] | None = None
     #: COMMAND only: rad/s added to the turn after the blend (the follower's correction toward the taught path).
     turn: float = 0.0
-    #: COMMAND only: the view the policy is shown instead of the camera's (``runtime.floor_change``; None: the
-    #: camera's).
-    shown: Frame | None = None
 
 
 #: Decisions the controller takes without moving the robot: it acts on them itself and judges again.

@@ -27,7 +27,8 @@ Each image:
    threshold, or, matched or not, for twice as many without new ground or while driven further than the taught
    route covers across the window (``runtime.progress_watch``), or driven further beside the taught path than
    ``BESIDE_M`` by its commands since a view or the floor last placed it (``runtime.beside_watch``): LOST, with
-   the evidence (a robot that does not get on, crawls, drives on blind, stands, rocks, spins or leaves the path);
+   the evidence (a robot that does not get on, crawls on where views differ, drives on blind, stands, rocks,
+   spins, or leaves the path);
 6. otherwise COMMAND toward the subgoal the paper's horizon puts ahead of the estimate (``lead`` gaps ahead,
    rounded up to a subgoal), with the taught command at the estimated position as feed-forward
    (``Decision.prior``, blended by the repeat loop; faded out over the last control step of taught motion
@@ -36,12 +37,12 @@ Each image:
    place it past the turn's end, or the floor shows it turned to that end: ``runtime.turn_end``); where the
    teach drove forward, a turn back toward the taught path (``Decision.turn``, added by the repeat loop) from
    the side offset the floor shows (``runtime.side_turn``: a pure pursuit of the path point ``side_lookahead``
-   ahead, at most ``SIDE_TURN_MAX``: VelocityNet alone closes a side offset over a few wall distances); where
-   the floor changed since the teach, VelocityNet sees the subgoal's floor (``Decision.shown``, ``floor_change``).
+   ahead, at most ``SIDE_TURN_MAX``: VelocityNet alone closes a side offset over a few wall distances).
 
-The subgoal steered to changes because the estimate moved (ADVANCE events past subgoals, a JUMP back where the
-views placed the robot behind), never by a timeout, a plateau or a jump on a stall; each command the repeat
-loop reports (:meth:`Follower.commanded`) moves the estimate along."""
+The subgoal steered to changes because the estimate moved (ADVANCE events when it moved past subgoals, a
+JUMP back when the views placed the robot behind); never by a timeout, a plateau or a jump on a stall.
+The repeat loop reports every command (:meth:`Follower.commanded`), which moves the estimate along.
+"""
 
 from __future__ import annotations
 
@@ -55,7 +56,6 @@ from vtr.runtime.beside_watch import BesideWatch
 from vtr.runtime.controller import Controller
 from vtr.runtime.controller_config import ControllerConfig
 from vtr.runtime.decisions import Action, Decision, Verdict
-from vtr.runtime.floor_change import FloorChange
 from vtr.runtime.floor_view import Camera
 from vtr.runtime.frame import Frame, as_frame
 from vtr.runtime.kinematics import taught_motion
@@ -127,7 +127,6 @@ class Follower:
         # the detector warps the taught floor to where the floor puts the robot beside the path, too
         self._floor_side = self.side or (side_offset(*sensed) if self.obstruction else None)
         self.side_turn = SideTurn(self.cfg.side_gain, self.cfg.side_lookahead)  # toward the taught path
-        self.floor_change = FloorChange(self._floor_side, self.localiser.straight)  # not shown to VelocityNet
         self.obstructed: ObstructionVerdict | None = None  # the detector's verdict on the last view
         self._speed, self._step_m, self._turn = 0.0, 0.0, 0.0  # the last command: m/s, travel (m), turn (rad)
         self._moved = False  # commanded to drive or turn since the last view
@@ -271,7 +270,8 @@ class Follower:
         # a taught turn in place is replayed as taught: the policy alone, aiming at the view after it, eased off
         # short of where the views place the robot past it (a plain room; a held-out route's start)
         turn = 1.0 if hold else self.cfg.feed_forward_turn
-        # the taught motion left, in control steps: the last is VelocityNet's alone (replayed, it drove past the end)
+        # the taught motion left to the end, in control steps: the last of it is VelocityNet's alone (the taught
+        # command into the last subgoal, replayed at the end, drove the robot past it)
         left = self.localiser.left_to_end(self._steps)
         prior = None
         if (self.cfg.feed_forward > 0 or turn > 0) and last > 0:
@@ -285,7 +285,6 @@ class Follower:
             v_limit=0.0 if hold else math.inf,
             prior=prior,
             turn=self._side_turn(floor_side, gap, driving=not hold and last > 0),
-            shown=self.floor_change.shown(image, est.position, self.subgoals[target]),
         )
 
     @property

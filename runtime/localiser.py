@@ -151,10 +151,10 @@ class RouteLocaliser:
         self._gap_m = np.sqrt(self._motion_sq)  # each gap's taught travel (m, turns at ``rho`` a radian)
         # the taught travel from the first subgoal to each: window_travel's sums, the end by travel's route
         self._travelled = np.concatenate([[0.0], np.cumsum(self._gap_m)])
-        #: per subgoal: whether the teach drove on without turning much on either side (``register_turn``)
+        # per subgoal: whether the teach drove on without turning much on either side (register_turn)
         turn = np.abs(np.asarray(motion, dtype=np.float64).reshape(-1, 2)[:, 1])
         before, after = np.concatenate([[0.0], turn]), np.concatenate([turn, [0.0]])
-        self.straight = np.maximum(before, after) < self.cfg.register_turn
+        self._straight = np.maximum(before, after) < self.cfg.register_turn
         self._shifts = tuple(s for size in self.cfg.shifts for s in (size, -size))  # each size, both ways
         if any(size >= matcher.cfg.patch for size in self.cfg.shifts):
             raise ValueError(
@@ -371,7 +371,7 @@ class RouteLocaliser:
         subgoal the belief expects (the closest one where it has no prior), where those are lower."""
         near = int(errors.argmin()) if self._wide else int(round(self._mean())) - win.start
         near = min(max(near, 0), len(errors) - 1)
-        if not self.straight[win.start + near]:
+        if not self._straight[win.start + near]:
             return errors
         target = self.feats[win.start + near : win.start + near + 1]
         d = self.matcher.shifted_distances(frame, self._shifts, target)[:, 0]

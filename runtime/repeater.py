@@ -267,8 +267,7 @@ class Repeater:
         if self.steps >= self.max_steps:
             return self._end(RepeatStatus.STEP_LIMIT, "", verdict)
         target = min(self.controller.index, self._last)
-        shown = obs.frame if decision.shown is None else decision.shown  # runtime.floor_change
-        velocities = self.policy.predict(shown, self._views[target])
+        velocities = self.policy.predict(obs.frame, self._views[target])
         v, w = float(velocities[0, 0]), float(velocities[1, 0])
         if self._bias is not None:
             v, w = v - float(self._bias[target, 0]), w - float(self._bias[target, 1])

@@ -47,9 +47,10 @@ class SideConfig:
     near_m: float = 0.35
     far_m: float = 1.2
     #: Largest shift tried each way, as an angle (rad): a row's shift is f (psi + dy / X) pixels, so this bounds
-    #: psi + dy / X for any camera (12 pooled pixels of the 90 deg, 128 px camera, focal length 32 of them: 10 cm
-    #: aside is 9 of them on the nearest row). As a share of the width it was 37 deg each way at 120 deg, where a
-    #: row's best shift was as often a wrong one (dev houses at 120 deg: 27/40 completed, 36/40 with the angle).
+    #: psi + dy / X whatever the camera's field of view or resolution (12 pooled pixels of the 90 deg, 128 px
+    #: camera, whose focal length is 32 of them: a side offset of 10 cm is 9 of them on the nearest row). As a
+    #: share of the image's width it was 37 deg each way on a 120 deg camera, where a row's best shift was as
+    #: often a wrong one (dev houses at 120 deg: 27/40 completed, 36/40 with the angle).
     max_shift_rad: float = 0.375
     #: A row counts when its best score (mean absolute difference of normalised values: 0 the same row,
     #: about 1.1 unrelated ones) is under ``match`` and its median over the shifts ``distinct`` above it.
@@ -57,24 +58,28 @@ class SideConfig:
     distinct: float = 0.1
     #: ... and an estimate needs this share of the rows to agree on one line.
     min_share: float = 0.7
-    #: Rows this far off the fitted line, as an angle (rad), are dropped and the line fitted again (1.5 px pooled)
+    #: Rows whose shift is this far off the fitted line, as an angle (rad), are dropped and the line fitted
+    #: again (1.5 pooled pixels of the 90 deg, 128 px camera).
     outlier_rad: float = 1.5 / 32
     #: A registration along the route (:meth:`SideOffset.along`) tells the robot has arrived only where its best
     #: offset scores this much under every offset two or more steps from it that would put the robot short
-    #: (median row, as ``distinct``; ``runtime.arrival``): where the floor tells little the lowest score is where
-    #: noise put it (dev houses 900-999, readings that ended a run: 5 of 33 with margins under 0.06 were 3-7 cm
-    #: off the robot, none of 68 over 0.06 more than 2 cm).
+    #: (median row, as ``distinct``; ``runtime.arrival``). Where the floor tells little the scores lie within a
+    #: few hundredths of each other and the lowest is where noise put it: on dev houses 900-999, of the
+    #: readings that ended a run, 5 of 33 with margins (over every offset two or more steps away) under 0.06
+    #: were 3-7 cm off the robot, none of 68 over 0.06 more than 2 cm.
     along_margin: float = 0.07
-    #: The side offset is registered at this many of :meth:`SideOffset.along`'s steps each way around the
-    #: localiser's estimate and taken where the floor matches best; where that is the furthest tried, the search
-    #: goes on that way, up to ``along_reach`` steps, and where it still is, the floor tells none (0: no search).
+    #: The side offset is registered at this many of :meth:`SideOffset.along`'s steps each way along the route
+    #: around the localiser's estimate, and taken where the floor matches best; where the best is the furthest
+    #: tried, the search goes on that way as many steps again, up to ``along_reach`` steps from the estimate, and
+    #: where the best is still the furthest tried, the floor tells no side offset. 0: at the estimate.
     along_search: int = 2
     along_reach: int = 6
     #: ... and the best must score under every offset two or more steps from it (those within ``along_search``
     #: of the estimate and every ``along_search``-th out to ``along_reach``); where one scores within
     #: ``along_distinct`` of it and reads a side offset more than ``rival_side_m`` from the best's, the floor
-    #: tells none: a floor that repeats along the path (planks at a slant) matches nearly as well elsewhere, each
-    #: offset with its own side offset (dev house random:943: readings 30-50 mm off, wherever noise favoured).
+    #: tells none: a floor that repeats along the path (planks at a slant) matches nearly as well at other
+    #: offsets, each with its own side offset (dev house random:943: readings 30-50 mm off, read at whichever
+    #: offset noise favoured).
     along_distinct: float = 0.08
     rival_side_m: float = 0.05
 
@@ -111,8 +116,6 @@ class SideOffset:
         down, _ = camera.rays(np.arange(top, h // ds) * ds + ds / 2, np.zeros(1))
         ahead = np.where(down > 0, camera.height_m / np.where(down > 0, down, 1.0), np.inf)
         self.rows = np.flatnonzero((ahead >= cfg.near_m) & (ahead <= cfg.far_m))
-        #: the image row from which down the kept rows lie: the floor ``far_m`` ahead and nearer
-        self.floor_row = int((top + self.rows[0]) * ds) if len(self.rows) else h
         self.min_rows = max(3, int(math.ceil(cfg.min_share * len(self.rows))))
         if len(self.rows) < 4:
             raise ValueError(f"a {h}x{w} camera sees too few floor rows {cfg.near_m}-{cfg.far_m} m ahead")
@@ -138,9 +141,11 @@ class SideOffset:
         self.along_step = float(1.5 * self._ahead.min() ** 2 / (self.focal * camera.height_m))
 
     # Floor rows are laid out column-major: (cols, D, rows, 3) for D taught offsets, (cols, rows, 3) for the
-    # current view, colours innermost, so that every reduction runs along the first axis over inner runs of 2-3
-    # thousand values (row by row, runs of 40-64 cost 2-3 times as much: numpy's per-run overhead). A score sums
-    # over the columns in order, then the colours, for any D: an offset scored in a batch gives the same bits.
+    # current view, each kept row with its colours innermost. Every reduction below is then along the first
+    # axis, over arrays whose inner run is all offsets, rows and colours (2-3 thousand values), where numpy is
+    # fast; laid out row by row the same sums ran over runs of 40-64 values and cost 2-3 times as much
+    # (numpy's per-run overhead). A score's sum runs over the columns in order, then over the colours, the
+    # same for any D: an offset scored in a batch gives the bits it gives alone.
 
     def _band(self, k: int) -> np.ndarray:
         """Taught view ``k``'s pooled floor band, (band rows, cols, 3)."""
@@ -250,13 +255,6 @@ class SideOffset:
             else (fit.dy + abs(frac) * (near.dy - fit.dy), fit.psi + abs(frac) * (near.psi - fit.psi))
         )
         return SideEstimate(dy, psi, fit.rows, float((best + frac) * self.along_step))
-
-    def floor_match(self, view: np.ndarray, position: float) -> float:
-        """The median floor row's best score of ``view`` against the taught floor at route ``position`` (0: the
-        same floor; about 1.1: unrelated rows; over ``match``: no row of the floor the teach saw)."""
-        k, offset = taught_offset(self.poses, position)
-        table = self._table(self._current(view), self._taught_rows(self._band(k), offset))
-        return float(self._row_score(table[0]))
 
     def along(
         self, view: np.ndarray, k: int, ahead: np.ndarray, rivals_below: float = math.inf
